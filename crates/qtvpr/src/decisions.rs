@@ -1,0 +1,296 @@
+//! SPEC section 2: which candidates a matrix offers, which are correct, and the
+//! TP/FP/precision/recall of a threshold.
+//!
+//! Both matching modes reduce to the same shape: per query column, a list of
+//! `(score, correct)` candidates sorted by descending score. In single mode the list
+//! holds the column's best match (or nothing, when that match is ignored); in multi
+//! mode it holds every non-ignored entry. Sorting once per column here lets every
+//! later sweep over a subset of columns merge short sorted lists instead of sorting.
+
+use std::ops::Range;
+
+use ndarray::{ArrayView1, ArrayView2};
+use rayon::prelude::*;
+
+use crate::input::{Score, Truth};
+
+/// How a query's matches are decided (SPEC section 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum Matching {
+    /// Single-best-match VPR: one decision per query, on its best-scoring database image.
+    #[default]
+    Single,
+    /// Multi-match VPR: every non-ignored entry of the matrix is a candidate.
+    Multi,
+}
+
+impl Matching {
+    /// The name used on the command line and in JSON.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Matching::Single => "single",
+            Matching::Multi => "multi",
+        }
+    }
+}
+
+impl std::str::FromStr for Matching {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Self> {
+        match s {
+            "single" => Ok(Matching::Single),
+            "multi" => Ok(Matching::Multi),
+            _ => Err(crate::Error::param(
+                "matching",
+                format!("must be 'single' or 'multi', got '{s}'"),
+            )),
+        }
+    }
+}
+
+/// The index of the first maximum of a column: the match a deployed matcher picks.
+pub fn best_match<T: Score>(column: ArrayView1<'_, T>) -> usize {
+    let mut best = 0;
+    let mut best_score = f64::NEG_INFINITY;
+    for (i, s) in column.iter().enumerate() {
+        let s = s.to_f64();
+        if s > best_score {
+            best = i;
+            best_score = s;
+        }
+    }
+    best
+}
+
+/// Per-column sorted candidate lists and positive counts of a matrix.
+#[derive(Debug, Clone)]
+pub(crate) struct Candidates {
+    /// Column `j`'s candidates are `scores[offsets[j]..offsets[j + 1]]`.
+    offsets: Vec<usize>,
+    /// Candidate scores, descending within each column.
+    scores: Vec<f64>,
+    /// Whether each candidate is correct.
+    correct: Vec<bool>,
+    /// Number of positives contributed by each column.
+    positives: Vec<usize>,
+}
+
+impl Candidates {
+    /// Collect the candidates of every column of `s` (|DB| x |Q|) under `gt` (same shape).
+    pub(crate) fn new<T: Score>(
+        s: ArrayView2<'_, T>,
+        gt: ArrayView2<'_, Truth>,
+        matching: Matching,
+    ) -> Self {
+        let per_column: Vec<(Vec<(f64, bool)>, usize)> = (0..s.ncols())
+            .into_par_iter()
+            .map(|j| column_candidates(s.column(j), gt.column(j), matching))
+            .collect();
+        let mut offsets = Vec::with_capacity(per_column.len() + 1);
+        offsets.push(0);
+        let total = per_column.iter().map(|(c, _)| c.len()).sum();
+        let mut scores = Vec::with_capacity(total);
+        let mut correct = Vec::with_capacity(total);
+        let mut positives = Vec::with_capacity(per_column.len());
+        for (cands, pos) in per_column {
+            scores.extend(cands.iter().map(|c| c.0));
+            correct.extend(cands.iter().map(|c| c.1));
+            offsets.push(scores.len());
+            positives.push(pos);
+        }
+        Self {
+            offsets,
+            scores,
+            correct,
+            positives,
+        }
+    }
+
+    /// Column `j`'s candidates: scores (descending) and correctness.
+    pub(crate) fn column(&self, j: usize) -> (&[f64], &[bool]) {
+        let r = self.offsets[j]..self.offsets[j + 1];
+        (&self.scores[r.clone()], &self.correct[r])
+    }
+
+    /// Number of columns.
+    pub(crate) fn ncols(&self) -> usize {
+        self.positives.len()
+    }
+
+    /// Positives of a set of columns.
+    pub(crate) fn positives(&self, columns: impl IntoIterator<Item = usize>) -> usize {
+        columns.into_iter().map(|j| self.positives[j]).sum()
+    }
+
+    /// TP and FP of the columns in `range` at threshold `t` (accept `s >= t`).
+    pub(crate) fn tp_fp(&self, range: Range<usize>, t: f64) -> (usize, usize) {
+        let (mut tp, mut fp) = (0, 0);
+        for j in range {
+            let (scores, correct) = self.column(j);
+            let accepted = scores.partition_point(|&s| s >= t);
+            let c = correct[..accepted].iter().filter(|&&c| c).count();
+            tp += c;
+            fp += accepted - c;
+        }
+        (tp, fp)
+    }
+}
+
+fn column_candidates<T: Score>(
+    s: ArrayView1<'_, T>,
+    gt: ArrayView1<'_, Truth>,
+    matching: Matching,
+) -> (Vec<(f64, bool)>, usize) {
+    match matching {
+        Matching::Single => {
+            let positive = usize::from(gt.iter().any(|&t| t == Truth::True));
+            let b = best_match(s);
+            let cands = match gt[b] {
+                Truth::Ignored => vec![],
+                t => vec![(s[b].to_f64(), t == Truth::True)],
+            };
+            (cands, positive)
+        }
+        Matching::Multi => {
+            let positives = gt.iter().filter(|&&t| t == Truth::True).count();
+            let mut cands: Vec<(f64, bool)> = s
+                .iter()
+                .zip(gt.iter())
+                .filter(|(_, t)| **t != Truth::Ignored)
+                .map(|(s, t)| (s.to_f64(), *t == Truth::True))
+                .collect();
+            cands.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            (cands, positives)
+        }
+    }
+}
+
+/// Decision counts of a set of queries at one threshold (SPEC section 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Counts {
+    /// Accepted and correct.
+    pub tp: usize,
+    /// Accepted and not correct.
+    pub fp: usize,
+    /// Positives of the mode (queries with a hard match, or hard-true entries).
+    pub positives: usize,
+}
+
+impl Counts {
+    /// `TP / (TP + FP)`, 1 when nothing is accepted.
+    pub fn precision(&self) -> f64 {
+        if self.tp + self.fp == 0 {
+            1.0
+        } else {
+            self.tp as f64 / (self.tp + self.fp) as f64
+        }
+    }
+
+    /// `TP / positives`, 0 when there are no positives.
+    pub fn recall(&self) -> f64 {
+        if self.positives == 0 {
+            0.0
+        } else {
+            self.tp as f64 / self.positives as f64
+        }
+    }
+}
+
+/// Count the decisions of every query of `s` at threshold `t`.
+///
+/// # Errors
+/// As [`crate::best_threshold`]: empty, non-finite or mismatched input.
+pub fn counts<T: Score>(
+    s: ArrayView2<'_, T>,
+    gt: &crate::GroundTruth,
+    matching: Matching,
+    t: f64,
+) -> crate::Result<Counts> {
+    crate::input::validate_scores("similarity", s)?;
+    crate::input::check_gt_shape(gt, "similarity", s.dim())?;
+    let cands = Candidates::new(s, gt.view(), matching);
+    Ok(cands.counts(0..cands.ncols(), t))
+}
+
+impl Candidates {
+    /// Counts of the columns in `range` at threshold `t`.
+    pub(crate) fn counts(&self, range: Range<usize>, t: f64) -> Counts {
+        let (tp, fp) = self.tp_fp(range.clone(), t);
+        Counts {
+            tp,
+            fp,
+            positives: self.positives(range),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::GroundTruth;
+    use ndarray::array;
+
+    #[test]
+    fn best_match_takes_the_first_maximum() {
+        // 0.9 occurs at rows 1 and 2: the first wins.
+        assert_eq!(best_match(array![0.5, 0.9, 0.9].view()), 1);
+        assert_eq!(best_match(array![-3.0f32, -4.0].view()), 0);
+    }
+
+    #[test]
+    fn single_mode_soft_only_best_match_makes_no_decision() {
+        // Column: scores [0.9, 0.5]; hard GT [F, T]; soft [T, T]. The best match (row 0)
+        // is soft but not hard, so ignored: no decision. The column still has a hard
+        // match, so positives = 1: TP 0, FP 0, precision 1 (nothing accepted), recall 0.
+        let s = array![[0.9], [0.5]];
+        let gt = GroundTruth::new(array![[false], [true]].view())
+            .unwrap()
+            .with_soft(array![[1u8], [1]].view())
+            .unwrap();
+        let c = counts(s.view(), &gt, Matching::Single, 0.0).unwrap();
+        assert_eq!((c.tp, c.fp, c.positives), (0, 0, 1));
+        assert_eq!((c.precision(), c.recall()), (1.0, 0.0));
+    }
+
+    #[test]
+    fn counts_in_both_modes() {
+        // Columns: q0 = [0.9 T, 0.2 F, 0.4 F], q1 = [0.3 F, 0.8 F, 0.1 T], q2 = [0.1 F, 0.2 F, 0.6 F].
+        let s = array![[0.9, 0.3, 0.1], [0.2, 0.8, 0.2], [0.4, 0.1, 0.6]];
+        let gt = GroundTruth::new(array![[1, 0, 0], [0, 0, 0], [0, 1, 0]].view()).unwrap();
+        // Single at t = 0.5: best matches q0 -> 0.9 (T, accepted), q1 -> 0.8 (F, accepted),
+        // q2 -> 0.6 (F, accepted). Positives: q0 and q1 have a hard match = 2.
+        let c = counts(s.view(), &gt, Matching::Single, 0.5).unwrap();
+        assert_eq!((c.tp, c.fp, c.positives), (1, 2, 2));
+        assert_eq!(c.precision(), 1.0 / 3.0);
+        assert_eq!(c.recall(), 0.5);
+        // Single at t = 0.8 (inclusive): 0.9 T and 0.8 F accepted, 0.6 not.
+        let c = counts(s.view(), &gt, Matching::Single, 0.8).unwrap();
+        assert_eq!((c.tp, c.fp), (1, 1));
+        // Multi at t = 0.35: accepted 0.9 T, 0.4 F, 0.8 F, 0.6 F; positives = 2 hard trues.
+        let c = counts(s.view(), &gt, Matching::Multi, 0.35).unwrap();
+        assert_eq!((c.tp, c.fp, c.positives), (1, 3, 2));
+        // Multi at t = 0.1 accepts all 9: TP 2 (0.9, 0.1), FP 7.
+        let c = counts(s.view(), &gt, Matching::Multi, 0.1).unwrap();
+        assert_eq!((c.tp, c.fp), (2, 7));
+    }
+
+    #[test]
+    fn multi_mode_skips_ignored_entries() {
+        // Column [0.9 ignored, 0.8 T, 0.7 F]: candidates are 0.8 T and 0.7 F only.
+        let s = array![[0.9], [0.8], [0.7]];
+        let gt = GroundTruth::new(array![[false], [true], [false]].view())
+            .unwrap()
+            .with_soft(array![[true], [false], [false]].view())
+            .unwrap();
+        let c = counts(s.view(), &gt, Matching::Multi, 0.0).unwrap();
+        assert_eq!((c.tp, c.fp, c.positives), (1, 1, 1));
+    }
+
+    #[test]
+    fn no_positives_means_zero_recall() {
+        let s = array![[0.9], [0.1]];
+        let gt = GroundTruth::new(array![[false], [false]].view()).unwrap();
+        let c = counts(s.view(), &gt, Matching::Single, 0.0).unwrap();
+        assert_eq!((c.tp, c.fp, c.positives, c.recall()), (0, 1, 0, 0.0));
+    }
+}

@@ -1,0 +1,311 @@
+//! SPEC section 1: scores, ground truth and their validation.
+//!
+//! Scores are read where they lie (any [`ArrayView2`], any strides) as `f32` or `f64`
+//! and widened to `f64` value by value; nothing is copied up front. Ground truth is
+//! turned once into a compact [`Truth`] matrix, because every later step asks the same
+//! three-way question of it: true, false, or ignored.
+
+use ndarray::{Array2, ArrayView2, Zip};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+
+mod sealed {
+    pub trait Sealed {}
+}
+
+/// A similarity score type: `f32` or `f64`. All arithmetic happens in `f64`.
+pub trait Score: Copy + Send + Sync + PartialOrd + sealed::Sealed + 'static {
+    /// The NumPy name of the type, for messages.
+    const DTYPE: &'static str;
+    /// Widen to `f64` (exact for both types).
+    fn to_f64(self) -> f64;
+}
+
+impl sealed::Sealed for f32 {}
+impl sealed::Sealed for f64 {}
+
+impl Score for f32 {
+    const DTYPE: &'static str = "float32";
+    #[inline]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl Score for f64 {
+    const DTYPE: &'static str = "float64";
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+/// A ground-truth element type: `bool` or an integer holding 0/1.
+pub trait Label: Copy + Send + Sync + 'static {
+    /// The value as an integer, for the 0/1 check and for messages.
+    fn to_i128(self) -> i128;
+}
+
+impl Label for bool {
+    #[inline]
+    fn to_i128(self) -> i128 {
+        i128::from(self)
+    }
+}
+
+macro_rules! int_label {
+    ($($t:ty),*) => {$(
+        impl Label for $t {
+            #[inline]
+            fn to_i128(self) -> i128 {
+                i128::from(self)
+            }
+        }
+    )*};
+}
+int_label!(u8, i8, u16, i16, u32, i32, u64, i64);
+
+/// What the ground truth says of one (database, query) entry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum Truth {
+    /// Not a match.
+    False = 0,
+    /// A hard match.
+    True = 1,
+    /// Soft but not hard: counts as neither true nor false.
+    Ignored = 2,
+}
+
+/// Hard ground truth with optional soft ground truth, as one |DB| x |Q| matrix of [`Truth`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroundTruth {
+    labels: Array2<Truth>,
+}
+
+impl GroundTruth {
+    /// Hard ground truth only (`GThard`).
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for an empty matrix, [`Error::BadLabel`] for a value other than 0/1.
+    pub fn new<L: Label>(hard: ArrayView2<'_, L>) -> Result<Self> {
+        check_nonempty("ground truth", hard.dim())?;
+        let labels =
+            labels_of("ground truth", hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
+        Ok(Self { labels })
+    }
+
+    /// Add soft ground truth (`GTsoft`): entries soft but not hard become [`Truth::Ignored`].
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] if the shapes differ, [`Error::BadLabel`] for a value other than 0/1.
+    pub fn with_soft<L: Label>(mut self, soft: ArrayView2<'_, L>) -> Result<Self> {
+        if soft.dim() != self.labels.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "soft ground truth",
+                shape: soft.dim(),
+                other: "ground truth",
+                other_shape: self.labels.dim(),
+            });
+        }
+        let soft = labels_of("soft ground truth", soft)?;
+        Zip::from(&mut self.labels).and(&soft).for_each(|t, &s| {
+            if s && *t == Truth::False {
+                *t = Truth::Ignored;
+            }
+        });
+        Ok(self)
+    }
+
+    /// Build directly from a [`Truth`] matrix.
+    pub fn from_truth(labels: Array2<Truth>) -> Self {
+        Self { labels }
+    }
+
+    /// The |DB| x |Q| matrix of [`Truth`].
+    pub fn view(&self) -> ArrayView2<'_, Truth> {
+        self.labels.view()
+    }
+
+    /// Shape |DB| x |Q|.
+    pub fn dim(&self) -> (usize, usize) {
+        self.labels.dim()
+    }
+
+    /// The transpose, for query-major (VPR-Bench) input.
+    pub fn reversed_axes(self) -> Self {
+        Self {
+            labels: self.labels.reversed_axes(),
+        }
+    }
+}
+
+fn labels_of<L: Label>(what: &'static str, m: ArrayView2<'_, L>) -> Result<Array2<bool>> {
+    if let Some(((row, col), v)) = m
+        .indexed_iter()
+        .find(|(_, v)| !matches!(v.to_i128(), 0 | 1))
+    {
+        return Err(Error::BadLabel {
+            what,
+            row,
+            col,
+            value: v.to_i128(),
+        });
+    }
+    Ok(m.mapv(|v| v.to_i128() == 1))
+}
+
+pub(crate) fn check_nonempty(what: &'static str, (rows, cols): (usize, usize)) -> Result<()> {
+    if rows == 0 || cols == 0 {
+        return Err(Error::Empty { what, rows, cols });
+    }
+    Ok(())
+}
+
+/// Check that a similarity matrix is non-empty and entirely finite.
+///
+/// # Errors
+/// [`Error::Empty`] or [`Error::NotFinite`] (naming the first offending entry in
+/// column-major order).
+pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Result<()> {
+    check_nonempty(what, s.dim())?;
+    let bad = (0..s.ncols()).into_par_iter().find_map_first(|col| {
+        let column = s.column(col);
+        let (row, v) = column
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !v.to_f64().is_finite())?;
+        Some(Error::NotFinite {
+            what,
+            row,
+            col,
+            value: v.to_f64(),
+        })
+    });
+    bad.map_or(Ok(()), Err)
+}
+
+/// Check that ground truth has the shape of the similarity matrix it labels.
+///
+/// # Errors
+/// [`Error::ShapeMismatch`].
+pub fn check_gt_shape(
+    gt: &GroundTruth,
+    similarity: &'static str,
+    shape: (usize, usize),
+) -> Result<()> {
+    if gt.dim() != shape {
+        return Err(Error::ShapeMismatch {
+            what: "ground truth",
+            shape: gt.dim(),
+            other: similarity,
+            other_shape: shape,
+        });
+    }
+    Ok(())
+}
+
+/// Check the precision target `tau` is in (0, 1].
+///
+/// # Errors
+/// [`Error::InvalidParameter`].
+pub fn check_precision(tau: f64) -> Result<()> {
+    if !(tau > 0.0 && tau <= 1.0) {
+        return Err(Error::param(
+            "precision",
+            format!("must be in (0, 1], got {tau}"),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::array;
+
+    #[test]
+    fn labels_must_be_zero_or_one() {
+        let err = GroundTruth::new(array![[0i64, 1], [2, 0]].view()).unwrap_err();
+        assert_eq!(
+            err,
+            Error::BadLabel {
+                what: "ground truth",
+                row: 1,
+                col: 0,
+                value: 2
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            "ground truth has value 2 at row 1, column 0; ground truth must be 0/1 or bool"
+        );
+        let hard = GroundTruth::new(array![[true, false]].view()).unwrap();
+        let err = hard.with_soft(array![[0i8, -1]].view()).unwrap_err();
+        assert_eq!(
+            err,
+            Error::BadLabel {
+                what: "soft ground truth",
+                row: 0,
+                col: 1,
+                value: -1
+            }
+        );
+    }
+
+    #[test]
+    fn soft_but_not_hard_is_ignored() {
+        let gt = GroundTruth::new(array![[1u8, 0, 0]].view())
+            .unwrap()
+            .with_soft(array![[1u8, 1, 0]].view())
+            .unwrap();
+        assert_eq!(
+            gt.view(),
+            array![[Truth::True, Truth::Ignored, Truth::False]]
+        );
+    }
+
+    #[test]
+    fn shapes_must_agree() {
+        let hard = GroundTruth::new(array![[true, false]].view()).unwrap();
+        let err = hard
+            .clone()
+            .with_soft(array![[true], [false]].view())
+            .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "soft ground truth shape 2x1 does not match ground truth shape 1x2"
+        );
+        let err = check_gt_shape(&hard, "calibration similarity", (2, 1)).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "ground truth shape 1x2 does not match calibration similarity shape 2x1"
+        );
+    }
+
+    #[test]
+    fn scores_must_be_finite_and_non_empty() {
+        let s = array![[0.1, 0.2], [0.3, f64::NAN]];
+        let err = validate_scores("deployment similarity", s.view()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "deployment similarity contains NaN at row 1, column 1; scores must be finite"
+        );
+        let s = array![[0.1f32, f32::NEG_INFINITY]];
+        assert!(
+            validate_scores("similarity", s.view())
+                .unwrap_err()
+                .to_string()
+                .contains("-inf at row 0, column 1")
+        );
+        let empty = ndarray::Array2::<f64>::zeros((0, 3));
+        assert_eq!(
+            validate_scores("similarity", empty.view())
+                .unwrap_err()
+                .to_string(),
+            "similarity is empty (shape 0x3)"
+        );
+        assert!(GroundTruth::new(ndarray::Array2::<bool>::default((2, 0)).view()).is_err());
+    }
+}

@@ -1,0 +1,58 @@
+//! # qtvpr: quantile transfer for visual place recognition
+//!
+//! A VPR system accepts a match when its similarity score is at or above a threshold.
+//! Quantile transfer (Rajani, Milford, Fischer, IROS 2026) sets that threshold for each
+//! batch of deployment queries without their ground truth: it finds, for every
+//! deployment query, the calibration queries whose sorted similarity profiles correlate
+//! best with its own, takes the threshold of maximum recall at the target precision on
+//! those, expresses it as a quantile of their scores, and reads the batch's weighted
+//! median quantile off the deployment scores.
+//!
+//! The semantics are those of the project's SPEC, one module per section:
+//!
+//! | SPEC section | module |
+//! |---|---|
+//! | 1 terms, input validation | [`input`] |
+//! | 2 decisions and counts | [`decisions`] |
+//! | 3 best threshold under a precision target | [`best_threshold`](mod@best_threshold) |
+//! | 4 ranked correlation and neighbours | [`ranked_correlation`](mod@ranked_correlation) |
+//! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
+//! | 6 deployment threshold of a segment | [`deployment`] |
+//! | 4-6 together | [`transfer`] |
+//!
+//! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
+//! (pass `.t()` of a query-major matrix); nothing is copied up front and all arithmetic
+//! is in `f64`.
+//!
+//! ```
+//! use ndarray::array;
+//! use qtvpr::{Calibration, GroundTruth, Matching, Params};
+//!
+//! // 3 database images x 2 calibration queries; query j matches database image j.
+//! let s_cal = array![[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]];
+//! let gt = GroundTruth::new(array![[true, false], [false, true], [false, false]].view())?;
+//! let cal = Calibration::new(s_cal.view(), &gt, Matching::Single)?;
+//!
+//! // 3 deployment queries, thresholded as one batch.
+//! let s_val = array![[0.7, 0.1, 0.2], [0.2, 0.6, 0.3], [0.1, 0.3, 0.5]];
+//! let out = cal.transfer(s_val.view(), &Params { k: 1, ..Params::default() })?;
+//! assert_eq!(out.segments.len(), 1);
+//! assert!(out.segments[0].threshold.is_finite());
+//! # Ok::<(), qtvpr::Error>(())
+//! ```
+
+pub mod best_threshold;
+pub mod decisions;
+pub mod deployment;
+mod error;
+pub mod input;
+pub mod ranked_correlation;
+pub mod subset_quantile;
+pub mod transfer;
+
+pub use best_threshold::best_threshold;
+pub use decisions::{Counts, Matching, counts};
+pub use error::{Error, Result};
+pub use input::{GroundTruth, Label, Score, Truth};
+pub use ranked_correlation::ranked_correlation;
+pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};

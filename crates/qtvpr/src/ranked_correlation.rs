@@ -1,0 +1,251 @@
+//! SPEC section 4: calibration sampling by ranked correlation.
+//!
+//! Every query column is sorted into a descending *ranked profile*; the Pearson
+//! correlation of two profiles is the dot product of their centred, unit-norm forms, so
+//! the whole |Qval| x |Qcal| correlation matrix is one matrix product, done by faer in
+//! parallel. Each deployment query then keeps its `k` most correlated calibration
+//! queries ([`top_k`]).
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+use ndarray::{Array2, ArrayView1, ArrayView2};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::input::{Score, validate_scores};
+
+/// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
+/// neighbours, so that correlations equal in exact arithmetic tie (and go to the lower
+/// calibration index) whatever the floating-point summation order of the product.
+pub const CORRELATION_GRID: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// Ranked profiles of a set of columns: sorted (descending) and standardised.
+pub(crate) struct Profiles {
+    n_db: usize,
+    /// Column-major |DB| x n, each column sorted descending (kept only when asked for).
+    sorted: Vec<f64>,
+    /// Column-major |DB| x n, centred unit-norm profiles (zero for a constant column).
+    unit: Vec<f64>,
+}
+
+impl Profiles {
+    /// Rank and standardise every column of `s`; keep the sorted profiles if `keep_sorted`.
+    pub(crate) fn new<T: Score>(s: ArrayView2<'_, T>, keep_sorted: bool) -> Self {
+        let n_db = s.nrows();
+        let mut unit = vec![0.0; n_db * s.ncols()];
+        let mut sorted = if keep_sorted {
+            vec![0.0; unit.len()]
+        } else {
+            Vec::new()
+        };
+        let work = |(j, z): (usize, &mut [f64]), p: &mut [f64]| {
+            ranked_profile(s.column(j), p);
+            standardise(p, z);
+        };
+        if keep_sorted {
+            unit.par_chunks_mut(n_db)
+                .enumerate()
+                .zip(sorted.par_chunks_mut(n_db))
+                .for_each(|(jz, p)| work(jz, p));
+        } else {
+            unit.par_chunks_mut(n_db)
+                .enumerate()
+                .for_each_init(|| vec![0.0; n_db], |p, jz| work(jz, p));
+        }
+        Self { n_db, sorted, unit }
+    }
+
+    pub(crate) fn ncols(&self) -> usize {
+        self.unit.len() / self.n_db
+    }
+
+    /// Column `j`'s descending profile (only if built with `keep_sorted`).
+    pub(crate) fn sorted(&self, j: usize) -> &[f64] {
+        &self.sorted[j * self.n_db..(j + 1) * self.n_db]
+    }
+
+    fn unit(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.unit, self.n_db, self.ncols())
+    }
+
+    /// Correlations with `cal`, as a column-major |Qcal| x |self| matrix: column `j`
+    /// holds row `j` of the spec's `R`, contiguous.
+    pub(crate) fn correlate(&self, cal: &Profiles) -> Vec<f64> {
+        let (n_cal, n_val) = (cal.ncols(), self.ncols());
+        let mut r = vec![0.0; n_cal * n_val];
+        let dst = MatMut::from_column_major_slice_mut(&mut r, n_cal, n_val);
+        matmul(
+            dst,
+            Accum::Replace,
+            cal.unit().transpose(),
+            self.unit(),
+            1.0,
+            Par::rayon(0),
+        );
+        r
+    }
+}
+
+/// Sort a column into `out` in descending order, widened to `f64`.
+pub(crate) fn ranked_profile<T: Score>(column: ArrayView1<'_, T>, out: &mut [f64]) {
+    for (o, v) in out.iter_mut().zip(column.iter()) {
+        *o = v.to_f64();
+    }
+    out.sort_unstable_by(|a, b| b.total_cmp(a));
+}
+
+/// Centre a descending profile and scale it to unit norm; all zeros when it is constant
+/// (zero variance is tested exactly, as first == last, not as a small norm).
+pub(crate) fn standardise(profile: &[f64], out: &mut [f64]) {
+    let n = profile.len();
+    if profile[0] == profile[n - 1] {
+        out.fill(0.0);
+        return;
+    }
+    // Divide by the largest magnitude first so that squares neither overflow nor underflow.
+    let scale = profile[0].abs().max(profile[n - 1].abs());
+    let mean = profile.iter().map(|x| x / scale).sum::<f64>() / n as f64;
+    let norm = profile
+        .iter()
+        .map(|x| (x / scale - mean).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    for (o, x) in out.iter_mut().zip(profile) {
+        *o = (x / scale - mean) / norm;
+    }
+}
+
+/// The `k` (clipped to the row length) calibration indices of highest correlation in
+/// `row`, in order of decreasing correlation, ties to the lower index; and the weight:
+/// the mean of their correlations, clipped below at 0.
+///
+/// Correlations are compared on the [`CORRELATION_GRID`]; the weight uses raw values.
+pub fn top_k(row: &[f64], k: usize) -> (Vec<usize>, f64) {
+    let k = k.min(row.len());
+    let key = |i: usize| (row[i] / CORRELATION_GRID).round_ties_even();
+    let order = |a: &usize, b: &usize| key(*b).total_cmp(&key(*a)).then(a.cmp(b));
+    let mut idx: Vec<usize> = (0..row.len()).collect();
+    if k < idx.len() {
+        idx.select_nth_unstable_by(k - 1, order);
+        idx.truncate(k);
+    }
+    idx.sort_unstable_by(order);
+    let mean = idx.iter().map(|&i| row[i]).sum::<f64>() / k as f64;
+    (idx, mean.max(0.0))
+}
+
+/// The full |Qval| x |Qcal| ranked-correlation matrix `R` of SPEC section 4.
+///
+/// # Errors
+/// Empty or non-finite scores, or a different number of database rows.
+pub fn ranked_correlation<T: Score, U: Score>(
+    val: ArrayView2<'_, T>,
+    cal: ArrayView2<'_, U>,
+) -> Result<Array2<f64>> {
+    validate_scores("calibration similarity", cal)?;
+    validate_scores("deployment similarity", val)?;
+    if val.nrows() != cal.nrows() {
+        return Err(Error::DatabaseMismatch {
+            calibration: cal.nrows(),
+            deployment: val.nrows(),
+        });
+    }
+    let r = Profiles::new(val, false).correlate(&Profiles::new(cal, false));
+    // Column-major |Qcal| x |Qval| is row-major |Qval| x |Qcal|.
+    Ok(Array2::from_shape_vec((val.ncols(), cal.ncols()), r).expect("shape matches length"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::array;
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() < 1e-12
+    }
+
+    #[test]
+    fn pearson_of_ranked_profiles() {
+        // cal profiles (sorted): [3,2,1] -> centred [1,0,-1]; [4,1,1] -> mean 2 -> [2,-1,-1].
+        // val profile [2,6,4] sorts to [6,4,2] -> [2,0,-2]: r = 1 with the first; with the
+        // second (4 + 0 + 2) / (sqrt 8 * sqrt 6) = 6 / sqrt 48 = 0.8660254037844386.
+        let cal = array![[1.0, 1.0], [3.0, 4.0], [2.0, 1.0]];
+        let val = array![[2.0f32], [6.0], [4.0]];
+        let r = ranked_correlation(val.view(), cal.view()).unwrap();
+        assert_eq!(r.dim(), (1, 2));
+        assert!(close(r[[0, 0]], 1.0), "{r}");
+        assert!(close(r[[0, 1]], 6.0 / 48f64.sqrt()), "{r}");
+        // [1,2,3] vs [0,1,3] (sorted [3,2,1], [3,1,0]): centred [1,0,-1] and [5/3,-1/3,-4/3];
+        // dot 3, norms sqrt 2 and sqrt(42)/3 -> r = 9 / sqrt 84.
+        let r = ranked_correlation(
+            array![[1.0], [2.0], [3.0]].view(),
+            array![[0.0], [1.0], [3.0]].view(),
+        )
+        .unwrap();
+        assert!(close(r[[0, 0]], 9.0 / 84f64.sqrt()), "{r}");
+    }
+
+    #[test]
+    fn constant_columns_correlate_zero() {
+        // A constant profile has zero variance: correlation 0 with everything, itself included.
+        let cal = array![[0.1, 5.0], [0.1, 3.0], [0.1, 4.0]];
+        let r = ranked_correlation(cal.view(), cal.view()).unwrap();
+        assert_eq!(r[[0, 0]], 0.0);
+        assert_eq!(r[[0, 1]], 0.0);
+        assert_eq!(r[[1, 0]], 0.0);
+        assert!(close(r[[1, 1]], 1.0));
+    }
+
+    #[test]
+    fn huge_and_tiny_scores_do_not_overflow() {
+        // Profiles [1e300, 0, -1e300] and [3e-310, 2e-310, 1e-310] are both linear: r = 1.
+        let r = ranked_correlation(
+            array![[1e300], [0.0], [-1e300]].view(),
+            array![[3e-310], [1e-310], [2e-310]].view(),
+        )
+        .unwrap();
+        assert!(close(r[[0, 0]], 1.0), "{r}");
+    }
+
+    #[test]
+    fn top_k_orders_by_correlation_then_index() {
+        // Ties 0.9 (indices 1, 3) and 0.5 (0, 2): order 1, 3, 0; weight (0.9+0.9+0.5)/3.
+        let (nb, w) = top_k(&[0.5, 0.9, 0.5, 0.9], 3);
+        assert_eq!(nb, vec![1, 3, 0]);
+        assert!(close(w, 2.3 / 3.0));
+    }
+
+    #[test]
+    fn top_k_clips_k_and_weight() {
+        let (nb, w) = top_k(&[0.2, 0.1], 5);
+        assert_eq!(nb, vec![0, 1]);
+        assert!(close(w, 0.15));
+        // A negative mean correlation is clipped to weight 0.
+        let (nb, w) = top_k(&[-0.5, -0.7], 1);
+        assert_eq!((nb, w), (vec![0], 0.0));
+    }
+
+    #[test]
+    fn correlations_within_the_grid_tie() {
+        // 0.3 and 0.3 + 1e-15 differ by far less than 2^-40: a tie, so the lower index wins.
+        assert_eq!(top_k(&[0.3, 0.3 + 1e-15], 1).0, vec![0]);
+        // 1e-9 is far more than the grid: the larger one wins.
+        assert_eq!(top_k(&[0.3, 0.3 + 1e-9], 1).0, vec![1]);
+    }
+
+    #[test]
+    fn database_sizes_must_agree() {
+        let err = ranked_correlation(
+            array![[1.0], [2.0]].view(),
+            array![[1.0], [2.0], [3.0]].view(),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err,
+            Error::DatabaseMismatch {
+                calibration: 3,
+                deployment: 2
+            }
+        );
+    }
+}

@@ -1,0 +1,398 @@
+//! The quantile-transfer pipeline (SPEC sections 4-6) behind a calibrate-once,
+//! transfer-many API.
+//!
+//! [`Calibration::new`] does all the work that depends only on the calibration traverse:
+//! ranked profiles, their standardised form, and the per-column candidates. Each
+//! [`Calibration::transfer`] then streams the deployment queries through in column
+//! chunks: rank and standardise a chunk (in parallel), correlate it with the
+//! calibration profiles (one faer product), and for each query pick its neighbours,
+//! their subset threshold and its quantile (in parallel). Per-segment thresholds come
+//! last. Memory beyond the inputs is the calibration profiles plus one chunk.
+
+use ndarray::{Array2, ArrayView2};
+use rayon::prelude::*;
+
+use crate::best_threshold::subset_threshold;
+use crate::decisions::{Candidates, Matching};
+use crate::deployment::{deployment_threshold, segments, weighted_median};
+use crate::error::{Error, Result};
+use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate_scores};
+use crate::ranked_correlation::{Profiles, top_k};
+use crate::subset_quantile::subset_quantile;
+
+/// The paper gives no value of `k`; 10 is this project's default.
+pub const DEFAULT_K: usize = 10;
+
+/// Parameters of a transfer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Params {
+    /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Deployment queries per segment; `None` is one batch of all of them.
+    pub segment_size: Option<usize>,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            k: DEFAULT_K,
+            precision: 1.0,
+            segment_size: None,
+        }
+    }
+}
+
+impl Params {
+    /// Check `k >= 1` and tau in (0, 1].
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        if self.k < 1 {
+            return Err(Error::param("k", format!("must be >= 1, got {}", self.k)));
+        }
+        check_precision(self.precision)
+    }
+}
+
+/// The threshold of one segment of deployment queries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Segment {
+    /// First deployment query (column index of the deployment matrix).
+    pub start: usize,
+    /// One past the last deployment query.
+    pub end: usize,
+    /// The weighted-median quantile of the segment's queries.
+    pub quantile: f64,
+    /// That quantile of the segment's scores: accept a match when `score >= threshold`.
+    pub threshold: f64,
+}
+
+/// Result of [`Calibration::transfer`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Transfer {
+    /// One threshold per segment, in order.
+    pub segments: Vec<Segment>,
+    /// Per deployment query: the quantile `q_j` of its subset threshold.
+    pub query_quantiles: Vec<f64>,
+    /// Per deployment query: its subset threshold `t_j` (`inf` for reject-all).
+    pub query_thresholds: Vec<f64>,
+    /// Per deployment query: its weight `w_j`.
+    pub query_weights: Vec<f64>,
+    /// |Qval| x min(k, |Qcal|): each query's calibration neighbours, most correlated first.
+    pub neighbours: Array2<usize>,
+}
+
+/// A calibration traverse with ground truth, ready to transfer thresholds.
+pub struct Calibration {
+    matching: Matching,
+    profiles: Profiles,
+    candidates: Candidates,
+    n_db: usize,
+}
+
+impl Calibration {
+    /// Prepare calibration similarity `s` (|DB| x |Qcal|) with its ground truth.
+    ///
+    /// # Errors
+    /// Empty or non-finite scores, or ground truth of another shape.
+    pub fn new<T: Score>(
+        s: ArrayView2<'_, T>,
+        gt: &GroundTruth,
+        matching: Matching,
+    ) -> Result<Self> {
+        validate_scores("calibration similarity", s)?;
+        check_gt_shape(gt, "calibration similarity", s.dim())?;
+        Ok(Self::new_unchecked(s, gt.view(), matching))
+    }
+
+    pub(crate) fn new_unchecked<T: Score>(
+        s: ArrayView2<'_, T>,
+        gt: ArrayView2<'_, crate::Truth>,
+        matching: Matching,
+    ) -> Self {
+        Self {
+            matching,
+            profiles: Profiles::new(s, true),
+            candidates: Candidates::new(s, gt, matching),
+            n_db: s.nrows(),
+        }
+    }
+
+    /// Number of calibration queries.
+    pub fn len(&self) -> usize {
+        self.candidates.ncols()
+    }
+
+    /// Always false: a calibration has at least one query.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The matching mode the calibration was built for.
+    pub fn matching(&self) -> Matching {
+        self.matching
+    }
+
+    /// The SPEC section 3 threshold of the whole calibration set (today's practice of a
+    /// threshold tuned once offline).
+    ///
+    /// # Errors
+    /// tau outside (0, 1].
+    pub fn threshold(&self, precision: f64) -> Result<f64> {
+        check_precision(precision)?;
+        let all: Vec<usize> = (0..self.len()).collect();
+        Ok(subset_threshold(&self.candidates, &all, precision))
+    }
+
+    /// Transfer thresholds to deployment similarity `s` (|DB| x |Qval|).
+    ///
+    /// # Errors
+    /// Invalid parameters, empty or non-finite scores, a |DB| that differs from the
+    /// calibration's, or a segment size of 0 or above |Qval|.
+    pub fn transfer<T: Score>(&self, s: ArrayView2<'_, T>, params: &Params) -> Result<Transfer> {
+        params.validate()?;
+        validate_scores("deployment similarity", s)?;
+        if s.nrows() != self.n_db {
+            return Err(Error::DatabaseMismatch {
+                calibration: self.n_db,
+                deployment: s.nrows(),
+            });
+        }
+        let ranges = segments(s.ncols(), params.segment_size)?;
+        let (n_val, k) = (s.ncols(), params.k.min(self.len()));
+
+        let mut query_quantiles = vec![0.0; n_val];
+        let mut query_thresholds = vec![0.0; n_val];
+        let mut query_weights = vec![0.0; n_val];
+        let mut neighbours = Array2::zeros((n_val, k));
+        // Chunks of about 2^22 scores bound the working memory whatever the matrix size.
+        let chunk = ((1 << 22) / self.n_db).clamp(16, 4096);
+        for start in (0..n_val).step_by(chunk) {
+            let end = (start + chunk).min(n_val);
+            let r = Profiles::new(s.slice(ndarray::s![.., start..end]), false)
+                .correlate(&self.profiles);
+            let per_query: Vec<(Vec<usize>, f64, f64, f64)> = r
+                .par_chunks(self.len())
+                .map(|row| {
+                    let (nb, w) = top_k(row, k);
+                    let t = subset_threshold(&self.candidates, &nb, params.precision);
+                    let q = subset_quantile(nb.iter().map(|&i| self.profiles.sorted(i)), t);
+                    (nb, w, t, q)
+                })
+                .collect();
+            for (j, (nb, w, t, q)) in (start..end).zip(per_query) {
+                neighbours
+                    .row_mut(j)
+                    .iter_mut()
+                    .zip(nb)
+                    .for_each(|(d, i)| *d = i);
+                (query_weights[j], query_thresholds[j], query_quantiles[j]) = (w, t, q);
+            }
+        }
+
+        let segments = ranges
+            .into_par_iter()
+            .map(|r| {
+                let quantile =
+                    weighted_median(&query_quantiles[r.clone()], &query_weights[r.clone()]);
+                let threshold = deployment_threshold(s.slice(ndarray::s![.., r.clone()]), quantile);
+                Segment {
+                    start: r.start,
+                    end: r.end,
+                    quantile,
+                    threshold,
+                }
+            })
+            .collect();
+        Ok(Transfer {
+            segments,
+            query_quantiles,
+            query_thresholds,
+            query_weights,
+            neighbours,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::{Array2, array};
+
+    /// |DB| = 3, two calibration and two deployment queries (columns).
+    ///
+    /// - cal q0 = [3, 1, 2], hard GT rows 0 and 2; profile [3, 2, 1] (centred [1, 0, -1]).
+    ///   Multi candidates: 3 T, 2 T, 1 F.
+    /// - cal q1 = [1, 4, 1], hard GT rows 0 and 1; profile [4, 1, 1] (centred [2, -1, -1]).
+    ///   Multi candidates: 4 T, 1 T, 1 F (rows 0 and 2 tie at 1).
+    /// - val v0 = [2, 6, 4]: profile [6, 4, 2], centred [2, 0, -2]: r = 1 with q0,
+    ///   6 / sqrt 48 = 0.866 with q1.
+    /// - val v1 = [2, 5, 2]: profile [5, 2, 2], centred [2, -1, -1]: r = 1 with q1,
+    ///   3 / sqrt 12 = 0.866 with q0.
+    fn example() -> (Calibration, Array2<f64>) {
+        let s_cal = array![[3.0, 1.0], [1.0, 4.0], [2.0, 1.0]];
+        let gt = GroundTruth::new(array![[1, 1], [0, 1], [1, 0]].view()).unwrap();
+        let cal = Calibration::new(s_cal.view(), &gt, Matching::Multi).unwrap();
+        (cal, array![[2.0, 2.0], [6.0, 5.0], [4.0, 2.0]])
+    }
+
+    fn params(k: usize, segment_size: Option<usize>) -> Params {
+        Params {
+            k,
+            precision: 1.0,
+            segment_size,
+        }
+    }
+
+    #[test]
+    fn one_neighbour_each() {
+        let (cal, s_val) = example();
+        let out = cal.transfer(s_val.view(), &params(1, None)).unwrap();
+        assert_eq!(out.neighbours, array![[0], [1]]);
+        // v0 -> q0: tau = 1 threshold 2 (3 T, 2 T, then 1 F). Sample {3, 1, 2}: c(<= 2) = 2,
+        //   q = (2 - 1) / (3 - 1) = 0.5.
+        // v1 -> q1: 4 T | 1 T, 1 F: the 1-group holds a FP, so t = 4, the sample maximum:
+        //   c = 3, q = 1.
+        assert_eq!(out.query_thresholds, vec![2.0, 4.0]);
+        assert_eq!(out.query_quantiles, vec![0.5, 1.0]);
+        assert!(out.query_weights.iter().all(|w| (w - 1.0).abs() < 1e-12));
+        // One batch: weights 1, 1; lower median of {0.5, 1} is 0.5. Deployment scores
+        // ascending [2, 2, 2, 4, 5, 6], h = 5 * 0.5 = 2.5 -> 2 + 0.5 * (4 - 2) = 3.
+        assert_eq!(
+            out.segments,
+            vec![Segment {
+                start: 0,
+                end: 2,
+                quantile: 0.5,
+                threshold: 3.0
+            }]
+        );
+    }
+
+    #[test]
+    fn segments_of_one() {
+        let (cal, s_val) = example();
+        let out = cal.transfer(s_val.view(), &params(1, Some(1))).unwrap();
+        // v0 alone: q = 0.5 of [2, 4, 6] -> h = 1 -> 4. v1 alone: q = 1 -> just above its max 5.
+        assert_eq!(
+            out.segments,
+            vec![
+                Segment {
+                    start: 0,
+                    end: 1,
+                    quantile: 0.5,
+                    threshold: 4.0
+                },
+                Segment {
+                    start: 1,
+                    end: 2,
+                    quantile: 1.0,
+                    threshold: 5.0f64.next_up()
+                },
+            ]
+        );
+    }
+
+    #[test]
+    fn k_larger_than_the_calibration_is_clipped() {
+        let (cal, s_val) = example();
+        let out = cal.transfer(s_val.view(), &params(5, None)).unwrap();
+        assert_eq!(out.neighbours, array![[0, 1], [1, 0]]);
+        // Both queries use both columns: candidates 4 T, 3 T, 2 T, 1 T, 1 F, 1 F -> t = 2.
+        // Sample {3, 1, 2, 1, 4, 1}: c(<= 2) = 4, q = 3 / 5. Batch threshold: h = 5 * 0.6 = 3
+        // -> the fourth smallest deployment score, 4.
+        assert_eq!(out.query_thresholds, vec![2.0, 2.0]);
+        assert_eq!(out.query_quantiles, vec![0.6, 0.6]);
+        let w = (1.0 + 6.0 / 48f64.sqrt()) / 2.0;
+        assert!(
+            out.query_weights.iter().all(|x| (x - w).abs() < 1e-12),
+            "{:?}",
+            out.query_weights
+        );
+        assert_eq!(out.segments[0].threshold, 4.0);
+        assert_eq!(cal.threshold(1.0).unwrap(), 2.0);
+    }
+
+    #[test]
+    fn lower_precision_target() {
+        // tau = 0.6, k = 1: v1 -> q1: the 1-group gives (2, 1), 2 >= 1.8, so t = 1 and
+        // c(<= 1) = 2 of 3 -> q = 0.5. v0 unchanged (t = 2, q = 0.5).
+        let (cal, s_val) = example();
+        let out = cal
+            .transfer(
+                s_val.view(),
+                &Params {
+                    k: 1,
+                    precision: 0.6,
+                    segment_size: None,
+                },
+            )
+            .unwrap();
+        assert_eq!(out.query_thresholds, vec![2.0, 1.0]);
+        assert_eq!(out.query_quantiles, vec![0.5, 0.5]);
+    }
+
+    #[test]
+    fn orientation_and_dtype_do_not_matter() {
+        let (cal, s_val) = example();
+        let a = cal.transfer(s_val.view(), &params(1, None)).unwrap();
+        let f32_val = s_val.mapv(|x| x as f32);
+        assert_eq!(cal.transfer(f32_val.view(), &params(1, None)).unwrap(), a);
+        let query_major = s_val.t().to_owned();
+        assert_eq!(cal.transfer(query_major.t(), &params(1, None)).unwrap(), a);
+    }
+
+    #[test]
+    fn bad_parameters_and_input() {
+        let (cal, s_val) = example();
+        let msg = |p: Params| cal.transfer(s_val.view(), &p).unwrap_err().to_string();
+        assert_eq!(msg(params(0, None)), "k must be >= 1, got 0");
+        assert_eq!(
+            msg(Params {
+                precision: 1.5,
+                ..params(1, None)
+            }),
+            "precision must be in (0, 1], got 1.5"
+        );
+        assert_eq!(
+            msg(Params {
+                precision: f64::NAN,
+                ..params(1, None)
+            }),
+            "precision must be in (0, 1], got NaN"
+        );
+        assert!(msg(params(1, Some(0))).starts_with("segment size must be between 1 and"));
+        assert!(msg(params(1, Some(3))).ends_with("(2), got 3"));
+        let err = cal
+            .transfer(array![[1.0], [2.0]].view(), &params(1, None))
+            .unwrap_err();
+        assert_eq!(
+            err,
+            Error::DatabaseMismatch {
+                calibration: 3,
+                deployment: 2
+            }
+        );
+        let err = cal
+            .transfer(
+                array![[1.0], [f64::INFINITY], [0.0]].view(),
+                &params(1, None),
+            )
+            .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "deployment similarity contains inf at row 1, column 0; scores must be finite"
+        );
+        let gt = GroundTruth::new(array![[true]].view()).unwrap();
+        let err = Calibration::new(array![[1.0, 2.0]].view(), &gt, Matching::Single)
+            .err()
+            .unwrap();
+        assert_eq!(
+            err.to_string(),
+            "ground truth shape 1x1 does not match calibration similarity shape 1x2"
+        );
+    }
+}
