@@ -1,0 +1,54 @@
+//! `qtvpr-cli`: thresholds for visual place recognition by quantile transfer.
+//!
+//! A thin front end: argument parsing, `.npy`/`.npz` reading and output formatting.
+//! All the arithmetic lives in the `qtvpr` crate.
+
+use std::io;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod npy;
+mod output;
+mod threshold;
+
+/// Choose the operating point of a visual place recognition system by quantile
+/// transfer (Rajani, Milford, Fischer, IROS 2026).
+///
+/// Similarity matrices are |DB| x |Q| (one column per query, higher = more similar)
+/// unless --query-major is given. Errors exit with status 2.
+#[derive(Debug, Parser)]
+#[command(name = "qtvpr-cli", version, about, long_about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Calibrate on a traverse with ground truth; print one threshold per segment of
+    /// deployment queries (no deployment ground truth needed).
+    Threshold(threshold::ThresholdArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Threshold(args) => threshold::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    err.chain().any(|e| {
+        e.downcast_ref::<io::Error>()
+            .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe)
+    })
+}

@@ -1,0 +1,167 @@
+//! `qtvpr-cli threshold`: calibrate on one traverse, print thresholds for another.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use qtvpr::{Calibration, Matching, Params};
+use serde::Serialize;
+
+use crate::npy::{read_ground_truth, read_scores, with_view};
+use crate::output::{Format, emit};
+
+/// Arguments of `threshold`.
+#[derive(Debug, Args)]
+pub struct ThresholdArgs {
+    /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|.
+    #[arg(long, value_name = "S_cal.npy")]
+    cal: PathBuf,
+    /// Calibration ground truth: .npy (bool or 0/1 integers, same shape as --cal), or a
+    /// VPR_Tutorial .npz with GThard and optional GTsoft.
+    #[arg(long, value_name = "GT.npy|GT.npz")]
+    cal_gt: PathBuf,
+    /// Soft calibration ground truth (.npy): entries soft but not hard are ignored.
+    #[arg(long, value_name = "GTsoft.npy")]
+    cal_gt_soft: Option<PathBuf>,
+    /// Deployment similarity matrix (.npy), |DB| x |Qval|; needs no ground truth.
+    #[arg(long, value_name = "S_val.npy")]
+    val: PathBuf,
+    /// Calibration queries sampled per deployment query (clipped to |Qcal|). The paper
+    /// gives no value; 10 is this project's default.
+    #[arg(long, default_value_t = qtvpr::DEFAULT_K)]
+    k: usize,
+    /// Target precision tau, in (0, 1].
+    #[arg(long, default_value_t = 1.0)]
+    precision: f64,
+    /// single: one decision per query on its best match; multi: every entry is a candidate.
+    #[arg(long, value_enum, default_value_t = MatchingArg::Single)]
+    matching: MatchingArg,
+    /// Deployment queries per segment (one threshold each; the last may be shorter).
+    /// Default: all deployment queries form one segment.
+    #[arg(long, value_name = "M")]
+    segment_size: Option<usize>,
+    /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
+    #[arg(long)]
+    query_major: bool,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Json)]
+    format: Format,
+    /// Write to this file (atomically) instead of stdout.
+    #[arg(long, short, value_name = "FILE")]
+    output: Option<PathBuf>,
+}
+
+/// The `--matching` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MatchingArg {
+    /// Single-best-match VPR (one decision per query).
+    Single,
+    /// Multi-match VPR (every non-ignored entry is a candidate).
+    Multi,
+}
+
+impl From<MatchingArg> for Matching {
+    fn from(m: MatchingArg) -> Self {
+        match m {
+            MatchingArg::Single => Matching::Single,
+            MatchingArg::Multi => Matching::Multi,
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Report {
+    method: &'static str,
+    params: ReportParams,
+    segments: Vec<ReportSegment>,
+    calibration_queries: usize,
+    deployment_queries: usize,
+    database_size: usize,
+}
+
+#[derive(Serialize)]
+struct ReportParams {
+    k: usize,
+    precision: f64,
+    matching: &'static str,
+    segment_size: usize,
+}
+
+#[derive(Serialize)]
+struct ReportSegment {
+    start: usize,
+    end: usize,
+    quantile: f64,
+    threshold: f64,
+}
+
+/// Run `threshold`.
+pub fn run(args: &ThresholdArgs) -> Result<()> {
+    let orient = |s: crate::npy::Scores| {
+        if args.query_major {
+            s.reversed_axes()
+        } else {
+            s
+        }
+    };
+    let s_cal = orient(read_scores(&args.cal).with_context(|| "--cal".to_string())?);
+    let mut gt =
+        read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
+    if args.query_major {
+        gt = gt.reversed_axes();
+    }
+    let s_val = orient(read_scores(&args.val).context("--val")?);
+    let matching = Matching::from(args.matching);
+    let params = Params {
+        k: args.k,
+        precision: args.precision,
+        segment_size: args.segment_size,
+    };
+    params.validate()?;
+
+    let cal = with_view!(&s_cal, |v| Calibration::new(v, &gt, matching)).with_context(|| {
+        format!(
+            "--cal {} / --cal-gt {}",
+            args.cal.display(),
+            args.cal_gt.display()
+        )
+    })?;
+    let transfer = with_view!(&s_val, |v| cal.transfer(v, &params))
+        .with_context(|| format!("--val {}", args.val.display()))?;
+
+    let (n_db, n_val) = s_val.dim();
+    let report = Report {
+        method: "quantile-transfer",
+        params: ReportParams {
+            k: args.k,
+            precision: args.precision,
+            matching: matching.as_str(),
+            segment_size: args.segment_size.unwrap_or(n_val),
+        },
+        segments: transfer
+            .segments
+            .iter()
+            .map(|s| ReportSegment {
+                start: s.start,
+                end: s.end,
+                quantile: s.quantile,
+                threshold: s.threshold,
+            })
+            .collect(),
+        calibration_queries: cal.len(),
+        deployment_queries: n_val,
+        database_size: n_db,
+    };
+    let text = match args.format {
+        Format::Json => serde_json::to_string_pretty(&report)? + "\n",
+        Format::Csv => {
+            let mut t = String::from("start,end,quantile,threshold\n");
+            for s in &report.segments {
+                writeln!(t, "{},{},{},{}", s.start, s.end, s.quantile, s.threshold)?;
+            }
+            t
+        }
+    };
+    emit(&text, args.output.as_deref())
+}
