@@ -1,0 +1,677 @@
+"""Plain NumPy reference implementation of quantile transfer.
+
+This module is the executable form of ``SPEC.md`` (the project's contract, kept in
+``../shared/SPEC.md``). It is written to be read, not to be fast: one function per spec
+section, loops where a loop says it more plainly, and no code shared with the Rust
+core. Parity tests compare the compiled implementation against it.
+
+Conventions shared by every public function:
+
+- Matrices are |DB| x |Q|, one column per query. ``query_major=True`` means every
+  matrix argument (scores and ground truth alike) is given as |Q| x |DB| and is
+  transposed first.
+- All arithmetic on scores is done in float64; float32 input is converted exactly.
+- Ground truth is bool or integer 0/1. ``gt_soft`` marks extra tolerable matches; the
+  *ignored* entries are ``gt_soft & ~gt`` and count as neither true nor false.
+- Bad input raises ``ValueError`` (or ``TypeError`` for an unsupported dtype) with a
+  message that names the argument (SPEC section 10). Positions in messages are given
+  in the caller's own orientation, before any transposition.
+
+One deliberate refinement of SPEC section 4.3, shared with the Rust core: the top-k
+calibration queries are chosen by correlations rounded to a grid of 2**-40, so that
+correlations that are equal in exact arithmetic tie whatever the floating-point
+summation order. See ``_calibration_neighbours``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "METHODS",
+    "TransferResult",
+    "best_threshold",
+    "counts",
+    "evaluate",
+    "quantile_transfer",
+    "schubert_threshold",
+]
+
+#: Tolerance used in every precision comparison (SPEC sections 3, 6 and 8).
+EPS = 1e-12
+
+#: Standard normal quantile at 1 - 1e-6 (SPEC section 7).
+SCHUBERT_Z = 4.753424308817087
+
+#: Grid on which correlations are compared when choosing neighbours (refinement of 4.3).
+CORRELATION_GRID = 2.0**40
+
+#: Every method of the evaluation protocol, in report order (SPEC sections 7 and 8).
+METHODS = (
+    "quantile-transfer",
+    "schubert",
+    "schubert-calibrated",
+    "calibration-threshold",
+    "oracle",
+)
+
+
+# ---------------------------------------------------------------------------------------
+# Section 10: bad input
+# ---------------------------------------------------------------------------------------
+
+
+def _shape(a: np.ndarray) -> str:
+    return "x".join(str(d) for d in a.shape)
+
+
+def _check_matrix(name: str, a: np.ndarray) -> None:
+    """A matrix argument must be 2-D and non-empty (SPEC section 10)."""
+    if a.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D matrix, got a {a.ndim}-D array of shape {a.shape}")
+    if a.size == 0:
+        raise ValueError(f"{name} is empty (shape {_shape(a)})")
+
+
+def _scores(name: str, s, query_major: bool) -> np.ndarray:
+    """Validate a score matrix and return it as a float64 |DB| x |Q| array.
+
+    Only float32 and float64 are accepted (``TypeError`` otherwise); NaN and infinite
+    scores are a ``ValueError`` naming the first offending position.
+    """
+    a = np.asarray(s)
+    if a.dtype.kind != "f" or a.dtype.itemsize not in (4, 8):
+        raise TypeError(f"{name} must be float32 or float64, got dtype {a.dtype}")
+    _check_matrix(name, a)
+    bad = np.argwhere(~np.isfinite(a))
+    if len(bad) > 0:
+        r, c = (int(v) for v in bad[0])
+        what = "NaN" if np.isnan(a[r, c]) else "an infinite value"
+        raise ValueError(f"{name} contains {what} at row {r}, column {c}")
+    a = a.astype(np.float64)  # exact for float32
+    return a.T if query_major else a
+
+
+def _ground_truth(name: str, g, like_name: str, like: np.ndarray, query_major: bool) -> np.ndarray:
+    """Validate a ground-truth matrix against the score matrix ``like`` (caller's
+    orientation) and return it as a bool |DB| x |Q| array.
+
+    bool and integer dtypes are accepted (``TypeError`` otherwise); integer values must
+    be 0 or 1 (``ValueError`` otherwise).
+    """
+    a = np.asarray(g)
+    if a.dtype.kind not in "biu":
+        raise TypeError(f"{name} must be bool or integer 0/1, got dtype {a.dtype}")
+    _check_matrix(name, a)
+    if a.shape != like.shape:
+        raise ValueError(f"{name} shape {_shape(a)} does not match {like_name} shape {_shape(like)}")
+    if a.dtype.kind != "b":
+        bad = np.argwhere((a != 0) & (a != 1))
+        if len(bad) > 0:
+            r, c = (int(v) for v in bad[0])
+            raise ValueError(
+                f"{name} contains {a[r, c]} at row {r}, column {c}; ground truth must be 0 or 1"
+            )
+    a = a.astype(bool)
+    return a.T if query_major else a
+
+
+def _inputs(s_name, s, gt_name, gt, soft_name, gt_soft, query_major):
+    """Validate one score matrix with its hard and optional soft ground truth.
+
+    Returns ``(s, gt, ignored)`` in |DB| x |Q| orientation, where ``ignored`` is
+    ``gt_soft & ~gt`` (all False without soft ground truth).
+    """
+    raw = np.asarray(s)
+    s64 = _scores(s_name, raw, query_major)
+    hard = _ground_truth(gt_name, gt, s_name, raw, query_major)
+    if gt_soft is None:
+        ignored = np.zeros_like(hard)
+    else:
+        soft = _ground_truth(soft_name, gt_soft, s_name, raw, query_major)
+        ignored = soft & ~hard
+    return s64, hard, ignored
+
+
+def _check_precision(precision) -> float:
+    if not isinstance(precision, numbers.Real):
+        raise TypeError(f"precision must be a real number, got {type(precision).__name__}")
+    tau = float(precision)
+    if not (0.0 < tau <= 1.0):
+        raise ValueError(f"precision must be in (0, 1], got {precision}")
+    return tau
+
+
+def _check_matching(matching) -> str:
+    if matching not in ("single", "multi"):
+        raise ValueError(f"matching must be 'single' or 'multi', got {matching!r}")
+    return matching
+
+
+def _check_positive_int(name: str, value) -> int:
+    try:
+        v = operator.index(value)
+    except TypeError:
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}") from None
+    if v < 1:
+        raise ValueError(f"{name} must be >= 1, got {v}")
+    return v
+
+
+# ---------------------------------------------------------------------------------------
+# Section 2: decisions (matching mode)
+# ---------------------------------------------------------------------------------------
+
+
+def _candidates(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray, matching: str):
+    """The candidates of a matrix, as SPEC section 2 defines them.
+
+    Returns ``(scores, correct, positives)``: the candidate scores (float64), whether
+    each candidate is correct (bool), and the number of positives.
+
+    - single: one candidate per query, its best match ``b`` = the first maximum of the
+      column; correct iff ``gt[b, j]``; no candidate when ``(b, j)`` is ignored.
+      Positives = queries with at least one hard match.
+    - multi: every non-ignored entry; correct iff ``gt`` there. Positives = number of
+      hard matches.
+    """
+    if matching == "single":
+        scores, correct = [], []
+        for j in range(s.shape[1]):
+            b = int(np.argmax(s[:, j]))  # first maximum on ties
+            if ignored[b, j]:
+                continue  # the query makes no decision
+            scores.append(s[b, j])
+            correct.append(bool(gt[b, j]))
+        positives = int(np.count_nonzero(gt.any(axis=0)))
+        return np.array(scores, dtype=np.float64), np.array(correct, dtype=bool), positives
+    keep = ~ignored
+    return s[keep], gt[keep], int(np.count_nonzero(gt))
+
+
+def _count_at(scores: np.ndarray, correct: np.ndarray, positives: int, threshold: float) -> dict:
+    """TP, FP, precision and recall of the candidates at ``threshold`` (s >= t accepts)."""
+    accepted = scores >= threshold
+    tp = int(np.count_nonzero(accepted & correct))
+    fp = int(np.count_nonzero(accepted & ~correct))
+    precision = tp / (tp + fp) if tp + fp > 0 else 1.0
+    recall = tp / positives if positives > 0 else 0.0
+    return {"tp": tp, "fp": fp, "positives": positives, "precision": precision, "recall": recall}
+
+
+def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
+    """Counts of one matrix's decisions at ``threshold`` (SPEC section 2).
+
+    Returns ``dict(tp=, fp=, positives=, precision=, recall=)``. Precision is 1 when
+    nothing is accepted; recall is 0 when there are no positives. ``threshold`` may be
+    ``inf`` (accepts nothing) but not NaN.
+    """
+    matching = _check_matching(matching)
+    if not isinstance(threshold, numbers.Real) or math.isnan(threshold):
+        raise ValueError(f"threshold must be a real number other than NaN, got {threshold!r}")
+    s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    return _count_at(*_candidates(s, gt, ignored, matching), float(threshold))
+
+
+# ---------------------------------------------------------------------------------------
+# Section 3: best threshold under a precision target
+# ---------------------------------------------------------------------------------------
+
+
+def _sweep(scores: np.ndarray, correct: np.ndarray, positives: int, tau: float) -> float:
+    """The exact precision sweep of SPEC section 3 over a list of candidates.
+
+    Candidates are sorted by decreasing score; the counts are evaluated only at the last
+    candidate of each group of equal scores. A group is valid when TP > 0 and
+    TP >= tau * (TP + FP) - 1e-12. The threshold is the score of the first group at
+    which TP reaches the largest valid TP, or +inf (reject-all) when no group is valid
+    or there are no positives.
+    """
+    if positives == 0 or len(scores) == 0:
+        return math.inf
+    order = np.argsort(-scores, kind="stable")
+    s_sorted = scores[order]
+    c_sorted = correct[order]
+
+    groups = []  # (score, TP, FP) at the end of each group of equal scores
+    tp = fp = 0
+    for i in range(len(s_sorted)):
+        if c_sorted[i]:
+            tp += 1
+        else:
+            fp += 1
+        last_of_group = i + 1 == len(s_sorted) or s_sorted[i + 1] != s_sorted[i]
+        if last_of_group:
+            groups.append((float(s_sorted[i]), tp, fp))
+
+    valid_tp = [tp for (_, tp, fp) in groups if tp > 0 and tp >= tau * (tp + fp) - EPS]
+    if not valid_tp:
+        return math.inf
+    best = max(valid_tp)
+    # TP never decreases down the sweep, so the first group reaching `best` has the fewest
+    # false positives among those with TP == best, and is therefore valid itself.
+    for score, tp, _ in groups:
+        if tp == best:
+            return score
+    raise AssertionError("unreachable")
+
+
+def _best_threshold(s, gt, ignored, tau, matching) -> float:
+    return _sweep(*_candidates(s, gt, ignored, matching), tau)
+
+
+def best_threshold(
+    s, gt, *, gt_soft=None, precision=1.0, matching="single", query_major=False
+) -> float:
+    """Best threshold of one matrix under precision target ``precision`` (SPEC section 3,
+    candidates per section 2). Returns ``math.inf`` for reject-all."""
+    tau = _check_precision(precision)
+    matching = _check_matching(matching)
+    s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    return _best_threshold(s, gt, ignored, tau, matching)
+
+
+# ---------------------------------------------------------------------------------------
+# Section 4: calibration sampling (ranked correlation)
+# ---------------------------------------------------------------------------------------
+
+
+def _ranked_unit_profiles(s: np.ndarray) -> np.ndarray:
+    """Column-centred, unit-norm ranked similarity profiles (SPEC sections 4.1 and 4.2).
+
+    Each column is sorted in descending order. A sorted column has zero variance exactly
+    when its first and last values are equal; its vector is then all zeros, so its
+    correlation with everything is exactly 0.
+    """
+    profiles = -np.sort(-s, axis=0)  # each column in descending order
+    z = np.zeros_like(profiles)
+    for j in range(profiles.shape[1]):
+        p = profiles[:, j]
+        if p[0] == p[-1]:
+            continue  # zero variance: correlation 0 with everything
+        centred = p - p.mean()
+        z[:, j] = centred / np.linalg.norm(centred)
+    return z
+
+
+def _calibration_neighbours(s_cal, s_val, k: int):
+    """Ranked correlation and top-k calibration queries (SPEC section 4).
+
+    Takes float64 |DB| x |Qcal| and |DB| x |Qval| matrices. Returns
+    ``(R, neighbours, weights)``:
+
+    - ``R[j, i]``: Pearson correlation of the ranked profiles of deployment query j and
+      calibration query i, computed as one product of unit profiles ``Zval.T @ Zcal``.
+    - ``neighbours[j]``: the ``min(k, |Qcal|)`` calibration indices of highest
+      correlation, in decreasing order. Refinement of 4.3: correlations are compared
+      after rounding to a grid of 2**-40 (``rint(R * 2**40)``), ties going to the lower
+      calibration index, so that correlations equal in exact arithmetic tie whatever
+      the summation order.
+    - ``weights[j]``: mean of the chosen *raw* correlations, clipped below at 0.
+    """
+    zcal = _ranked_unit_profiles(s_cal)
+    zval = _ranked_unit_profiles(s_val)
+    r = zval.T @ zcal
+    n_val, n_cal = r.shape
+    k = min(k, n_cal)
+    index = np.arange(n_cal)
+    neighbours = np.empty((n_val, k), dtype=np.int64)
+    weights = np.empty(n_val, dtype=np.float64)
+    for j in range(n_val):
+        key = np.rint(r[j] * CORRELATION_GRID)
+        order = np.lexsort((index, -key))  # by decreasing key, then increasing index
+        neighbours[j] = order[:k]
+        total = 0.0
+        for i in neighbours[j]:  # summed one by one, in neighbour order
+            total += float(r[j, i])
+        weights[j] = max(0.0, total / k)
+    return r, neighbours, weights
+
+
+# ---------------------------------------------------------------------------------------
+# Section 5: quantile of a subset threshold
+# ---------------------------------------------------------------------------------------
+
+
+def _subset_quantile(sample: np.ndarray, t: float) -> float:
+    """``q = (c - 1) / (n - 1)`` with c = #{sample <= t} (SPEC section 5).
+
+    Reject-all (t = +inf) gives 1; this takes precedence over n = 1, which gives 0.
+    """
+    if math.isinf(t):
+        return 1.0
+    n = sample.size
+    if n == 1:
+        return 0.0
+    c = int(np.count_nonzero(sample <= t))
+    return (c - 1) / (n - 1)
+
+
+# ---------------------------------------------------------------------------------------
+# Section 6: deployment threshold for a batch
+# ---------------------------------------------------------------------------------------
+
+
+def _lower_weighted_median(q: np.ndarray, w: np.ndarray) -> float:
+    """Lower weighted median (SPEC section 6.1).
+
+    Stable sort by q; the first q whose cumulative weight is >= 0.5 * total - 1e-12.
+    A total weight of 0 makes every weight 1. Weights are summed one by one in sorted
+    order, and the total is the last cumulative sum.
+    """
+    order = np.argsort(q, kind="stable")
+    q_sorted = q[order]
+    w_sorted = w[order]
+    if not np.any(w_sorted > 0):
+        w_sorted = np.ones_like(w_sorted)
+    cumulative = []
+    acc = 0.0
+    for weight in w_sorted:
+        acc += float(weight)
+        cumulative.append(acc)
+    half = 0.5 * cumulative[-1] - EPS
+    for qi, ci in zip(q_sorted, cumulative):
+        if ci >= half:
+            return float(qi)
+    raise AssertionError("unreachable")
+
+
+def _linear_quantile(scores: np.ndarray, q: float) -> float:
+    """Empirical quantile by linear interpolation (SPEC section 6.2).
+
+    With x sorted ascending, h = (N - 1) q, lo = floor(h), the value is
+    ``x[lo] + (h - lo) * (x[lo+1] - x[lo])`` (``x[lo]`` when lo is the last index).
+    q = 1 means reject-all: the next float64 above the maximum.
+    """
+    x = np.sort(scores, axis=None)
+    if q == 1.0:
+        return float(np.nextafter(x[-1], math.inf))
+    n = x.size
+    h = (n - 1) * q
+    lo = math.floor(h)
+    if lo + 1 >= n:
+        return float(x[lo])
+    return float(x[lo] + (h - lo) * (x[lo + 1] - x[lo]))
+
+
+def _segments(n_queries: int, segment_size: int | None) -> list[tuple[int, int]]:
+    """Consecutive runs of ``segment_size`` queries from the first one; the shorter last
+    run is kept. ``None`` means one batch of everything (SPEC section 6)."""
+    if segment_size is None:
+        return [(0, n_queries)]
+    return [
+        (start, min(start + segment_size, n_queries))
+        for start in range(0, n_queries, segment_size)
+    ]
+
+
+@dataclass
+class TransferResult:
+    """Output of :func:`quantile_transfer`.
+
+    Per segment: ``thresholds``, ``quantiles`` and ``segments`` ((start, end) over the
+    deployment columns, end exclusive). Per deployment query: ``query_quantiles`` (q_j),
+    ``query_thresholds`` (the subset threshold t_j, inf for reject-all),
+    ``query_weights`` (w_j) and ``neighbours`` (the chosen calibration columns, by
+    decreasing correlation).
+    """
+
+    thresholds: np.ndarray
+    quantiles: np.ndarray
+    segments: list[tuple[int, int]]
+    query_quantiles: np.ndarray
+    query_thresholds: np.ndarray
+    query_weights: np.ndarray
+    neighbours: np.ndarray
+
+
+def quantile_transfer(
+    s_cal,
+    gt_cal,
+    s_val,
+    *,
+    gt_soft=None,
+    k=10,
+    precision=1.0,
+    matching="single",
+    segment_size=None,
+    query_major=False,
+) -> TransferResult:
+    """Quantile transfer from calibration to deployment queries (SPEC sections 4-6).
+
+    For every deployment query j: its top-k calibration neighbours and weight w_j
+    (section 4), the threshold t_j of that calibration subset and its quantile q_j
+    within the subset's raw scores (section 5). For every segment of deployment
+    queries: the lower weighted median q of its q_j and the linear-interpolation
+    quantile at q of the segment's raw scores (section 6).
+
+    ``gt_soft`` is the calibration soft ground truth. ``segment_size=None`` means one
+    batch of all deployment queries.
+    """
+    k = _check_positive_int("k", k)
+    tau = _check_precision(precision)
+    matching = _check_matching(matching)
+    s_cal64, gt, ignored = _inputs("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, query_major)
+    s_val64 = _scores("s_val", s_val, query_major)
+    if s_val64.shape[0] != s_cal64.shape[0]:
+        raise ValueError(
+            f"s_val has |DB| = {s_val64.shape[0]} but s_cal has |DB| = {s_cal64.shape[0]}"
+        )
+    n_val = s_val64.shape[1]
+    if segment_size is not None:
+        segment_size = _check_positive_int("segment_size", segment_size)
+        if segment_size > n_val:
+            raise ValueError(
+                f"segment_size must be <= the number of deployment queries ({n_val}), "
+                f"got {segment_size}"
+            )
+
+    _, neighbours, weights = _calibration_neighbours(s_cal64, s_val64, k)
+
+    q_query = np.empty(n_val, dtype=np.float64)
+    t_query = np.empty(n_val, dtype=np.float64)
+    for j in range(n_val):
+        cols = neighbours[j]
+        t = _best_threshold(s_cal64[:, cols], gt[:, cols], ignored[:, cols], tau, matching)
+        t_query[j] = t
+        q_query[j] = _subset_quantile(s_cal64[:, cols], t)
+
+    segments = _segments(n_val, segment_size)
+    quantiles = np.empty(len(segments), dtype=np.float64)
+    thresholds = np.empty(len(segments), dtype=np.float64)
+    for i, (start, end) in enumerate(segments):
+        q = _lower_weighted_median(q_query[start:end], weights[start:end])
+        quantiles[i] = q
+        thresholds[i] = _linear_quantile(s_val64[:, start:end], q)
+
+    return TransferResult(
+        thresholds=thresholds,
+        quantiles=quantiles,
+        segments=segments,
+        query_quantiles=q_query,
+        query_thresholds=t_query,
+        query_weights=weights,
+        neighbours=neighbours,
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Section 7: baselines
+# ---------------------------------------------------------------------------------------
+
+
+def _median(values: np.ndarray) -> float:
+    """Median; the mean of the two middle values, (a + b) / 2, when the count is even."""
+    x = np.sort(values, axis=None)
+    n = x.size
+    if n % 2 == 1:
+        return float(x[n // 2])
+    return float((x[n // 2 - 1] + x[n // 2]) / 2.0)
+
+
+def _schubert(s: np.ndarray) -> float:
+    mu = _median(s)
+    sigma = _median(np.abs(s - mu)) / 0.675
+    if sigma == 0.0:
+        return mu
+    return mu + sigma * SCHUBERT_Z
+
+
+def schubert_threshold(s) -> float:
+    """Schubert et al.'s automatic threshold over all raw scores of ``s`` (SPEC section 7).
+
+    mu = median, sigma = median(|S - mu|) / 0.675, t = mu + sigma * 4.753424308817087;
+    t = mu when sigma = 0. The orientation of ``s`` does not matter.
+    """
+    return _schubert(_scores("s", s, False))
+
+
+# ---------------------------------------------------------------------------------------
+# Section 8: evaluation protocol
+# ---------------------------------------------------------------------------------------
+
+
+def _check_fraction(name: str, value) -> float:
+    if not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    v = float(value)
+    if not (0.0 < v < 1.0):
+        raise ValueError(f"{name} must be in (0, 1), got {value}")
+    return v
+
+
+def evaluate(
+    s,
+    gt,
+    *,
+    gt_soft=None,
+    methods=None,
+    k=10,
+    precision=1.0,
+    matching="single",
+    cal_fraction=0.10,
+    cal_queries=None,
+    segment_fraction=0.01,
+    segment_size=None,
+    query_major=False,
+) -> dict:
+    """The evaluation protocol of the paper's Table I (SPEC sections 7 and 8).
+
+    The first ``cal_queries`` (default ``floor(cal_fraction * |Q|)``) columns calibrate;
+    the rest is cut into ``floor(|Qdeploy| / size)`` full segments of ``segment_size``
+    (default ``ceil(segment_fraction * |Q|)``) queries, the remainder dropped. Every
+    method gives each segment a threshold, and the segment's decisions are counted
+    against its own ground truth. For quantile-transfer each segment is its own batch.
+
+    Returns ``{"methods": {name: {"pct_segs", "avg_recall", "segments_counted",
+    "segments_skipped", "threshold_mse", "segments": [...]}}}``; each segment reports
+    ``start``, ``end`` (deployment column indices, end exclusive), ``threshold``,
+    ``oracle_threshold``, ``tp``, ``fp``, ``positives``, ``precision``, ``recall`` and
+    ``meets``. Segments without positives are skipped in the summary figures, which
+    are None when no segment is counted; ``threshold_mse`` is None when no counted
+    segment has both thresholds finite.
+    """
+    methods = list(METHODS) if methods is None else list(methods)
+    for name in methods:
+        if name not in METHODS:
+            raise ValueError(f"unknown method {name!r}; expected one of {', '.join(METHODS)}")
+    k = _check_positive_int("k", k)
+    tau = _check_precision(precision)
+    matching = _check_matching(matching)
+    s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    n_q = s.shape[1]
+
+    if cal_queries is None:
+        n_cal = math.floor(_check_fraction("cal_fraction", cal_fraction) * n_q)
+    else:
+        n_cal = _check_positive_int("cal_queries", cal_queries)
+    if not (1 <= n_cal < n_q):
+        raise ValueError(
+            f"the calibration set must have between 1 and {n_q - 1} of the {n_q} queries, "
+            f"got {n_cal}"
+        )
+    n_dep = n_q - n_cal
+    if segment_size is None:
+        size = math.ceil(_check_fraction("segment_fraction", segment_fraction) * n_q)
+    else:
+        size = _check_positive_int("segment_size", segment_size)
+    if size > n_dep:
+        raise ValueError(
+            f"segment size {size} is larger than the {n_dep} deployment queries"
+        )
+    segments = _segments(n_dep // size * size, size)  # full segments only
+
+    s_cal, gt_cal, ign_cal = s[:, :n_cal], gt[:, :n_cal], ignored[:, :n_cal]
+    s_dep, gt_dep, ign_dep = s[:, n_cal:], gt[:, n_cal:], ignored[:, n_cal:]
+
+    # Each segment's candidates, counted against its own ground truth, and its oracle.
+    candidates = [
+        _candidates(s_dep[:, a:b], gt_dep[:, a:b], ign_dep[:, a:b], matching)
+        for a, b in segments
+    ]
+    oracle = [_sweep(*c, tau) for c in candidates]
+
+    thresholds = {}
+    for name in methods:
+        if name == "quantile-transfer":
+            transfer = quantile_transfer(
+                s_cal,
+                gt_cal,
+                s_dep[:, : segments[-1][1]],
+                gt_soft=gt_cal | ign_cal,
+                k=k,
+                precision=tau,
+                matching=matching,
+                segment_size=size,
+            )
+            thresholds[name] = [float(t) for t in transfer.thresholds]
+        elif name == "schubert":
+            thresholds[name] = [_schubert(s_dep[:, a:b]) for a, b in segments]
+        elif name == "schubert-calibrated":
+            thresholds[name] = [_schubert(s_cal)] * len(segments)
+        elif name == "calibration-threshold":
+            t = _best_threshold(s_cal, gt_cal, ign_cal, tau, matching)
+            thresholds[name] = [t] * len(segments)
+        else:  # oracle
+            thresholds[name] = list(oracle)
+
+    report = {}
+    for name in methods:
+        rows = []
+        for (a, b), cand, t, t_oracle in zip(segments, candidates, thresholds[name], oracle):
+            c = _count_at(*cand, t)
+            rows.append(
+                {
+                    "start": a,
+                    "end": b,
+                    "threshold": t,
+                    "oracle_threshold": t_oracle,
+                    **c,
+                    "meets": c["precision"] >= tau - EPS,
+                }
+            )
+        counted = [r for r in rows if r["positives"] > 0]
+        if counted:
+            pct_segs = 100.0 * sum(r["meets"] for r in counted) / len(counted)
+            avg_recall = sum(r["recall"] if r["meets"] else 0.0 for r in counted) / len(counted)
+        else:
+            pct_segs = avg_recall = None
+        finite = [
+            (r["threshold"] - r["oracle_threshold"]) ** 2
+            for r in counted
+            if math.isfinite(r["threshold"]) and math.isfinite(r["oracle_threshold"])
+        ]
+        report[name] = {
+            "pct_segs": pct_segs,
+            "avg_recall": avg_recall,
+            "segments_counted": len(counted),
+            "segments_skipped": len(rows) - len(counted),
+            "threshold_mse": sum(finite) / len(finite) if finite else None,
+            "segments": rows,
+        }
+    return {"methods": report}
