@@ -236,29 +236,17 @@ def _sweep(scores: np.ndarray, correct: np.ndarray, positives: int, tau: float) 
         return math.inf
     order = np.argsort(-scores, kind="stable")
     s_sorted = scores[order]
-    c_sorted = correct[order]
-
-    groups = []  # (score, TP, FP) at the end of each group of equal scores
-    tp = fp = 0
-    for i in range(len(s_sorted)):
-        if c_sorted[i]:
-            tp += 1
-        else:
-            fp += 1
-        last_of_group = i + 1 == len(s_sorted) or s_sorted[i + 1] != s_sorted[i]
-        if last_of_group:
-            groups.append((float(s_sorted[i]), tp, fp))
-
-    valid_tp = [tp for (_, tp, fp) in groups if tp > 0 and tp >= tau * (tp + fp) - EPS]
-    if not valid_tp:
+    tp = np.cumsum(correct[order])  # TP and FP after each candidate, down the sweep
+    fp = np.arange(1, len(s_sorted) + 1) - tp
+    last_of_group = np.append(s_sorted[1:] != s_sorted[:-1], True)
+    valid = last_of_group & (tp > 0) & (tp >= tau * (tp + fp) - EPS)
+    if not valid.any():
         return math.inf
-    best = max(valid_tp)
+    best = tp[valid].max()
     # TP never decreases down the sweep, so the first group reaching `best` has the fewest
     # false positives among those with TP == best, and is therefore valid itself.
-    for score, tp, _ in groups:
-        if tp == best:
-            return score
-    raise AssertionError("unreachable")
+    first = np.flatnonzero(last_of_group & (tp == best))[0]
+    return float(s_sorted[first])
 
 
 def _best_threshold(s, gt, ignored, tau, matching) -> float:
