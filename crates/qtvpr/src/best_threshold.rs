@@ -20,12 +20,7 @@ use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate
 /// # Errors
 /// Empty or non-finite scores, a ground-truth shape that differs from `s`, or `tau`
 /// outside (0, 1].
-pub fn best_threshold<T: Score>(
-    s: ArrayView2<'_, T>,
-    gt: &GroundTruth,
-    matching: Matching,
-    tau: f64,
-) -> Result<f64> {
+pub fn best_threshold<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching, tau: f64) -> Result<f64> {
     check_precision(tau)?;
     validate_scores("similarity", s)?;
     check_gt_shape(gt, "similarity", s.dim())?;
@@ -108,8 +103,7 @@ mod tests {
     /// At the end of each group (TP, FP): 0.9 (1, 0); 0.8 (2, 1); 0.7 (3, 1); 0.6 (3, 2); 0.05 (3, 3).
     fn example() -> (ndarray::Array2<f64>, GroundTruth) {
         let s = array![[0.9, 0.8], [0.8, 0.7], [0.6, 0.05]];
-        let gt =
-            GroundTruth::new(array![[true, true], [false, true], [false, false]].view()).unwrap();
+        let gt = GroundTruth::new(array![[true, true], [false, true], [false, false]].view()).unwrap();
         (s, gt)
     }
 
@@ -163,14 +157,8 @@ mod tests {
         let s = array![[0.9, 0.8], [0.1, 0.2]];
         let gt = GroundTruth::new(array![[false, false], [false, false]].view()).unwrap();
         for matching in [Matching::Single, Matching::Multi] {
-            assert_eq!(
-                best_threshold(s.view(), &gt, matching, 1.0).unwrap(),
-                f64::INFINITY
-            );
-            assert_eq!(
-                best_threshold(s.view(), &gt, matching, 0.5).unwrap(),
-                f64::INFINITY
-            );
+            assert_eq!(best_threshold(s.view(), &gt, matching, 1.0).unwrap(), f64::INFINITY);
+            assert_eq!(best_threshold(s.view(), &gt, matching, 0.5).unwrap(), f64::INFINITY);
         }
     }
 
@@ -180,14 +168,8 @@ mod tests {
         // correct above the false 0.7 is 0.9. tau = 0.6: 0.5 group gives (2, 1), 2 >= 1.8 -> 0.5.
         let s = array![[0.9, 0.7, 0.1], [0.3, 0.2, 0.5]];
         let gt = GroundTruth::new(array![[1u8, 0, 0], [0, 1, 1]].view()).unwrap();
-        assert_eq!(
-            best_threshold(s.view(), &gt, Matching::Single, 1.0).unwrap(),
-            0.9
-        );
-        assert_eq!(
-            best_threshold(s.view(), &gt, Matching::Single, 0.6).unwrap(),
-            0.5
-        );
+        assert_eq!(best_threshold(s.view(), &gt, Matching::Single, 1.0).unwrap(), 0.9);
+        assert_eq!(best_threshold(s.view(), &gt, Matching::Single, 0.6).unwrap(), 0.5);
     }
 
     #[test]
@@ -195,10 +177,7 @@ mod tests {
         let (s, gt) = example();
         for tau in [0.0, -0.1, 1.5, f64::NAN] {
             let err = best_threshold(s.view(), &gt, Matching::Single, tau).unwrap_err();
-            assert!(
-                err.to_string().starts_with("precision must be in (0, 1]"),
-                "{err}"
-            );
+            assert!(err.to_string().starts_with("precision must be in (0, 1]"), "{err}");
         }
     }
 }

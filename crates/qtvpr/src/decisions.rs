@@ -77,11 +77,7 @@ pub(crate) struct Candidates {
 
 impl Candidates {
     /// Collect the candidates of every column of `s` (|DB| x |Q|) under `gt` (same shape).
-    pub(crate) fn new<T: Score>(
-        s: ArrayView2<'_, T>,
-        gt: ArrayView2<'_, Truth>,
-        matching: Matching,
-    ) -> Self {
+    pub(crate) fn new<T: Score>(s: ArrayView2<'_, T>, gt: ArrayView2<'_, Truth>, matching: Matching) -> Self {
         let per_column: Vec<(Vec<(f64, bool)>, usize)> = (0..s.ncols())
             .into_par_iter()
             .map(|j| column_candidates(s.column(j), gt.column(j), matching))

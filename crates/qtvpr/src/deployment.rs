@@ -60,10 +60,7 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
     let n = s.len();
     assert!(n > 0, "deployment_threshold needs scores");
     if q >= 1.0 {
-        let max = s
-            .iter()
-            .map(|v| v.to_f64())
-            .fold(f64::NEG_INFINITY, f64::max);
+        let max = s.iter().map(|v| v.to_f64()).fold(f64::NEG_INFINITY, f64::max);
         return max.next_up();
     }
     let h = (n - 1) as f64 * q.max(0.0);
@@ -79,11 +76,7 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
 /// Order-preserving map from `f64` to `u64` (both zeros map to the key of +0).
 fn to_key(x: f64) -> u64 {
     let bits = (x + 0.0).to_bits();
-    if bits >> 63 == 1 {
-        !bits
-    } else {
-        bits | (1 << 63)
-    }
+    if bits >> 63 == 1 { !bits } else { bits | (1 << 63) }
 }
 
 fn from_key(k: u64) -> f64 {
@@ -99,11 +92,7 @@ fn select_key<T: Score>(s: ArrayView2<'_, T>, mut rank: usize) -> u64 {
     let mut prefix = 0u64;
     for pass in 0..(64 / DIGIT) {
         let shift = 64 - DIGIT * (pass + 1);
-        let fixed = if pass == 0 {
-            0
-        } else {
-            u64::MAX << (shift + DIGIT)
-        };
+        let fixed = if pass == 0 { 0 } else { u64::MAX << (shift + DIGIT) };
         let hist = (0..s.ncols())
             .into_par_iter()
             .fold(
@@ -142,16 +131,10 @@ fn next_value<T: Score>(s: ArrayView2<'_, T>, key: u64, rank: usize) -> f64 {
     let (at_most, above) = (0..s.ncols())
         .into_par_iter()
         .map(|j| {
-            s.column(j)
-                .iter()
-                .fold((0usize, u64::MAX), |(le, above), v| {
-                    let k = to_key(v.to_f64());
-                    if k <= key {
-                        (le + 1, above)
-                    } else {
-                        (le, above.min(k))
-                    }
-                })
+            s.column(j).iter().fold((0usize, u64::MAX), |(le, above), v| {
+                let k = to_key(v.to_f64());
+                if k <= key { (le + 1, above) } else { (le, above.min(k)) }
+            })
         })
         .reduce(|| (0, u64::MAX), |a, b| (a.0 + b.0, a.1.min(b.1)));
     if at_most > rank + 1 {
@@ -228,19 +211,13 @@ mod tests {
         // Pseudo-random scores (a fixed LCG) with many repeats and both signs.
         let mut x = 12345u64;
         let s = Array2::from_shape_fn((13, 7), |_| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((x >> 40) % 50) as f64 / 7.0 - 3.0
         });
         let mut sorted: Vec<f64> = s.iter().copied().collect();
         sorted.sort_by(f64::total_cmp);
         for rank in 0..sorted.len() {
-            assert_eq!(
-                from_key(select_key(s.view(), rank)),
-                sorted[rank],
-                "rank {rank}"
-            );
+            assert_eq!(from_key(select_key(s.view(), rank)), sorted[rank], "rank {rank}");
             if rank + 1 < sorted.len() {
                 assert_eq!(
                     next_value(s.view(), to_key(sorted[rank]), rank),

@@ -63,9 +63,7 @@ pub enum Error {
         deployment: usize,
     },
     /// A ground-truth entry is neither 0 nor 1 (nor false/true).
-    #[error(
-        "{what} has value {value} at row {row}, column {col}; ground truth must be 0/1 or bool"
-    )]
+    #[error("{what} has value {value} at row {row}, column {col}; ground truth must be 0/1 or bool")]
     BadLabel {
         /// Which ground-truth matrix.
         what: &'static str,

@@ -91,8 +91,7 @@ impl GroundTruth {
     /// [`Error::Empty`] for an empty matrix, [`Error::BadLabel`] for a value other than 0/1.
     pub fn new<L: Label>(hard: ArrayView2<'_, L>) -> Result<Self> {
         check_nonempty("ground truth", hard.dim())?;
-        let labels =
-            labels_of("ground truth", hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
+        let labels = labels_of("ground truth", hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
         Ok(Self { labels })
     }
 
@@ -142,10 +141,7 @@ impl GroundTruth {
 }
 
 fn labels_of<L: Label>(what: &'static str, m: ArrayView2<'_, L>) -> Result<Array2<bool>> {
-    if let Some(((row, col), v)) = m
-        .indexed_iter()
-        .find(|(_, v)| !matches!(v.to_i128(), 0 | 1))
-    {
+    if let Some(((row, col), v)) = m.indexed_iter().find(|(_, v)| !matches!(v.to_i128(), 0 | 1)) {
         return Err(Error::BadLabel {
             what,
             row,
@@ -172,10 +168,7 @@ pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Re
     check_nonempty(what, s.dim())?;
     let bad = (0..s.ncols()).into_par_iter().find_map_first(|col| {
         let column = s.column(col);
-        let (row, v) = column
-            .iter()
-            .enumerate()
-            .find(|(_, v)| !v.to_f64().is_finite())?;
+        let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
         Some(Error::NotFinite {
             what,
             row,
@@ -190,11 +183,7 @@ pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Re
 ///
 /// # Errors
 /// [`Error::ShapeMismatch`].
-pub fn check_gt_shape(
-    gt: &GroundTruth,
-    similarity: &'static str,
-    shape: (usize, usize),
-) -> Result<()> {
+pub fn check_gt_shape(gt: &GroundTruth, similarity: &'static str, shape: (usize, usize)) -> Result<()> {
     if gt.dim() != shape {
         return Err(Error::ShapeMismatch {
             what: "ground truth",
@@ -212,10 +201,7 @@ pub fn check_gt_shape(
 /// [`Error::InvalidParameter`].
 pub fn check_precision(tau: f64) -> Result<()> {
     if !(tau > 0.0 && tau <= 1.0) {
-        return Err(Error::param(
-            "precision",
-            format!("must be in (0, 1], got {tau}"),
-        ));
+        return Err(Error::param("precision", format!("must be in (0, 1], got {tau}")));
     }
     Ok(())
 }
@@ -260,19 +246,13 @@ mod tests {
             .unwrap()
             .with_soft(array![[1u8, 1, 0]].view())
             .unwrap();
-        assert_eq!(
-            gt.view(),
-            array![[Truth::True, Truth::Ignored, Truth::False]]
-        );
+        assert_eq!(gt.view(), array![[Truth::True, Truth::Ignored, Truth::False]]);
     }
 
     #[test]
     fn shapes_must_agree() {
         let hard = GroundTruth::new(array![[true, false]].view()).unwrap();
-        let err = hard
-            .clone()
-            .with_soft(array![[true], [false]].view())
-            .unwrap_err();
+        let err = hard.clone().with_soft(array![[true], [false]].view()).unwrap_err();
         assert_eq!(
             err.to_string(),
             "soft ground truth shape 2x1 does not match ground truth shape 1x2"
@@ -301,9 +281,7 @@ mod tests {
         );
         let empty = ndarray::Array2::<f64>::zeros((0, 3));
         assert_eq!(
-            validate_scores("similarity", empty.view())
-                .unwrap_err()
-                .to_string(),
+            validate_scores("similarity", empty.view()).unwrap_err().to_string(),
             "similarity is empty (shape 0x3)"
         );
         assert!(GroundTruth::new(ndarray::Array2::<bool>::default((2, 0)).view()).is_err());

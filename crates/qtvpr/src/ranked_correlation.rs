@@ -33,11 +33,7 @@ impl Profiles {
     pub(crate) fn new<T: Score>(s: ArrayView2<'_, T>, keep_sorted: bool) -> Self {
         let n_db = s.nrows();
         let mut unit = vec![0.0; n_db * s.ncols()];
-        let mut sorted = if keep_sorted {
-            vec![0.0; unit.len()]
-        } else {
-            Vec::new()
-        };
+        let mut sorted = if keep_sorted { vec![0.0; unit.len()] } else { Vec::new() };
         let work = |(j, z): (usize, &mut [f64]), p: &mut [f64]| {
             ranked_profile(s.column(j), p);
             standardise(p, z);
@@ -105,11 +101,7 @@ pub(crate) fn standardise(profile: &[f64], out: &mut [f64]) {
     // Divide by the largest magnitude first so that squares neither overflow nor underflow.
     let scale = profile[0].abs().max(profile[n - 1].abs());
     let mean = profile.iter().map(|x| x / scale).sum::<f64>() / n as f64;
-    let norm = profile
-        .iter()
-        .map(|x| (x / scale - mean).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let norm = profile.iter().map(|x| (x / scale - mean).powi(2)).sum::<f64>().sqrt();
     for (o, x) in out.iter_mut().zip(profile) {
         *o = (x / scale - mean) / norm;
     }
@@ -138,10 +130,7 @@ pub fn top_k(row: &[f64], k: usize) -> (Vec<usize>, f64) {
 ///
 /// # Errors
 /// Empty or non-finite scores, or a different number of database rows.
-pub fn ranked_correlation<T: Score, U: Score>(
-    val: ArrayView2<'_, T>,
-    cal: ArrayView2<'_, U>,
-) -> Result<Array2<f64>> {
+pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
     validate_scores("calibration similarity", cal)?;
     validate_scores("deployment similarity", val)?;
     if val.nrows() != cal.nrows() {
@@ -177,11 +166,7 @@ mod tests {
         assert!(close(r[[0, 1]], 6.0 / 48f64.sqrt()), "{r}");
         // [1,2,3] vs [0,1,3] (sorted [3,2,1], [3,1,0]): centred [1,0,-1] and [5/3,-1/3,-4/3];
         // dot 3, norms sqrt 2 and sqrt(42)/3 -> r = 9 / sqrt 84.
-        let r = ranked_correlation(
-            array![[1.0], [2.0], [3.0]].view(),
-            array![[0.0], [1.0], [3.0]].view(),
-        )
-        .unwrap();
+        let r = ranked_correlation(array![[1.0], [2.0], [3.0]].view(), array![[0.0], [1.0], [3.0]].view()).unwrap();
         assert!(close(r[[0, 0]], 9.0 / 84f64.sqrt()), "{r}");
     }
 
@@ -235,11 +220,7 @@ mod tests {
 
     #[test]
     fn database_sizes_must_agree() {
-        let err = ranked_correlation(
-            array![[1.0], [2.0]].view(),
-            array![[1.0], [2.0], [3.0]].view(),
-        )
-        .unwrap_err();
+        let err = ranked_correlation(array![[1.0], [2.0]].view(), array![[1.0], [2.0], [3.0]].view()).unwrap_err();
         assert_eq!(
             err,
             Error::DatabaseMismatch {

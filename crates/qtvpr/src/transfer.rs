@@ -98,11 +98,7 @@ impl Calibration {
     ///
     /// # Errors
     /// Empty or non-finite scores, or ground truth of another shape.
-    pub fn new<T: Score>(
-        s: ArrayView2<'_, T>,
-        gt: &GroundTruth,
-        matching: Matching,
-    ) -> Result<Self> {
+    pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         validate_scores("calibration similarity", s)?;
         check_gt_shape(gt, "calibration similarity", s.dim())?;
         Ok(Self::new_unchecked(s, gt.view(), matching))
@@ -172,8 +168,7 @@ impl Calibration {
         let chunk = ((1 << 22) / self.n_db).clamp(16, 4096);
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            let r = Profiles::new(s.slice(ndarray::s![.., start..end]), false)
-                .correlate(&self.profiles);
+            let r = Profiles::new(s.slice(ndarray::s![.., start..end]), false).correlate(&self.profiles);
             let per_query: Vec<(Vec<usize>, f64, f64, f64)> = r
                 .par_chunks(self.len())
                 .map(|row| {
@@ -184,11 +179,7 @@ impl Calibration {
                 })
                 .collect();
             for (j, (nb, w, t, q)) in (start..end).zip(per_query) {
-                neighbours
-                    .row_mut(j)
-                    .iter_mut()
-                    .zip(nb)
-                    .for_each(|(d, i)| *d = i);
+                neighbours.row_mut(j).iter_mut().zip(nb).for_each(|(d, i)| *d = i);
                 (query_weights[j], query_thresholds[j], query_quantiles[j]) = (w, t, q);
             }
         }
@@ -196,8 +187,7 @@ impl Calibration {
         let segments = ranges
             .into_par_iter()
             .map(|r| {
-                let quantile =
-                    weighted_median(&query_quantiles[r.clone()], &query_weights[r.clone()]);
+                let quantile = weighted_median(&query_quantiles[r.clone()], &query_weights[r.clone()]);
                 let threshold = deployment_threshold(s.slice(ndarray::s![.., r.clone()]), quantile);
                 Segment {
                     start: r.start,
@@ -366,9 +356,7 @@ mod tests {
         );
         assert!(msg(params(1, Some(0))).starts_with("segment size must be between 1 and"));
         assert!(msg(params(1, Some(3))).ends_with("(2), got 3"));
-        let err = cal
-            .transfer(array![[1.0], [2.0]].view(), &params(1, None))
-            .unwrap_err();
+        let err = cal.transfer(array![[1.0], [2.0]].view(), &params(1, None)).unwrap_err();
         assert_eq!(
             err,
             Error::DatabaseMismatch {
@@ -377,10 +365,7 @@ mod tests {
             }
         );
         let err = cal
-            .transfer(
-                array![[1.0], [f64::INFINITY], [0.0]].view(),
-                &params(1, None),
-            )
+            .transfer(array![[1.0], [f64::INFINITY], [0.0]].view(), &params(1, None))
             .unwrap_err();
         assert_eq!(
             err.to_string(),
