@@ -40,7 +40,9 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            // One line, whatever the underlying error printed.
+            let msg = format!("{err:#}");
+            eprintln!("error: {}", msg.lines().map(str::trim).collect::<Vec<_>>().join(" "));
             ExitCode::from(2)
         }
     }

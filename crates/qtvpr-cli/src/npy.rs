@@ -59,8 +59,15 @@ fn open(path: &Path) -> Result<NpyFile<BufReader<File>>> {
     if file.metadata().is_ok_and(|m| m.is_dir()) {
         bail!("{} is a directory, not a .npy file", path.display());
     }
-    NpyFile::new(BufReader::new(file))
-        .map_err(|e| anyhow!("{} is not a valid .npy file: {e}", path.display()))
+    NpyFile::new(BufReader::new(file)).map_err(|e| {
+        // Header parse errors span several lines; the first says what is wrong.
+        let e = e.to_string();
+        anyhow!(
+            "{} is not a valid .npy file: {}",
+            path.display(),
+            e.lines().next().unwrap_or_default().trim()
+        )
+    })
 }
 
 fn dtype_of<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(TypeChar, u64)> {
@@ -71,6 +78,14 @@ fn dtype_of<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(TypeChar, u64)> {
             path.display(),
             other.descr()
         ),
+    }
+}
+
+/// The dtype as NumPy spells it, e.g. `<c16`.
+fn dtype_name<R: Read>(npy: &NpyFile<R>) -> String {
+    match npy.dtype() {
+        DType::Plain(ts) => ts.to_string().replace('\'', ""),
+        other => other.descr(),
     }
 }
 
@@ -110,16 +125,12 @@ pub fn read_scores(path: &Path) -> Result<Scores> {
         _ => bail!(
             "{} has dtype {}; similarity scores must be float32 or float64",
             path.display(),
-            npy.dtype().descr()
+            dtype_name(&npy)
         ),
     }
 }
 
-fn gt_from<R: Read>(
-    npy: NpyFile<R>,
-    path: &Path,
-    soft: Option<GroundTruth>,
-) -> Result<GroundTruth> {
+fn gt_from<R: Read>(npy: NpyFile<R>, path: &Path, soft: Option<GroundTruth>) -> Result<GroundTruth> {
     macro_rules! labels {
         ($t:ty) => {{
             let m = read_matrix::<$t, R>(npy, path)?;
@@ -142,7 +153,7 @@ fn gt_from<R: Read>(
         _ => bail!(
             "{} has dtype {}; ground truth must be bool or integer 0/1",
             path.display(),
-            npy.dtype().descr()
+            dtype_name(&npy)
         ),
     };
     gt.with_context(|| path.display().to_string())
@@ -153,9 +164,7 @@ fn gt_from<R: Read>(
 /// `hard` may be an `.npy` file or an `.npz` archive in the VPR_Tutorial convention
 /// (`GThard`, optional `GTsoft`); an explicit `soft` file takes precedence over `GTsoft`.
 pub fn read_ground_truth(hard: &Path, soft: Option<&Path>) -> Result<GroundTruth> {
-    let is_npz = hard
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("npz"));
+    let is_npz = hard.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
     let gt = if is_npz {
         let mut npz = NpzArchive::open(hard).map_err(|e| open_error(hard, e, ".npz archive"))?;
         let npy = npz

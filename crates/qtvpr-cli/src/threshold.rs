@@ -32,7 +32,7 @@ pub struct ThresholdArgs {
     #[arg(long, default_value_t = qtvpr::DEFAULT_K)]
     k: usize,
     /// Target precision tau, in (0, 1].
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     precision: f64,
     /// single: one decision per query on its best match; multi: every entry is a candidate.
     #[arg(long, value_enum, default_value_t = MatchingArg::Single)]
@@ -99,15 +99,10 @@ struct ReportSegment {
 /// Run `threshold`.
 pub fn run(args: &ThresholdArgs) -> Result<()> {
     let orient = |s: crate::npy::Scores| {
-        if args.query_major {
-            s.reversed_axes()
-        } else {
-            s
-        }
+        if args.query_major { s.reversed_axes() } else { s }
     };
     let s_cal = orient(read_scores(&args.cal).with_context(|| "--cal".to_string())?);
-    let mut gt =
-        read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
+    let mut gt = read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
     if args.query_major {
         gt = gt.reversed_axes();
     }
@@ -120,15 +115,10 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
     };
     params.validate()?;
 
-    let cal = with_view!(&s_cal, |v| Calibration::new(v, &gt, matching)).with_context(|| {
-        format!(
-            "--cal {} / --cal-gt {}",
-            args.cal.display(),
-            args.cal_gt.display()
-        )
-    })?;
-    let transfer = with_view!(&s_val, |v| cal.transfer(v, &params))
-        .with_context(|| format!("--val {}", args.val.display()))?;
+    let cal = with_view!(&s_cal, |v| Calibration::new(v, &gt, matching))
+        .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?;
+    let transfer =
+        with_view!(&s_val, |v| cal.transfer(v, &params)).with_context(|| format!("--val {}", args.val.display()))?;
 
     let (n_db, n_val) = s_val.dim();
     let report = Report {

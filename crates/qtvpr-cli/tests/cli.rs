@@ -1,0 +1,387 @@
+//! End-to-end tests of `qtvpr-cli threshold`: a hand-computed run, and every bad input
+//! of SPEC section 10 (exit 2, one `error:` line naming the file or argument, no panic,
+//! no output file).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use tempfile::TempDir;
+
+/// Write a `.npy` by hand: any dtype string, shape and raw little-endian payload, so that
+/// the tests can also make the files no well-behaved writer would.
+fn npy_raw(path: &Path, descr: &str, fortran: bool, shape: &[usize], payload: &[u8]) {
+    let shape = match shape {
+        [n] => format!("({n},)"),
+        s => format!("({})", s.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
+    };
+    let order = if fortran { "True" } else { "False" };
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': {order}, 'shape': {shape}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header.as_bytes());
+    bytes.extend(payload);
+    std::fs::write(path, bytes).unwrap();
+}
+
+fn f64s(v: &[f64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// A C-order float64 matrix from rows.
+fn npy_f64(path: &Path, rows: &[&[f64]]) {
+    let flat: Vec<f64> = rows.iter().flat_map(|r| r.iter().copied()).collect();
+    npy_raw(path, "<f8", false, &[rows.len(), rows[0].len()], &f64s(&flat));
+}
+
+/// A C-order bool matrix from rows of 0/1.
+fn npy_bool(path: &Path, rows: &[&[u8]]) {
+    let flat: Vec<u8> = rows.iter().flat_map(|r| r.iter().copied()).collect();
+    npy_raw(path, "|b1", false, &[rows.len(), rows[0].len()], &flat);
+}
+
+/// The `transfer.rs` unit-test example: |DB| = 3, two calibration, two deployment queries.
+struct Case {
+    dir: TempDir,
+}
+
+impl Case {
+    fn new() -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let case = Self { dir };
+        npy_f64(&case.path("cal.npy"), &[&[3.0, 1.0], &[1.0, 4.0], &[2.0, 1.0]]);
+        npy_bool(&case.path("gt.npy"), &[&[1, 1], &[0, 1], &[1, 0]]);
+        npy_f64(&case.path("val.npy"), &[&[2.0, 2.0], &[6.0, 5.0], &[4.0, 2.0]]);
+        case
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// Run `threshold` with the default files, each replaceable, plus extra arguments.
+    fn run(&self, replace: &[(&str, PathBuf)], extra: &[&str]) -> Output {
+        let mut files = vec![
+            ("--cal", self.path("cal.npy")),
+            ("--cal-gt", self.path("gt.npy")),
+            ("--val", self.path("val.npy")),
+        ];
+        for (flag, path) in replace {
+            files
+                .iter_mut()
+                .filter(|(f, _)| f == flag)
+                .for_each(|(_, p)| *p = path.clone());
+        }
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
+        cmd.arg("threshold");
+        for (flag, path) in files {
+            cmd.arg(flag).arg(path);
+        }
+        cmd.args(["--output", self.path("out.json").to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap()
+    }
+
+    /// Assert a clean failure whose one-line message contains every `needle`.
+    fn fails(&self, replace: &[(&str, PathBuf)], extra: &[&str], needles: &[&str]) {
+        let out = self.run(replace, extra);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+        assert!(stderr.starts_with("error: "), "{stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(
+            !stderr.contains("panicked") && !stderr.contains("backtrace"),
+            "{stderr}"
+        );
+        for needle in needles {
+            assert!(stderr.contains(needle), "{needle:?} not in {stderr}");
+        }
+        assert!(!self.path("out.json").exists(), "an output file was left behind");
+        let stray = std::fs::read_dir(self.dir.path())
+            .unwrap()
+            .any(|e| e.unwrap().file_name().to_string_lossy().starts_with(".tmp"));
+        assert!(!stray, "a temporary output file was left behind");
+    }
+}
+
+#[test]
+fn hand_computed_thresholds() {
+    // See crates/qtvpr/src/transfer.rs: with k = 1 and segments of one query the
+    // quantiles are 0.5 and 1 and the thresholds 4 and the next f64 above 5.
+    let case = Case::new();
+    let out = case.run(&[], &["--k", "1", "--matching", "multi", "--segment-size", "1"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(case.path("out.json")).unwrap()).unwrap();
+    assert_eq!(json["method"], "quantile-transfer");
+    assert_eq!(
+        json["params"],
+        serde_json::json!({"k": 1, "precision": 1.0, "matching": "multi", "segment_size": 1})
+    );
+    let segs = json["segments"].as_array().unwrap();
+    assert_eq!(segs.len(), 2);
+    assert_eq!(
+        segs[0],
+        serde_json::json!({"start": 0, "end": 1, "quantile": 0.5, "threshold": 4.0})
+    );
+    assert_eq!((segs[1]["start"].as_u64(), segs[1]["end"].as_u64()), (Some(1), Some(2)));
+    assert_eq!(segs[1]["quantile"], 1.0);
+    assert_eq!(segs[1]["threshold"].as_f64().unwrap(), 5.0f64.next_up());
+}
+
+#[test]
+fn fortran_float32_and_integer_ground_truth_read_the_same() {
+    let case = Case::new();
+    // cal [[3, 1], [1, 4], [2, 1]] in Fortran order is the column-major payload 3,1,2,1,4,1.
+    let cal: Vec<u8> = [3.0f32, 1.0, 2.0, 1.0, 4.0, 1.0]
+        .iter()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    npy_raw(&case.path("cal_f.npy"), "<f4", true, &[3, 2], &cal);
+    let gt: Vec<u8> = [1i64, 1, 0, 1, 1, 0].iter().flat_map(|x| x.to_le_bytes()).collect();
+    npy_raw(&case.path("gt_i.npy"), "<i8", false, &[3, 2], &gt);
+    let extra = ["--k", "1", "--matching", "multi", "--format", "csv"];
+    case.run(&[], &extra);
+    let a = std::fs::read_to_string(case.path("out.json")).unwrap();
+    let b = case.run(
+        &[("--cal", case.path("cal_f.npy")), ("--cal-gt", case.path("gt_i.npy"))],
+        &extra,
+    );
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    let b = std::fs::read_to_string(case.path("out.json")).unwrap();
+    // One batch: q = 0.5, threshold 3 (crates/qtvpr/src/transfer.rs, one_neighbour_each).
+    assert_eq!(a, "start,end,quantile,threshold\n0,2,0.5,3\n");
+    assert_eq!(a, b);
+}
+
+#[test]
+fn query_major_transposes_every_matrix() {
+    let case = Case::new();
+    npy_f64(&case.path("cal_t.npy"), &[&[3.0, 1.0, 2.0], &[1.0, 4.0, 1.0]]);
+    npy_bool(&case.path("gt_t.npy"), &[&[1, 0, 1], &[1, 1, 0]]);
+    npy_f64(&case.path("val_t.npy"), &[&[2.0, 6.0, 4.0], &[2.0, 5.0, 2.0]]);
+    let files = [
+        ("--cal", case.path("cal_t.npy")),
+        ("--cal-gt", case.path("gt_t.npy")),
+        ("--val", case.path("val_t.npy")),
+    ];
+    let out = case.run(
+        &files,
+        &["--query-major", "--k", "1", "--matching", "multi", "--format", "csv"],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        std::fs::read_to_string(case.path("out.json")).unwrap(),
+        "start,end,quantile,threshold\n0,2,0.5,3\n"
+    );
+}
+
+#[test]
+fn bad_parameters() {
+    let case = Case::new();
+    case.fails(&[], &["--k", "0"], &["k must be >= 1, got 0"]);
+    for tau in ["0", "1.5", "NaN", "-1"] {
+        case.fails(&[], &["--precision", tau], &["precision must be in (0, 1]"]);
+    }
+    case.fails(
+        &[],
+        &["--segment-size", "0"],
+        &["segment size must be between 1 and the number of deployment queries (2), got 0"],
+    );
+    case.fails(&[], &["--segment-size", "3"], &["got 3"]);
+    // clap's own usage errors also exit 2.
+    let out = case.run(&[], &["--matching", "best"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn shape_mismatches() {
+    let case = Case::new();
+    npy_bool(&case.path("gt_wide.npy"), &[&[1, 1, 0], &[0, 1, 0], &[1, 0, 0]]);
+    case.fails(
+        &[("--cal-gt", case.path("gt_wide.npy"))],
+        &[],
+        &[
+            "--cal",
+            "ground truth shape 3x3 does not match calibration similarity shape 3x2",
+        ],
+    );
+    npy_f64(&case.path("val_short.npy"), &[&[2.0, 2.0], &[6.0, 5.0]]);
+    case.fails(
+        &[("--val", case.path("val_short.npy"))],
+        &[],
+        &[
+            "--val",
+            "val_short.npy",
+            "deployment similarity has 2 database rows but calibration similarity has 3",
+        ],
+    );
+}
+
+#[test]
+fn non_finite_and_empty_scores() {
+    let case = Case::new();
+    for (value, name) in [(f64::NAN, "NaN"), (f64::INFINITY, "inf"), (f64::NEG_INFINITY, "-inf")] {
+        npy_f64(&case.path("val_bad.npy"), &[&[2.0, 2.0], &[6.0, 5.0], &[4.0, value]]);
+        case.fails(
+            &[("--val", case.path("val_bad.npy"))],
+            &[],
+            &[
+                "--val",
+                &format!("deployment similarity contains {name} at row 2, column 1"),
+            ],
+        );
+    }
+    npy_raw(&case.path("empty_rows.npy"), "<f8", false, &[0, 2], &[]);
+    case.fails(
+        &[("--val", case.path("empty_rows.npy"))],
+        &[],
+        &["deployment similarity is empty (shape 0x2)"],
+    );
+    npy_raw(&case.path("empty_cols.npy"), "<f8", false, &[3, 0], &[]);
+    case.fails(
+        &[("--cal", case.path("empty_cols.npy"))],
+        &[],
+        &["--cal", "calibration similarity is empty (shape 3x0)"],
+    );
+}
+
+#[test]
+fn wrong_dimensions_and_dtypes() {
+    let case = Case::new();
+    npy_raw(&case.path("one_d.npy"), "<f8", false, &[3], &f64s(&[1.0, 2.0, 3.0]));
+    case.fails(
+        &[("--val", case.path("one_d.npy"))],
+        &[],
+        &["--val", "one_d.npy holds a 1-D array", "expected a 2-D matrix"],
+    );
+    npy_raw(&case.path("three_d.npy"), "<f8", false, &[1, 1, 2], &f64s(&[1.0, 2.0]));
+    case.fails(
+        &[("--cal", case.path("three_d.npy"))],
+        &[],
+        &["three_d.npy holds a 3-D array"],
+    );
+    for (descr, size) in [("<c16", 16), ("<U3", 12), ("<f2", 2), ("<i8", 8)] {
+        npy_raw(&case.path("dtype.npy"), descr, false, &[3, 2], &vec![0u8; 6 * size]);
+        case.fails(
+            &[("--val", case.path("dtype.npy"))],
+            &[],
+            &[
+                "--val",
+                &format!("dtype.npy has dtype {descr}; similarity scores must be float32 or float64"),
+            ],
+        );
+    }
+    npy_raw(&case.path("object.npy"), "|O", false, &[3, 2], &[0u8; 48]);
+    case.fails(&[("--cal", case.path("object.npy"))], &[], &["--cal", "object.npy"]);
+    npy_raw(
+        &case.path("gt_float.npy"),
+        "<f8",
+        false,
+        &[3, 2],
+        &f64s(&[1.0, 1.0, 0.0, 1.0, 1.0, 0.0]),
+    );
+    case.fails(
+        &[("--cal-gt", case.path("gt_float.npy"))],
+        &[],
+        &["--cal-gt", "ground truth must be bool or integer 0/1"],
+    );
+}
+
+#[test]
+fn ground_truth_values_must_be_zero_or_one() {
+    let case = Case::new();
+    for (value, shown) in [(2i64, "2"), (-1, "-1")] {
+        let gt: Vec<u8> = [1i64, 1, 0, 1, value, 0].iter().flat_map(|x| x.to_le_bytes()).collect();
+        npy_raw(&case.path("gt_bad.npy"), "<i8", false, &[3, 2], &gt);
+        case.fails(
+            &[("--cal-gt", case.path("gt_bad.npy"))],
+            &[],
+            &[
+                "--cal-gt",
+                "gt_bad.npy",
+                &format!("ground truth has value {shown} at row 2, column 0"),
+            ],
+        );
+    }
+}
+
+#[test]
+fn broken_files() {
+    let case = Case::new();
+    let good = std::fs::read(case.path("val.npy")).unwrap();
+    std::fs::write(case.path("truncated.npy"), &good[..good.len() - 5]).unwrap();
+    case.fails(
+        &[("--val", case.path("truncated.npy"))],
+        &[],
+        &["--val", "truncated.npy is truncated or corrupt"],
+    );
+    let mut corrupt = good.clone();
+    corrupt[12..20].copy_from_slice(b"garbage!");
+    std::fs::write(case.path("corrupt.npy"), corrupt).unwrap();
+    case.fails(
+        &[("--val", case.path("corrupt.npy"))],
+        &[],
+        &["--val", "corrupt.npy is not a valid .npy file"],
+    );
+    std::fs::write(case.path("text.npy"), "these are not the scores you are looking for").unwrap();
+    case.fails(
+        &[("--cal", case.path("text.npy"))],
+        &[],
+        &["--cal", "text.npy is not a valid .npy file"],
+    );
+    case.fails(
+        &[("--cal", case.path("missing.npy"))],
+        &[],
+        &["--cal", "cannot open", "missing.npy"],
+    );
+    std::fs::create_dir(case.path("dir.npy")).unwrap();
+    case.fails(
+        &[("--val", case.path("dir.npy"))],
+        &[],
+        &["--val", "dir.npy is a directory"],
+    );
+}
+
+#[test]
+fn npz_ground_truth() {
+    use npyz::WriterBuilder;
+    let case = Case::new();
+    let write_npz = |path: &Path, names: &[&str]| {
+        let mut npz = npyz::npz::NpzWriter::create(path).unwrap();
+        for name in names {
+            let mut w = npz
+                .array::<bool>(name, Default::default())
+                .unwrap()
+                .default_dtype()
+                .shape(&[3, 2])
+                .begin_nd()
+                .unwrap();
+            w.extend([true, true, false, true, true, false]).unwrap();
+            w.finish().unwrap();
+        }
+    };
+    write_npz(&case.path("gt.npz"), &["GThard", "GTsoft"]);
+    let out = case.run(
+        &[("--cal-gt", case.path("gt.npz"))],
+        &["--k", "1", "--matching", "multi", "--format", "csv"],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_file(case.path("out.json")).unwrap();
+    write_npz(&case.path("nohard.npz"), &["GTsoft"]);
+    case.fails(
+        &[("--cal-gt", case.path("nohard.npz"))],
+        &[],
+        &["--cal-gt", "nohard.npz has no array GThard"],
+    );
+    std::fs::write(case.path("bad.npz"), "not a zip").unwrap();
+    case.fails(
+        &[("--cal-gt", case.path("bad.npz"))],
+        &[],
+        &["--cal-gt", "bad.npz is not a valid .npz archive"],
+    );
+}
