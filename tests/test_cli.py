@@ -29,7 +29,11 @@ def cli() -> Path:
     if "QTVPR_CLI" in os.environ:
         return Path(os.environ["QTVPR_CLI"])
     subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "qtvpr-cli"], cwd=REPO, check=True)
-    return REPO / "target" / "release" / "qtvpr-cli"
+    meta = subprocess.run(
+        ["cargo", "metadata", "--format-version", "1", "--no-deps"],
+        cwd=REPO, check=True, capture_output=True, text=True,
+    )
+    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "qtvpr-cli"
 
 
 def run_cli(cli: Path, *args: str) -> subprocess.CompletedProcess:
