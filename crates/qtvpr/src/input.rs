@@ -20,6 +20,8 @@ pub trait Score: Copy + Send + Sync + PartialOrd + sealed::Sealed + 'static {
     const DTYPE: &'static str;
     /// Widen to `f64` (exact for both types).
     fn to_f64(self) -> f64;
+    /// Sort ascending in total order (a radix sort on the native width).
+    fn sort_ascending(v: &mut [Self]);
 }
 
 impl sealed::Sealed for f32 {}
@@ -27,6 +29,9 @@ impl sealed::Sealed for f64 {}
 
 impl Score for f32 {
     const DTYPE: &'static str = "float32";
+    fn sort_ascending(v: &mut [Self]) {
+        radsort::sort(v);
+    }
     #[inline]
     fn to_f64(self) -> f64 {
         f64::from(self)
@@ -35,6 +40,9 @@ impl Score for f32 {
 
 impl Score for f64 {
     const DTYPE: &'static str = "float64";
+    fn sort_ascending(v: &mut [Self]) {
+        radsort::sort(v);
+    }
     #[inline]
     fn to_f64(self) -> f64 {
         self

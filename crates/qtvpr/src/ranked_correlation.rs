@@ -34,19 +34,20 @@ impl Profiles {
         let n_db = s.nrows();
         let mut unit = vec![0.0; n_db * s.ncols()];
         let mut sorted = if keep_sorted { vec![0.0; unit.len()] } else { Vec::new() };
-        let work = |(j, z): (usize, &mut [f64]), p: &mut [f64]| {
-            ranked_profile(s.column(j), p);
+        let work = |(j, z): (usize, &mut [f64]), p: &mut [f64], scratch: &mut Vec<T>| {
+            ranked_profile(s.column(j), scratch, p);
             standardise(p, z);
         };
         if keep_sorted {
             unit.par_chunks_mut(n_db)
                 .enumerate()
                 .zip(sorted.par_chunks_mut(n_db))
-                .for_each(|(jz, p)| work(jz, p));
+                .for_each_init(Vec::new, |scratch, (jz, p)| work(jz, p, scratch));
         } else {
-            unit.par_chunks_mut(n_db)
-                .enumerate()
-                .for_each_init(|| vec![0.0; n_db], |p, jz| work(jz, p));
+            unit.par_chunks_mut(n_db).enumerate().for_each_init(
+                || (vec![0.0; n_db], Vec::new()),
+                |(p, scratch), jz| work(jz, p, scratch),
+            );
         }
         Self { n_db, sorted, unit }
     }
@@ -82,12 +83,15 @@ impl Profiles {
     }
 }
 
-/// Sort a column into `out` in descending order, widened to `f64`.
-pub(crate) fn ranked_profile<T: Score>(column: ArrayView1<'_, T>, out: &mut [f64]) {
-    for (o, v) in out.iter_mut().zip(column.iter()) {
+/// Sort a column into `out` in descending order, widened to `f64`. The sort runs on the
+/// native type (a radix sort: 4 passes for f32, 8 for f64); widening keeps the order.
+pub(crate) fn ranked_profile<T: Score>(column: ArrayView1<'_, T>, scratch: &mut Vec<T>, out: &mut [f64]) {
+    scratch.clear();
+    scratch.extend(column.iter().copied());
+    T::sort_ascending(scratch);
+    for (o, v) in out.iter_mut().zip(scratch.iter().rev()) {
         *o = v.to_f64();
     }
-    out.sort_unstable_by(|a, b| b.total_cmp(a));
 }
 
 /// Centre a descending profile and scale it to unit norm; all zeros when it is constant
@@ -98,13 +102,16 @@ pub(crate) fn standardise(profile: &[f64], out: &mut [f64]) {
         out.fill(0.0);
         return;
     }
-    // Divide by the largest magnitude first so that squares neither overflow nor underflow.
+    // Scale by the largest magnitude first so that squares neither overflow nor underflow.
+    // (A division: the reciprocal of a subnormal scale would overflow.)
     let scale = profile[0].abs().max(profile[n - 1].abs());
-    let mean = profile.iter().map(|x| x / scale).sum::<f64>() / n as f64;
-    let norm = profile.iter().map(|x| (x / scale - mean).powi(2)).sum::<f64>().sqrt();
     for (o, x) in out.iter_mut().zip(profile) {
-        *o = (x / scale - mean) / norm;
+        *o = x / scale;
     }
+    let mean = out.iter().sum::<f64>() / n as f64;
+    out.iter_mut().for_each(|o| *o -= mean);
+    let inv_norm = 1.0 / out.iter().map(|o| o * o).sum::<f64>().sqrt();
+    out.iter_mut().for_each(|o| *o *= inv_norm);
 }
 
 /// The `k` (clipped to the row length) calibration indices of highest correlation in
