@@ -1,0 +1,197 @@
+//! `Calibration` and `TransferResult`: calibrate once, transfer many times.
+
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use qtvpr::{Matching, Params};
+
+use crate::convert::{GroundTruthArgs, Scores, count, with_scores};
+use crate::error::Args;
+
+/// The Python `k` default (`10`) is written as a literal so that `help()` shows it.
+const _: () = assert!(qtvpr::DEFAULT_K == 10);
+
+/// A calibration traverse with ground truth, ready to transfer thresholds.
+///
+/// ``s_cal`` is the |DB| x |Qcal| calibration similarity (float32 or float64, higher is
+/// more similar), ``gt_cal`` its hard ground truth and ``gt_soft`` its optional soft
+/// ground truth (bool or integer 0/1, same shape; entries soft but not hard are
+/// ignored). ``matching`` is ``"single"`` (one decision per query, on its best match)
+/// or ``"multi"`` (every entry is a candidate). ``query_major=True`` takes every matrix
+/// as |Qcal| x |DB| instead.
+///
+/// Everything that depends on the calibration traverse alone (ranked profiles,
+/// candidates) is computed here, once; each :meth:`transfer` reuses it. Arrays are read
+/// in place and the GIL is released while the work runs.
+///
+/// Raises ``TypeError`` for an unsupported dtype and ``ValueError`` for bad input
+/// (shape mismatch, empty matrix, NaN or infinite score, label other than 0/1,
+/// unknown ``matching``).
+#[pyclass(frozen, module = "qtvpr", name = "Calibration")]
+pub(crate) struct PyCalibration {
+    inner: qtvpr::Calibration,
+}
+
+#[pymethods]
+impl PyCalibration {
+    #[new]
+    #[pyo3(signature = (s_cal, gt_cal, *, gt_soft = None, matching = "single", query_major = false))]
+    pub(crate) fn new(
+        py: Python<'_>,
+        s_cal: &Bound<'_, PyAny>,
+        gt_cal: &Bound<'_, PyAny>,
+        gt_soft: Option<&Bound<'_, PyAny>>,
+        matching: &str,
+        query_major: bool,
+    ) -> PyResult<Self> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major,
+        };
+        let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
+        let s = Scores::extract("s_cal", s_cal)?;
+        let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
+        let (s, gt) = (s.view(query_major), gt.view(query_major));
+        let inner = py
+            .detach(|| with_scores!(s, s => qtvpr::Calibration::new(s, &gt.build()?, matching)))
+            .map_err(|e| args.error(e))?;
+        Ok(Self { inner })
+    }
+
+    /// Transfer thresholds to the deployment similarity ``s_val`` (|DB| x |Qval|).
+    ///
+    /// Each deployment query samples its ``k`` calibration queries of most correlated
+    /// ranked similarity profile (``k`` is clipped to the number of calibration
+    /// queries); their best threshold at precision target ``precision`` (in (0, 1]) is
+    /// turned into a quantile of their scores; each segment of ``segment_size``
+    /// consecutive deployment queries (``None``: all of them in one segment; a shorter
+    /// last segment is kept) gets the weighted-median quantile of its queries, read off
+    /// its own scores. ``query_major=True`` takes ``s_val`` as |Qval| x |DB|.
+    ///
+    /// Returns a :class:`TransferResult`. Raises ``TypeError`` for an unsupported dtype
+    /// and ``ValueError`` for bad input (a |DB| other than the calibration's, empty,
+    /// NaN or infinite scores, ``k < 1``, ``precision`` outside (0, 1], ``segment_size``
+    /// outside 1..=|Qval|).
+    #[pyo3(signature = (s_val, *, k = 10, precision = 1.0, segment_size = None, query_major = false))]
+    pub(crate) fn transfer(
+        &self,
+        py: Python<'_>,
+        s_val: &Bound<'_, PyAny>,
+        k: i64,
+        precision: f64,
+        segment_size: Option<i64>,
+        query_major: bool,
+    ) -> PyResult<TransferResult> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major,
+        };
+        let params = Params {
+            k: count("k", k)?,
+            precision,
+            segment_size: segment_size.map(|m| count("segment_size", m)).transpose()?,
+        };
+        params.validate().map_err(|e| args.error(e))?;
+        let s = Scores::extract("s_val", s_val)?;
+        let s = s.view(query_major);
+        let out = py
+            .detach(|| with_scores!(s, s => self.inner.transfer(s, &params)))
+            .map_err(|e| args.error(e))?;
+        Ok(TransferResult::new(py, out))
+    }
+
+    /// The best threshold of the whole calibration set at precision target
+    /// ``precision`` (in (0, 1]): the threshold of maximum recall whose precision is at
+    /// least the target, the highest such. ``math.inf`` means reject all.
+    ///
+    /// This is the threshold tuned once offline and kept fixed, as practised today.
+    #[pyo3(signature = (precision = 1.0))]
+    fn threshold(&self, py: Python<'_>, precision: f64) -> PyResult<f64> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major: false,
+        };
+        py.detach(|| self.inner.threshold(precision)).map_err(|e| args.error(e))
+    }
+
+    /// The number of calibration queries.
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    /// The matching mode, ``"single"`` or ``"multi"``.
+    #[getter]
+    fn matching(&self) -> &'static str {
+        self.inner.matching().as_str()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Calibration(queries={}, matching='{}')",
+            self.inner.len(),
+            self.inner.matching().as_str()
+        )
+    }
+}
+
+/// The result of a quantile transfer.
+///
+/// Per segment: ``thresholds`` (accept a match when its score is ``>=`` the threshold),
+/// ``quantiles`` (the weighted-median quantile the threshold was read at) and
+/// ``segments`` (``(start, end)`` deployment-query indices, end exclusive). Per
+/// deployment query: ``query_quantiles``, ``query_thresholds`` (the best threshold of
+/// its calibration neighbours, ``inf`` for reject-all), ``query_weights`` and
+/// ``neighbours`` (|Qval| x min(k, |Qcal|) calibration indices, most correlated first).
+#[pyclass(frozen, module = "qtvpr", name = "TransferResult")]
+pub(crate) struct TransferResult {
+    /// One threshold per segment (float64).
+    #[pyo3(get)]
+    thresholds: Py<PyArray1<f64>>,
+    /// One quantile per segment (float64).
+    #[pyo3(get)]
+    quantiles: Py<PyArray1<f64>>,
+    /// ``(start, end)`` of every segment over the deployment queries, end exclusive.
+    #[pyo3(get)]
+    segments: Vec<(usize, usize)>,
+    /// Per deployment query, the quantile of its subset threshold (float64).
+    #[pyo3(get)]
+    query_quantiles: Py<PyArray1<f64>>,
+    /// Per deployment query, its subset threshold, ``inf`` for reject-all (float64).
+    #[pyo3(get)]
+    query_thresholds: Py<PyArray1<f64>>,
+    /// Per deployment query, its weight: the mean of its neighbours' correlations,
+    /// clipped below at 0 (float64).
+    #[pyo3(get)]
+    query_weights: Py<PyArray1<f64>>,
+    /// |Qval| x min(k, |Qcal|) calibration indices, most correlated first (int64).
+    #[pyo3(get)]
+    neighbours: Py<PyArray2<i64>>,
+}
+
+impl TransferResult {
+    pub(crate) fn new(py: Python<'_>, out: qtvpr::Transfer) -> Self {
+        let per_segment = |f: fn(&qtvpr::Segment) -> f64| PyArray1::from_iter(py, out.segments.iter().map(f)).unbind();
+        Self {
+            thresholds: per_segment(|s| s.threshold),
+            quantiles: per_segment(|s| s.quantile),
+            segments: out.segments.iter().map(|s| (s.start, s.end)).collect(),
+            query_quantiles: out.query_quantiles.into_pyarray(py).unbind(),
+            query_thresholds: out.query_thresholds.into_pyarray(py).unbind(),
+            query_weights: out.query_weights.into_pyarray(py).unbind(),
+            // Indices are below |Qcal|, so they fit in an i64.
+            neighbours: out.neighbours.mapv(|i| i as i64).into_pyarray(py).unbind(),
+        }
+    }
+}
+
+#[pymethods]
+impl TransferResult {
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let thresholds = self.thresholds.bind(py).repr()?;
+        let neighbours = self.neighbours.bind(py);
+        let (queries, k) = (neighbours.shape()[0], neighbours.shape()[1]);
+        Ok(format!(
+            "TransferResult(segments={}, queries={queries}, k={k}, thresholds={thresholds})",
+            self.segments.len()
+        ))
+    }
+}

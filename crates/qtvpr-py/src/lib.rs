@@ -1,0 +1,182 @@
+//! `qtvpr._native`: the Python binding of the `qtvpr` core.
+//!
+//! The binding is thin on purpose: it converts arguments ([`convert`]), calls the core
+//! with the GIL released, and converts results and errors back ([`error`]). There is no
+//! arithmetic here, so the core's tests and the Python parity tests against
+//! `qtvpr.reference` cover the numbers, and this crate only has to get the plumbing
+//! right: dtypes, orientation, strides, exceptions.
+//!
+//! Python docstrings live on the `#[pyfunction]`s and `#[pymethods]` below, with
+//! `#[pyo3(signature = ...)]` so that `help()` shows the real signature; the types live
+//! in `py/qtvpr/_native.pyi`.
+
+mod calibration;
+mod convert;
+mod error;
+
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use qtvpr::Matching;
+
+use crate::calibration::{PyCalibration, TransferResult};
+use crate::convert::{GroundTruthArgs, Scores, with_scores};
+use crate::error::Args;
+
+/// Quantile transfer from calibration to deployment queries.
+///
+/// Shorthand for ``Calibration(s_cal, gt_cal, gt_soft=gt_soft, matching=matching,
+/// query_major=query_major).transfer(s_val, k=k, precision=precision,
+/// segment_size=segment_size, query_major=query_major)``; see :class:`Calibration`.
+///
+/// ``s_cal`` (|DB| x |Qcal|) and ``s_val`` (|DB| x |Qval|) are float32 or float64
+/// similarity matrices, higher is more similar; ``gt_cal`` and ``gt_soft`` are the
+/// calibration's hard and soft ground truth (bool or integer 0/1). With
+/// ``query_major=True`` every matrix is given transposed (|Q| x |DB|, as VPR-Bench
+/// stores them). Returns a :class:`TransferResult`.
+#[pyfunction]
+#[pyo3(signature = (
+    s_cal, gt_cal, s_val, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
+    segment_size = None, query_major = false,
+))]
+#[allow(clippy::too_many_arguments)] // the Python signature
+fn quantile_transfer(
+    py: Python<'_>,
+    s_cal: &Bound<'_, PyAny>,
+    gt_cal: &Bound<'_, PyAny>,
+    s_val: &Bound<'_, PyAny>,
+    gt_soft: Option<&Bound<'_, PyAny>>,
+    k: i64,
+    precision: f64,
+    matching: &str,
+    segment_size: Option<i64>,
+    query_major: bool,
+) -> PyResult<TransferResult> {
+    // Check the cheap parameters before the calibration does any work.
+    let params = qtvpr::Params {
+        k: convert::count("k", k)?,
+        precision,
+        segment_size: segment_size.map(|m| convert::count("segment_size", m)).transpose()?,
+    };
+    params.validate().map_err(|e| {
+        Args {
+            gt: "gt_cal",
+            query_major,
+        }
+        .error(e)
+    })?;
+    PyCalibration::new(py, s_cal, gt_cal, gt_soft, matching, query_major)?.transfer(
+        py,
+        s_val,
+        k,
+        precision,
+        segment_size,
+        query_major,
+    )
+}
+
+/// The best threshold of a similarity matrix under a precision target.
+///
+/// ``s`` is a |DB| x |Q| float32 or float64 similarity matrix, ``gt`` and ``gt_soft``
+/// its hard and optional soft ground truth (bool or integer 0/1; entries soft but not
+/// hard are ignored). Candidates follow ``matching``: ``"single"`` is each query's best
+/// match, ``"multi"`` every entry. Returns the threshold of maximum recall whose
+/// precision is at least ``precision`` (in (0, 1]), the highest such: always the score
+/// of a correct candidate, or ``math.inf`` (reject all) when there is none.
+/// ``query_major=True`` takes both matrices as |Q| x |DB|.
+#[pyfunction]
+#[pyo3(signature = (s, gt, *, gt_soft = None, precision = 1.0, matching = "single", query_major = false))]
+fn best_threshold(
+    py: Python<'_>,
+    s: &Bound<'_, PyAny>,
+    gt: &Bound<'_, PyAny>,
+    gt_soft: Option<&Bound<'_, PyAny>>,
+    precision: f64,
+    matching: &str,
+    query_major: bool,
+) -> PyResult<f64> {
+    let args = Args { gt: "gt", query_major };
+    let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
+    let s = Scores::extract("s", s)?;
+    let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
+    let (s, gt) = (s.view(query_major), gt.view(query_major));
+    py.detach(|| with_scores!(s, s => qtvpr::best_threshold(s, &gt.build()?, matching, precision)))
+        .map_err(|e| args.error(e))
+}
+
+/// The decisions of a similarity matrix at one threshold.
+///
+/// A candidate (per ``matching``, as in :func:`best_threshold`) is accepted when its
+/// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
+/// "recall"}``: precision is 1 when nothing is accepted, recall 0 when there are no
+/// positives (queries with a hard match in ``"single"`` mode, hard matches in
+/// ``"multi"``). ``threshold`` may be ``inf`` (accepts nothing) but not NaN.
+#[pyfunction]
+#[pyo3(signature = (s, gt, threshold, *, gt_soft = None, matching = "single", query_major = false))]
+fn counts<'py>(
+    py: Python<'py>,
+    s: &Bound<'py, PyAny>,
+    gt: &Bound<'py, PyAny>,
+    threshold: f64,
+    gt_soft: Option<&Bound<'py, PyAny>>,
+    matching: &str,
+    query_major: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let args = Args { gt: "gt", query_major };
+    let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
+    if threshold.is_nan() {
+        // The core would accept nothing at NaN; the reference refuses it.
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "threshold must be a real number other than NaN, got nan",
+        ));
+    }
+    let s = Scores::extract("s", s)?;
+    let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
+    let (s, gt) = (s.view(query_major), gt.view(query_major));
+    let c = py
+        .detach(|| with_scores!(s, s => qtvpr::counts(s, &gt.build()?, matching, threshold)))
+        .map_err(|e| args.error(e))?;
+    let out = PyDict::new(py);
+    out.set_item("tp", c.tp)?;
+    out.set_item("fp", c.fp)?;
+    out.set_item("positives", c.positives)?;
+    out.set_item("precision", c.precision())?;
+    out.set_item("recall", c.recall())?;
+    Ok(out)
+}
+
+/// The ranked-correlation matrix of deployment and calibration queries.
+///
+/// Every column of ``s_val`` (|DB| x |Qval|) and ``s_cal`` (|DB| x |Qcal|) is sorted
+/// in descending order; entry ``[j, i]`` of the result (|Qval| x |Qcal|, float64) is
+/// the Pearson correlation of deployment profile j with calibration profile i, 0 when
+/// either is constant. ``query_major=True`` takes both matrices as |Q| x |DB|.
+#[pyfunction]
+#[pyo3(signature = (s_val, s_cal, *, query_major = false))]
+fn ranked_correlation<'py>(
+    py: Python<'py>,
+    s_val: &Bound<'py, PyAny>,
+    s_cal: &Bound<'py, PyAny>,
+    query_major: bool,
+) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+    let args = Args { gt: "gt", query_major };
+    let val = Scores::extract("s_val", s_val)?;
+    let cal = Scores::extract("s_cal", s_cal)?;
+    let (val, cal) = (val.view(query_major), cal.view(query_major));
+    let r = py
+        .detach(|| with_scores!(val, val => with_scores!(cal, cal => qtvpr::ranked_correlation(val, cal))))
+        .map_err(|e| args.error(e))?;
+    Ok(numpy::IntoPyArray::into_pyarray(r, py))
+}
+
+/// Quantile transfer for visual place recognition: the compiled core of ``qtvpr``.
+#[pymodule(gil_used = false)]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(quantile_transfer, m)?)?;
+    m.add_function(wrap_pyfunction!(best_threshold, m)?)?;
+    m.add_function(wrap_pyfunction!(counts, m)?)?;
+    m.add_function(wrap_pyfunction!(ranked_correlation, m)?)?;
+    m.add_class::<PyCalibration>()?;
+    m.add_class::<TransferResult>()?;
+    Ok(())
+}

@@ -1,0 +1,42 @@
+"""Quantile transfer: automatic operating-point selection for visual place recognition.
+
+A VPR system accepts a match when its similarity score is at or above a threshold.
+Quantile transfer (Rajani, Milford, Fischer, IROS 2026) sets that threshold for each
+batch of deployment queries without their ground truth, from a calibration traverse
+that has ground truth.
+
+Similarity matrices are |DB| x |Q| (one column per query; pass ``query_major=True`` for
+|Q| x |DB|), float32 or float64, higher meaning more similar. Ground truth is bool or
+integer 0/1 of the same shape.
+
+>>> import numpy as np, qtvpr
+>>> s_cal = np.array([[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]])
+>>> gt_cal = np.array([[True, False], [False, True], [False, False]])
+>>> s_val = np.array([[0.7, 0.1, 0.2], [0.2, 0.6, 0.3], [0.1, 0.3, 0.5]])
+>>> result = qtvpr.quantile_transfer(s_cal, gt_cal, s_val, k=1)
+>>> result.segments
+[(0, 3)]
+
+The functions are compiled (module ``qtvpr._native``); ``qtvpr.reference`` is a plain
+NumPy implementation of the same functions, the executable form of the specification.
+"""
+
+from qtvpr._native import (
+    Calibration,
+    TransferResult,
+    __version__,
+    best_threshold,
+    counts,
+    quantile_transfer,
+    ranked_correlation,
+)
+
+__all__ = [
+    "Calibration",
+    "TransferResult",
+    "__version__",
+    "best_threshold",
+    "counts",
+    "quantile_transfer",
+    "ranked_correlation",
+]

@@ -1,0 +1,96 @@
+"""Type stubs of the compiled module; the docstrings are on the compiled objects."""
+
+from typing import Literal, TypedDict, final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__version__: str
+
+_Matching = Literal["single", "multi"]
+
+class _Counts(TypedDict):
+    tp: int
+    fp: int
+    positives: int
+    precision: float
+    recall: float
+
+@final
+class TransferResult:
+    @property
+    def thresholds(self) -> NDArray[np.float64]: ...
+    @property
+    def quantiles(self) -> NDArray[np.float64]: ...
+    @property
+    def segments(self) -> list[tuple[int, int]]: ...
+    @property
+    def query_quantiles(self) -> NDArray[np.float64]: ...
+    @property
+    def query_thresholds(self) -> NDArray[np.float64]: ...
+    @property
+    def query_weights(self) -> NDArray[np.float64]: ...
+    @property
+    def neighbours(self) -> NDArray[np.int64]: ...
+
+@final
+class Calibration:
+    def __init__(
+        self,
+        s_cal: ArrayLike,
+        gt_cal: ArrayLike,
+        *,
+        gt_soft: ArrayLike | None = None,
+        matching: _Matching = "single",
+        query_major: bool = False,
+    ) -> None: ...
+    def transfer(
+        self,
+        s_val: ArrayLike,
+        *,
+        k: int = 10,
+        precision: float = 1.0,
+        segment_size: int | None = None,
+        query_major: bool = False,
+    ) -> TransferResult: ...
+    def threshold(self, precision: float = 1.0) -> float: ...
+    def __len__(self) -> int: ...
+    @property
+    def matching(self) -> _Matching: ...
+
+def quantile_transfer(
+    s_cal: ArrayLike,
+    gt_cal: ArrayLike,
+    s_val: ArrayLike,
+    *,
+    gt_soft: ArrayLike | None = None,
+    k: int = 10,
+    precision: float = 1.0,
+    matching: _Matching = "single",
+    segment_size: int | None = None,
+    query_major: bool = False,
+) -> TransferResult: ...
+def best_threshold(
+    s: ArrayLike,
+    gt: ArrayLike,
+    *,
+    gt_soft: ArrayLike | None = None,
+    precision: float = 1.0,
+    matching: _Matching = "single",
+    query_major: bool = False,
+) -> float: ...
+def counts(
+    s: ArrayLike,
+    gt: ArrayLike,
+    threshold: float,
+    *,
+    gt_soft: ArrayLike | None = None,
+    matching: _Matching = "single",
+    query_major: bool = False,
+) -> _Counts: ...
+def ranked_correlation(
+    s_val: ArrayLike,
+    s_cal: ArrayLike,
+    *,
+    query_major: bool = False,
+) -> NDArray[np.float64]: ...
