@@ -1,0 +1,98 @@
+"""The shape of the Python API: names, signatures (the same as the reference's),
+result types, and inputs the binding reads in place."""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+import pytest
+
+import qtvpr
+from qtvpr import reference as ref
+
+S_CAL = np.array([[0.9, 0.2, 0.4], [0.1, 0.8, 0.3], [0.3, 0.4, 0.7], [0.2, 0.1, 0.1]])
+GT_CAL = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 0]], dtype=bool)
+S_VAL = np.array(
+    [[0.7, 0.1, 0.2, 0.5, 0.3], [0.2, 0.6, 0.3, 0.1, 0.2], [0.1, 0.3, 0.5, 0.4, 0.9], [0.0, 0.2, 0.1, 0.3, 0.4]]
+)
+
+
+def test_public_names():
+    assert sorted(qtvpr.__all__) == sorted(
+        ["Calibration", "TransferResult", "__version__", "best_threshold", "counts",
+         "quantile_transfer", "ranked_correlation"]
+    )
+    for name in qtvpr.__all__:
+        assert hasattr(qtvpr, name), name
+    assert isinstance(qtvpr.__version__, str) and qtvpr.__version__
+
+
+@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts"])
+def test_signatures_match_reference(name):
+    assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
+        return_annotation=inspect.Signature.empty
+    )
+
+
+def test_docstrings_and_signatures_for_help():
+    for f in (qtvpr.quantile_transfer, qtvpr.best_threshold, qtvpr.counts, qtvpr.ranked_correlation):
+        assert f.__doc__ and f.__text_signature__, f.__name__
+    assert "k=10" in qtvpr.Calibration.transfer.__text_signature__
+    assert qtvpr.Calibration.__doc__
+    params = inspect.signature(qtvpr.Calibration).parameters
+    assert list(params) == ["s_cal", "gt_cal", "gt_soft", "matching", "query_major"]
+
+
+def test_transfer_result():
+    r = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, k=5, segment_size=2)
+    assert r.segments == [(0, 2), (2, 4), (4, 5)]
+    for name in ("thresholds", "quantiles"):
+        a = getattr(r, name)
+        assert a.dtype == np.float64 and a.shape == (3,), name
+    for name in ("query_quantiles", "query_thresholds", "query_weights"):
+        a = getattr(r, name)
+        assert a.dtype == np.float64 and a.shape == (5,), name
+    # k = 5 is clipped to the 3 calibration queries.
+    assert r.neighbours.dtype == np.int64 and r.neighbours.shape == (5, 3)
+    assert repr(r).startswith("TransferResult(segments=3, queries=5, k=3, thresholds=array(")
+    with pytest.raises(AttributeError):
+        r.thresholds = np.zeros(3)
+    assert isinstance(r, qtvpr.TransferResult)
+
+
+def test_calibration_object():
+    cal = qtvpr.Calibration(S_CAL, GT_CAL, matching="multi")
+    assert len(cal) == 3
+    assert cal.matching == "multi"
+    assert repr(cal) == "Calibration(queries=3, matching='multi')"
+    assert cal.threshold() == ref.best_threshold(S_CAL, GT_CAL, matching="multi")
+    a = cal.transfer(S_VAL, k=2)
+    b = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, k=2, matching="multi")
+    np.testing.assert_array_equal(a.thresholds, b.thresholds)
+    np.testing.assert_array_equal(a.neighbours, b.neighbours)
+
+
+def test_counts_types():
+    c = qtvpr.counts(S_CAL, GT_CAL, 0.5)
+    assert c == ref.counts(S_CAL, GT_CAL, 0.5)
+    assert [type(c[k]) for k in ("tp", "fp", "positives", "precision", "recall")] == [int, int, int, float, float]
+    assert qtvpr.counts(S_CAL, GT_CAL, np.inf)["tp"] == 0
+
+
+def test_read_only_shared_and_byte_swapped_inputs():
+    s = S_CAL.copy()
+    s.flags.writeable = False
+    want = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_CAL, k=2)
+    got = qtvpr.quantile_transfer(s, GT_CAL, s, k=2)  # the same read-only array twice
+    np.testing.assert_array_equal(got.thresholds, want.thresholds)
+    swapped = S_CAL.astype(S_CAL.dtype.newbyteorder())
+    got = qtvpr.quantile_transfer(swapped, GT_CAL.astype(">i4"), S_CAL, k=2)
+    np.testing.assert_array_equal(got.thresholds, want.thresholds)
+    assert np.array_equal(S_CAL, swapped)  # the input is untouched
+
+
+def test_ranked_correlation_shape():
+    r = qtvpr.ranked_correlation(S_VAL, S_CAL)
+    assert r.shape == (5, 3) and r.dtype == np.float64
+    np.testing.assert_array_equal(qtvpr.ranked_correlation(S_VAL.T, S_CAL.T, query_major=True), r)

@@ -1,0 +1,233 @@
+"""Bad input (SPEC section 10): the right exception type, with a message naming the
+argument, and never a panic.
+
+The table-driven cases run against both the wheel and the reference, so the two agree
+on which exception each case raises; the wheel-only tests cover its extra entry points
+(``Calibration``, ``ranked_correlation``) and its messages.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+import qtvpr
+from qtvpr import reference as ref
+
+IMPLEMENTATIONS = {"wheel": qtvpr, "reference": ref}
+
+S_CAL = np.array([[0.9, 0.2, 0.4], [0.1, 0.8, 0.3], [0.3, 0.4, 0.7], [0.2, 0.1, 0.1]])
+GT_CAL = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 0]], dtype=bool)
+S_VAL = np.array(
+    [[0.7, 0.1, 0.2, 0.5, 0.3], [0.2, 0.6, 0.3, 0.1, 0.2], [0.1, 0.3, 0.5, 0.4, 0.9], [0.0, 0.2, 0.1, 0.3, 0.4]]
+)
+
+
+def with_value(a: np.ndarray, value) -> np.ndarray:
+    b = a.astype(np.result_type(a, type(value))).copy()
+    b[1, 2] = value
+    return b
+
+
+def int_gt(value) -> np.ndarray:
+    g = GT_CAL.astype(np.int64)
+    g[2, 1] = value
+    return g
+
+
+# (id, arguments of quantile_transfer that replace the defaults, exception, argument named)
+TRANSFER_CASES = [
+    ("gt-shape", dict(gt_cal=GT_CAL[:3]), ValueError, "gt_cal"),
+    ("gt-shape-transposed", dict(gt_cal=GT_CAL.T.copy()), ValueError, "gt_cal"),
+    ("soft-shape", dict(gt_soft=GT_CAL[:, :2]), ValueError, "gt_soft"),
+    ("db-mismatch", dict(s_val=S_VAL[:3]), ValueError, "s_val"),
+    ("cal-nan", dict(s_cal=with_value(S_CAL, np.nan)), ValueError, "s_cal"),
+    ("cal-inf", dict(s_cal=with_value(S_CAL, np.inf)), ValueError, "s_cal"),
+    ("cal-neg-inf", dict(s_cal=with_value(S_CAL, -np.inf)), ValueError, "s_cal"),
+    ("val-nan", dict(s_val=with_value(S_VAL, np.nan)), ValueError, "s_val"),
+    ("val-inf-f32", dict(s_val=with_value(S_VAL.astype(np.float32), np.inf)), ValueError, "s_val"),
+    ("cal-no-rows", dict(s_cal=S_CAL[:0], gt_cal=GT_CAL[:0]), ValueError, "empty"),
+    ("cal-no-cols", dict(s_cal=S_CAL[:, :0], gt_cal=GT_CAL[:, :0]), ValueError, "empty"),
+    ("val-no-cols", dict(s_val=S_VAL[:, :0]), ValueError, "s_val"),
+    ("val-no-rows", dict(s_val=S_VAL[:0]), ValueError, "s_val"),
+    ("cal-1d", dict(s_cal=S_CAL[:, 0]), ValueError, "s_cal"),
+    ("cal-3d", dict(s_cal=S_CAL[None]), ValueError, "s_cal"),
+    ("val-1d", dict(s_val=S_VAL[0]), ValueError, "s_val"),
+    ("gt-1d", dict(gt_cal=GT_CAL[:, 0]), ValueError, "gt_cal"),
+    ("gt-3d", dict(gt_cal=GT_CAL[None]), ValueError, "gt_cal"),
+    ("cal-complex", dict(s_cal=S_CAL.astype(np.complex128)), TypeError, "s_cal"),
+    ("cal-str", dict(s_cal=S_CAL.astype(str)), TypeError, "s_cal"),
+    ("cal-object", dict(s_cal=S_CAL.astype(object)), TypeError, "s_cal"),
+    ("cal-float16", dict(s_cal=S_CAL.astype(np.float16)), TypeError, "s_cal"),
+    ("cal-int", dict(s_cal=(S_CAL * 10).astype(np.int64)), TypeError, "s_cal"),
+    ("cal-bool", dict(s_cal=S_CAL > 0.5), TypeError, "s_cal"),
+    ("val-complex", dict(s_val=S_VAL.astype(np.complex64)), TypeError, "s_val"),
+    ("val-longdouble", dict(s_val=S_VAL.astype(np.longdouble)), TypeError, "s_val"),
+    ("gt-two", dict(gt_cal=int_gt(2)), ValueError, "gt_cal"),
+    ("gt-minus-one", dict(gt_cal=int_gt(-1)), ValueError, "gt_cal"),
+    ("soft-two", dict(gt_soft=int_gt(2).astype(np.uint8)), ValueError, "gt_soft"),
+    ("gt-float", dict(gt_cal=GT_CAL.astype(np.float64)), TypeError, "gt_cal"),
+    ("gt-complex", dict(gt_cal=GT_CAL.astype(np.complex128)), TypeError, "gt_cal"),
+    ("gt-str", dict(gt_cal=GT_CAL.astype(str)), TypeError, "gt_cal"),
+    ("soft-float", dict(gt_soft=GT_CAL.astype(np.float32)), TypeError, "gt_soft"),
+    ("k-zero", dict(k=0), ValueError, "k"),
+    ("k-negative", dict(k=-3), ValueError, "k"),
+    ("k-float", dict(k=2.0), TypeError, "k"),
+    ("precision-zero", dict(precision=0.0), ValueError, "precision"),
+    ("precision-negative", dict(precision=-0.5), ValueError, "precision"),
+    ("precision-above-one", dict(precision=1.5), ValueError, "precision"),
+    ("precision-nan", dict(precision=float("nan")), ValueError, "precision"),
+    ("precision-inf", dict(precision=float("inf")), ValueError, "precision"),
+    ("segment-zero", dict(segment_size=0), ValueError, "segment_size"),
+    ("segment-negative", dict(segment_size=-1), ValueError, "segment_size"),
+    ("segment-too-large", dict(segment_size=6), ValueError, "segment_size"),
+    ("matching-foo", dict(matching="foo"), ValueError, "matching"),
+    ("matching-case", dict(matching="Single"), ValueError, "matching"),
+]
+
+
+@pytest.fixture(params=sorted(IMPLEMENTATIONS))
+def impl(request):
+    return IMPLEMENTATIONS[request.param]
+
+
+@pytest.mark.parametrize(
+    "overrides, exc, name", [c[1:] for c in TRANSFER_CASES], ids=[c[0] for c in TRANSFER_CASES]
+)
+def test_quantile_transfer(impl, overrides, exc, name):
+    kwargs = dict(s_cal=S_CAL, gt_cal=GT_CAL, s_val=S_VAL) | overrides
+    s_cal, gt_cal, s_val = kwargs.pop("s_cal"), kwargs.pop("gt_cal"), kwargs.pop("s_val")
+    with pytest.raises(exc, match=re.escape(name)):
+        impl.quantile_transfer(s_cal, gt_cal, s_val, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "overrides, exc, name", [c[1:] for c in TRANSFER_CASES], ids=[c[0] for c in TRANSFER_CASES]
+)
+def test_quantile_transfer_query_major(overrides, exc, name):
+    """The same cases on transposed input: same exception (wheel only)."""
+    kwargs = dict(s_cal=S_CAL, gt_cal=GT_CAL, s_val=S_VAL) | overrides
+    matrices = [kwargs.pop(n) for n in ("s_cal", "gt_cal", "s_val")]
+    matrices = [np.asarray(m).T for m in matrices]
+    if kwargs.get("gt_soft") is not None:
+        kwargs["gt_soft"] = np.asarray(kwargs["gt_soft"]).T
+    with pytest.raises(exc, match=re.escape(name)):
+        qtvpr.quantile_transfer(*matrices, query_major=True, **kwargs)
+
+
+MATRIX_CASES = [
+    ("shape", dict(gt=GT_CAL[:, :2]), ValueError, "gt"),
+    ("soft-shape", dict(gt_soft=GT_CAL[:2]), ValueError, "gt_soft"),
+    ("nan", dict(s=with_value(S_CAL, np.nan)), ValueError, "s"),
+    ("inf", dict(s=with_value(S_CAL.astype(np.float32), np.inf)), ValueError, "s"),
+    ("neg-inf", dict(s=with_value(S_CAL, -np.inf)), ValueError, "s"),
+    ("empty", dict(s=S_CAL[:0], gt=GT_CAL[:0]), ValueError, "empty"),
+    ("1d", dict(s=S_CAL[0], gt=GT_CAL[0]), ValueError, "s"),
+    ("3d", dict(s=S_CAL[None], gt=GT_CAL[None]), ValueError, "s"),
+    ("complex", dict(s=S_CAL.astype(np.complex128)), TypeError, "s"),
+    ("object", dict(s=S_CAL.astype(object)), TypeError, "s"),
+    ("float16", dict(s=S_CAL.astype(np.float16)), TypeError, "s"),
+    ("int", dict(s=np.ones(S_CAL.shape, dtype=np.int32)), TypeError, "s"),
+    ("gt-two", dict(gt=int_gt(2)), ValueError, "gt"),
+    ("gt-minus-one", dict(gt=int_gt(-1).astype(np.int8)), ValueError, "gt"),
+    ("gt-float", dict(gt=GT_CAL.astype(np.float64)), TypeError, "gt"),
+    ("matching-foo", dict(matching="foo"), ValueError, "matching"),
+]
+
+
+@pytest.mark.parametrize(
+    "overrides, exc, name", [c[1:] for c in MATRIX_CASES], ids=[c[0] for c in MATRIX_CASES]
+)
+@pytest.mark.parametrize("function", ["best_threshold", "counts"])
+def test_matrix_functions(impl, function, overrides, exc, name):
+    kwargs = dict(s=S_CAL, gt=GT_CAL) | overrides
+    s, gt = kwargs.pop("s"), kwargs.pop("gt")
+    args = (s, gt) if function == "best_threshold" else (s, gt, 0.5)
+    with pytest.raises(exc, match=re.escape(name)):
+        getattr(impl, function)(*args, **kwargs)
+
+
+@pytest.mark.parametrize("precision", [0.0, 1.5, float("nan"), -1.0])
+def test_best_threshold_precision(impl, precision):
+    with pytest.raises(ValueError, match="precision"):
+        impl.best_threshold(S_CAL, GT_CAL, precision=precision)
+
+
+def test_counts_nan_threshold(impl):
+    with pytest.raises(ValueError, match="threshold"):
+        impl.counts(S_CAL, GT_CAL, float("nan"))
+
+
+# ---------------------------------------------------------------------------------------
+# Wheel only
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "overrides, exc, name", [c[1:] for c in TRANSFER_CASES], ids=[c[0] for c in TRANSFER_CASES]
+)
+def test_calibration(overrides, exc, name):
+    """Calibration + transfer raise what quantile_transfer raises."""
+    kwargs = dict(s_cal=S_CAL, gt_cal=GT_CAL, s_val=S_VAL) | overrides
+    s_cal, gt_cal, s_val = kwargs.pop("s_cal"), kwargs.pop("gt_cal"), kwargs.pop("s_val")
+    cal_kwargs = {n: kwargs.pop(n) for n in ("gt_soft", "matching") if n in kwargs}
+    with pytest.raises(exc, match=re.escape(name)):
+        qtvpr.Calibration(s_cal, gt_cal, **cal_kwargs).transfer(s_val, **kwargs)
+
+
+@pytest.mark.parametrize("precision", [0.0, 1.5, float("nan")])
+def test_calibration_threshold_precision(precision):
+    with pytest.raises(ValueError, match="precision"):
+        qtvpr.Calibration(S_CAL, GT_CAL).threshold(precision)
+
+
+@pytest.mark.parametrize(
+    "s_val, s_cal, exc",
+    [
+        (S_VAL[:3], S_CAL, ValueError),
+        (with_value(S_VAL, np.nan), S_CAL, ValueError),
+        (S_VAL, with_value(S_CAL, -np.inf), ValueError),
+        (S_VAL[:, :0], S_CAL, ValueError),
+        (S_VAL, S_CAL[0], ValueError),
+        (S_VAL.astype(np.complex128), S_CAL, TypeError),
+        (S_VAL, S_CAL.astype(np.int16), TypeError),
+    ],
+)
+def test_ranked_correlation(s_val, s_cal, exc):
+    with pytest.raises(exc):
+        qtvpr.ranked_correlation(s_val, s_cal)
+
+
+def test_messages_name_argument_and_position():
+    with pytest.raises(ValueError, match=r"^s_cal: .*NaN at row 1, column 2"):
+        qtvpr.quantile_transfer(with_value(S_CAL, np.nan), GT_CAL, S_VAL)
+    with pytest.raises(ValueError, match=r"^gt_cal: .*value 2 at row 2, column 1"):
+        qtvpr.quantile_transfer(S_CAL, int_gt(2), S_VAL)
+    with pytest.raises(ValueError, match=r"^gt_cal: .*shape 3x3 does not match .*shape 4x3"):
+        qtvpr.quantile_transfer(S_CAL, GT_CAL[:3], S_VAL)
+    with pytest.raises(TypeError, match=r"^s_val must be a float32 or float64 array, got complex128$"):
+        qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL.astype(np.complex128))
+
+
+def test_query_major_messages_use_callers_orientation():
+    # The caller's matrices are |Q| x |DB|; positions and shapes are given as passed.
+    s = with_value(S_CAL, np.nan).T.copy()  # NaN at caller's row 2, column 1
+    with pytest.raises(ValueError, match=r"NaN at row 2, column 1"):
+        qtvpr.quantile_transfer(s, GT_CAL.T, S_VAL.T, query_major=True)
+    g = int_gt(2).T.copy()  # 2 at caller's row 1, column 2
+    with pytest.raises(ValueError, match=r"value 2 at row 1, column 2"):
+        qtvpr.quantile_transfer(S_CAL.T, g, S_VAL.T, query_major=True)
+    with pytest.raises(ValueError, match=r"^gt: .*shape 2x4 does not match .*shape 3x4"):
+        qtvpr.best_threshold(S_CAL.T, GT_CAL.T[:2], query_major=True)
+
+
+def test_lists_are_accepted_and_checked():
+    got = qtvpr.quantile_transfer(S_CAL.tolist(), GT_CAL.tolist(), S_VAL.tolist(), k=2)
+    want = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, k=2)
+    np.testing.assert_array_equal(got.thresholds, want.thresholds)
+    with pytest.raises(TypeError, match="s_cal"):
+        qtvpr.quantile_transfer([[1, 2], [3, 4]], [[1, 0], [0, 1]], [[1.0], [2.0]])
+    with pytest.raises(ValueError, match="s_cal"):
+        qtvpr.quantile_transfer([0.5, 0.25], [1, 0], [[1.0], [2.0]])
