@@ -8,7 +8,16 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-mod npy;
+/// Call `$body` with `$v` bound to the typed `ArrayView2` inside a `qtvpr::npy::ScoresView`.
+macro_rules! with_view {
+    ($scores:expr, |$v:ident| $body:expr) => {
+        match $scores {
+            qtvpr::npy::ScoresView::F32($v) => $body,
+            qtvpr::npy::ScoresView::F64($v) => $body,
+        }
+    };
+}
+
 mod output;
 mod threshold;
 

@@ -8,8 +8,8 @@ use clap::Args;
 use qtvpr::{Calibration, Matching, Params};
 use serde::Serialize;
 
-use crate::npy::{read_ground_truth, read_scores, with_view};
 use crate::output::{Format, emit};
+use qtvpr::npy::{ScoresView, read_ground_truth, read_scores};
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
@@ -98,15 +98,17 @@ struct ReportSegment {
 
 /// Run `threshold`.
 pub fn run(args: &ThresholdArgs) -> Result<()> {
-    let orient = |s: crate::npy::Scores| {
-        if args.query_major { s.reversed_axes() } else { s }
-    };
-    let s_cal = orient(read_scores(&args.cal).with_context(|| "--cal".to_string())?);
+    // Errors about a file's content name the file; the flag says which input it was.
+    let s_cal = read_scores(&args.cal).context("--cal")?;
+    let s_val = read_scores(&args.val).context("--val")?;
     let mut gt = read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
     if args.query_major {
         gt = gt.reversed_axes();
     }
-    let s_val = orient(read_scores(&args.val).context("--val")?);
+    let (s_cal, s_val) = (
+        orient(s_cal.view(), args.query_major),
+        orient(s_val.view(), args.query_major),
+    );
     let matching = Matching::from(args.matching);
     let params = Params {
         k: args.k,
@@ -115,10 +117,10 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
     };
     params.validate()?;
 
-    let cal = with_view!(&s_cal, |v| Calibration::new(v, &gt, matching))
+    let cal = with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
         .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?;
     let transfer =
-        with_view!(&s_val, |v| cal.transfer(v, &params)).with_context(|| format!("--val {}", args.val.display()))?;
+        with_view!(s_val, |v| cal.transfer(v, &params)).with_context(|| format!("--val {}", args.val.display()))?;
 
     let (n_db, n_val) = s_val.dim();
     let report = Report {
@@ -154,4 +156,9 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
         }
     };
     emit(&text, args.output.as_deref())
+}
+
+/// |DB| x |Q| whatever the stored orientation.
+pub fn orient(s: ScoresView<'_>, query_major: bool) -> ScoresView<'_> {
+    if query_major { s.t() } else { s }
 }

@@ -272,7 +272,7 @@ fn wrong_dimensions_and_dtypes() {
             &[],
             &[
                 "--val",
-                &format!("dtype.npy has dtype {descr}; similarity scores must be float32 or float64"),
+                &format!("dtype.npy has dtype {descr}; expected float32 or float64 similarity scores"),
             ],
         );
     }
@@ -288,7 +288,7 @@ fn wrong_dimensions_and_dtypes() {
     case.fails(
         &[("--cal-gt", case.path("gt_float.npy"))],
         &[],
-        &["--cal-gt", "ground truth must be bool or integer 0/1"],
+        &["--cal-gt", "expected bool or integer 0/1 ground truth"],
     );
 }
 
@@ -318,7 +318,7 @@ fn broken_files() {
     case.fails(
         &[("--val", case.path("truncated.npy"))],
         &[],
-        &["--val", "truncated.npy is truncated or corrupt"],
+        &["--val", "truncated.npy is truncated"],
     );
     let mut corrupt = good.clone();
     corrupt[12..20].copy_from_slice(b"garbage!");
@@ -337,13 +337,13 @@ fn broken_files() {
     case.fails(
         &[("--cal", case.path("missing.npy"))],
         &[],
-        &["--cal", "cannot open", "missing.npy"],
+        &["--cal", "cannot read", "missing.npy"],
     );
     std::fs::create_dir(case.path("dir.npy")).unwrap();
     case.fails(
         &[("--val", case.path("dir.npy"))],
         &[],
-        &["--val", "dir.npy is a directory"],
+        &["--val", "dir.npy: is a directory"],
     );
 }
 

@@ -74,6 +74,42 @@ pub enum Error {
         /// The offending value.
         value: i128,
     },
+    /// A file cannot be opened or read (missing, a directory, no permission, ...).
+    #[error("cannot read {path}: {message}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The kind of I/O error, for front ends that map it (e.g. to FileNotFoundError).
+        kind: std::io::ErrorKind,
+        /// What the operating system said.
+        message: String,
+    },
+    /// A file's content is not what it must be (not `.npy`, truncated, not 2-D, ...).
+    #[error("{path} {message}")]
+    File {
+        /// The file.
+        path: String,
+        /// What is wrong, phrased to follow the file name.
+        message: String,
+    },
+    /// A file holds an array of a dtype this input does not take.
+    #[error("{path} has dtype {dtype}; expected {expected}")]
+    Dtype {
+        /// The file.
+        path: String,
+        /// The dtype as NumPy spells it, e.g. `<c16`.
+        dtype: String,
+        /// What the input takes.
+        expected: &'static str,
+    },
+    /// A problem with the content of a file that was read (e.g. a bad label).
+    #[error("{path}: {source}")]
+    InFile {
+        /// The file.
+        path: String,
+        /// The problem.
+        source: Box<Error>,
+    },
     /// A parameter is out of its range.
     #[error("{name} {message}")]
     InvalidParameter {

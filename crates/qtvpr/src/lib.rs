@@ -19,6 +19,7 @@
 //! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
+//! | file input (feature `npy`), not a SPEC section | `npy` |
 //!
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and all arithmetic
@@ -46,6 +47,8 @@ pub mod decisions;
 pub mod deployment;
 mod error;
 pub mod input;
+#[cfg(feature = "npy")]
+pub mod npy;
 pub mod ranked_correlation;
 pub mod subset_quantile;
 pub mod transfer;

@@ -1,0 +1,365 @@
+//! Reading `.npy` / `.npz` files (feature `npy`): the I/O the CLI and the Python binding
+//! share, so that both accept exactly the same files with exactly the same errors.
+//!
+//! Not a SPEC section. Similarity matrices (float32/float64, little-endian, C or Fortran
+//! order) are **memory-mapped** and viewed in place, so a matrix near the size of RAM
+//! costs no copy and only the pages the computation touches; anything else (big-endian,
+//! misaligned data, a file that cannot be mapped) is read into memory by npyz. Ground
+//! truth (bool or integer 0/1) is read by npyz and turned into a [`GroundTruth`] at once;
+//! an `.npz` in the VPR_Tutorial convention (`GThard`, optional `GTsoft`) is accepted.
+//!
+//! Every error names the file and says what is wrong with it.
+
+use std::fs::File;
+use std::io::{self, Cursor, Read};
+use std::path::Path;
+
+use memmap2::Mmap;
+use ndarray::{ArrayView2, ShapeBuilder};
+use npyz::npz::NpzArchive;
+use npyz::{DType, NpyFile, Order, TypeChar};
+
+use crate::error::{Error, Result};
+use crate::input::GroundTruth;
+
+/// A similarity matrix as read from a file: float32 or float64.
+pub enum Scores {
+    /// float32 scores.
+    F32(Matrix<f32>),
+    /// float64 scores.
+    F64(Matrix<f64>),
+}
+
+/// A borrowed view of [`Scores`].
+#[derive(Clone, Copy)]
+pub enum ScoresView<'a> {
+    /// float32 scores.
+    F32(ArrayView2<'a, f32>),
+    /// float64 scores.
+    F64(ArrayView2<'a, f64>),
+}
+
+impl Scores {
+    /// The matrix as stored in the file (rows x columns).
+    pub fn view(&self) -> ScoresView<'_> {
+        match self {
+            Scores::F32(m) => ScoresView::F32(m.view()),
+            Scores::F64(m) => ScoresView::F64(m.view()),
+        }
+    }
+
+    /// Whether the data is memory-mapped rather than read into memory.
+    pub fn is_mapped(&self) -> bool {
+        match self {
+            Scores::F32(m) => m.is_mapped(),
+            Scores::F64(m) => m.is_mapped(),
+        }
+    }
+}
+
+impl<'a> ScoresView<'a> {
+    /// The transpose (no copy): a query-major matrix becomes |DB| x |Q|.
+    pub fn t(self) -> Self {
+        match self {
+            ScoresView::F32(v) => ScoresView::F32(v.reversed_axes()),
+            ScoresView::F64(v) => ScoresView::F64(v.reversed_axes()),
+        }
+    }
+
+    /// Shape (rows, columns).
+    pub fn dim(&self) -> (usize, usize) {
+        match self {
+            ScoresView::F32(v) => v.dim(),
+            ScoresView::F64(v) => v.dim(),
+        }
+    }
+}
+
+/// A 2-D matrix of `T`, owned or memory-mapped.
+pub struct Matrix<T> {
+    data: Data<T>,
+    dim: (usize, usize),
+    fortran: bool,
+}
+
+enum Data<T> {
+    Owned(Vec<T>),
+    Mapped { map: Mmap, offset: usize },
+}
+
+impl<T> Matrix<T> {
+    fn shape(&self) -> ndarray::StrideShape<ndarray::Ix2> {
+        if self.fortran {
+            self.dim.f().into()
+        } else {
+            self.dim.into()
+        }
+    }
+
+    /// Whether the data is memory-mapped.
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.data, Data::Mapped { .. })
+    }
+}
+
+impl<T: bytemuck::Pod> Matrix<T> {
+    /// The matrix, viewed where it lies.
+    pub fn view(&self) -> ArrayView2<'_, T> {
+        let data: &[T] = match &self.data {
+            Data::Owned(v) => v,
+            Data::Mapped { map, offset } => {
+                let bytes = &map[*offset..*offset + self.dim.0 * self.dim.1 * size_of::<T>()];
+                bytemuck::cast_slice(bytes) // alignment and length were checked when mapping
+            }
+        };
+        ArrayView2::from_shape(self.shape(), data).expect("length checked when reading")
+    }
+}
+
+fn file_error(path: &Path, message: impl Into<String>) -> Error {
+    Error::File {
+        path: path.display().to_string(),
+        message: message.into(),
+    }
+}
+
+fn io_error(path: &Path, e: &io::Error) -> Error {
+    Error::Io {
+        path: path.display().to_string(),
+        kind: e.kind(),
+        message: e.to_string(),
+    }
+}
+
+fn open_file(path: &Path) -> Result<File> {
+    let file = File::open(path).map_err(|e| io_error(path, &e))?;
+    match file.metadata() {
+        Ok(m) if m.is_dir() => Err(Error::Io {
+            path: path.display().to_string(),
+            kind: io::ErrorKind::IsADirectory,
+            message: "is a directory, not a file".into(),
+        }),
+        _ => Ok(file),
+    }
+}
+
+fn parse<R: Read>(reader: R, path: &Path) -> Result<NpyFile<R>> {
+    NpyFile::new(reader).map_err(|e| {
+        // Header parse errors span several lines; the first says what is wrong.
+        let e = e.to_string();
+        file_error(
+            path,
+            format!(
+                "is not a valid .npy file: {}",
+                e.lines().next().unwrap_or_default().trim()
+            ),
+        )
+    })
+}
+
+/// The header's plain dtype as (kind, size in bytes, little-endian or byte order irrelevant).
+fn plain_dtype<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(TypeChar, u64, bool)> {
+    match npy.dtype() {
+        DType::Plain(ts) => {
+            let little = !matches!(ts.endianness(), npyz::Endianness::Big);
+            Ok((ts.type_char(), ts.size_field(), little))
+        }
+        other => Err(Error::Dtype {
+            path: path.display().to_string(),
+            dtype: other.descr(),
+            expected: "a plain numeric matrix",
+        }),
+    }
+}
+
+/// The dtype as NumPy spells it, e.g. `<c16`.
+fn dtype_name<R: Read>(npy: &NpyFile<R>) -> String {
+    match npy.dtype() {
+        DType::Plain(ts) => ts.to_string().replace('\'', ""),
+        other => other.descr(),
+    }
+}
+
+fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(usize, usize)> {
+    match npy.shape() {
+        &[rows, cols] => Ok((rows as usize, cols as usize)),
+        shape => Err(file_error(
+            path,
+            format!(
+                "holds a {}-D array of shape {shape:?}, expected a 2-D matrix",
+                shape.len()
+            ),
+        )),
+    }
+}
+
+/// Read a whole matrix into memory.
+fn read_matrix<T: npyz::Deserialize, R: Read>(npy: NpyFile<R>, path: &Path) -> Result<Matrix<T>> {
+    let dim = shape_2d(&npy, path)?;
+    let fortran = npy.order() == Order::Fortran;
+    let data: Vec<T> = npy
+        .into_vec()
+        .map_err(|e| file_error(path, format!("is truncated or corrupt: {e}")))?;
+    if data.len() != dim.0 * dim.1 {
+        return Err(file_error(
+            path,
+            format!("holds fewer values than its shape {}x{} says", dim.0, dim.1),
+        ));
+    }
+    Ok(Matrix {
+        data: Data::Owned(data),
+        dim,
+        fortran,
+    })
+}
+
+impl<T> Matrix<T> {
+    /// An owned matrix as an array (mapped data is never of a label type).
+    fn into_array(self) -> ndarray::Array2<T> {
+        let shape = self.shape();
+        match self.data {
+            Data::Owned(values) => ndarray::Array2::from_shape_vec(shape, values).expect("length checked when reading"),
+            Data::Mapped { .. } => unreachable!("only float scores are mapped"),
+        }
+    }
+}
+
+/// Read a float32/float64 similarity matrix, memory-mapped where possible.
+///
+/// # Errors
+/// [`Error::Io`] (missing file, a directory, ...), [`Error::File`] (not `.npy`,
+/// truncated, not 2-D), [`Error::Dtype`] (not float32/float64).
+pub fn read_scores(path: &Path) -> Result<Scores> {
+    let file = open_file(path)?;
+    // SAFETY: the map is read-only; like NumPy's mmap_mode="r", it assumes no other
+    // process truncates the file while it is in use.
+    let Ok(map) = (unsafe { Mmap::map(&file) }) else {
+        return read_scores_unmapped(file, path);
+    };
+    let mut cursor = Cursor::new(&map[..]);
+    let npy = parse(&mut cursor, path)?;
+    let (kind, size, little) = plain_dtype(&npy, path)?;
+    if kind != TypeChar::Float || !(size == 4 || size == 8) {
+        return Err(Error::Dtype {
+            path: path.display().to_string(),
+            dtype: dtype_name(&npy),
+            expected: "float32 or float64 similarity scores",
+        });
+    }
+    let dim = shape_2d(&npy, path)?;
+    let fortran = npy.order() == Order::Fortran;
+    let offset = cursor.position() as usize;
+    let available = map.len() - offset;
+    let needed = dim
+        .0
+        .checked_mul(dim.1)
+        .and_then(|n| n.checked_mul(size as usize))
+        .unwrap_or(usize::MAX);
+    if needed > available {
+        return Err(file_error(
+            path,
+            format!(
+                "is truncated: shape {}x{} needs {needed} bytes of data, the file has {available}",
+                dim.0, dim.1
+            ),
+        ));
+    }
+    let aligned = (map.as_ptr() as usize + offset) % size as usize == 0;
+    if !(little && cfg!(target_endian = "little") && aligned) {
+        return read_scores_unmapped(open_file(path)?, path);
+    }
+    Ok(if size == 4 {
+        Scores::F32(Matrix {
+            data: Data::Mapped { map, offset },
+            dim,
+            fortran,
+        })
+    } else {
+        Scores::F64(Matrix {
+            data: Data::Mapped { map, offset },
+            dim,
+            fortran,
+        })
+    })
+}
+
+fn read_scores_unmapped(file: File, path: &Path) -> Result<Scores> {
+    let npy = parse(io::BufReader::new(file), path)?;
+    match plain_dtype(&npy, path)? {
+        (TypeChar::Float, 4, _) => Ok(Scores::F32(read_matrix(npy, path)?)),
+        (TypeChar::Float, 8, _) => Ok(Scores::F64(read_matrix(npy, path)?)),
+        _ => Err(Error::Dtype {
+            path: path.display().to_string(),
+            dtype: dtype_name(&npy),
+            expected: "float32 or float64 similarity scores",
+        }),
+    }
+}
+
+/// Labels of one ground-truth array, added to `hard` as soft ground truth if given.
+fn ground_truth_of<R: Read>(npy: NpyFile<R>, path: &Path, hard: Option<GroundTruth>) -> Result<GroundTruth> {
+    macro_rules! labels {
+        ($t:ty) => {{
+            let m = read_matrix::<$t, R>(npy, path)?.into_array();
+            match hard {
+                None => GroundTruth::new(m.view()),
+                Some(hard) => hard.with_soft(m.view()),
+            }
+        }};
+    }
+    let gt = match plain_dtype(&npy, path)? {
+        (TypeChar::Bool, _, _) => labels!(bool),
+        (TypeChar::Uint, 1, _) => labels!(u8),
+        (TypeChar::Uint, 2, _) => labels!(u16),
+        (TypeChar::Uint, 4, _) => labels!(u32),
+        (TypeChar::Uint, 8, _) => labels!(u64),
+        (TypeChar::Int, 1, _) => labels!(i8),
+        (TypeChar::Int, 2, _) => labels!(i16),
+        (TypeChar::Int, 4, _) => labels!(i32),
+        (TypeChar::Int, 8, _) => labels!(i64),
+        _ => {
+            return Err(Error::Dtype {
+                path: path.display().to_string(),
+                dtype: dtype_name(&npy),
+                expected: "bool or integer 0/1 ground truth",
+            });
+        }
+    };
+    gt.map_err(|e| Error::InFile {
+        path: path.display().to_string(),
+        source: Box::new(e),
+    })
+}
+
+/// Read hard ground truth, and soft ground truth if given, into one [`GroundTruth`].
+///
+/// `hard` may be an `.npy` file or an `.npz` archive in the VPR_Tutorial convention
+/// (`GThard`, optional `GTsoft`); an explicit `soft` file takes precedence over `GTsoft`.
+///
+/// # Errors
+/// As [`read_scores`] (with bool/integer in place of float), an `.npz` without
+/// `GThard`, and [`Error::InFile`] around [`Error::BadLabel`] / [`Error::ShapeMismatch`]
+/// for the labels.
+pub fn read_ground_truth(hard: &Path, soft: Option<&Path>) -> Result<GroundTruth> {
+    let is_npz = hard.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
+    let gt = if is_npz {
+        let mut npz = NpzArchive::new(io::BufReader::new(open_file(hard)?))
+            .map_err(|e| file_error(hard, format!("is not a valid .npz archive: {e}")))?;
+        let npy = npz
+            .by_name("GThard")
+            .map_err(|e| file_error(hard, format!("cannot read GThard: {e}")))?
+            .ok_or_else(|| file_error(hard, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
+        let gt = ground_truth_of(npy, hard, None)?;
+        match (soft, npz.by_name("GTsoft")) {
+            (None, Ok(Some(npy))) => return ground_truth_of(npy, hard, Some(gt)),
+            (None, Err(e)) => return Err(file_error(hard, format!("cannot read GTsoft: {e}"))),
+            _ => gt,
+        }
+    } else {
+        ground_truth_of(parse(io::BufReader::new(open_file(hard)?), hard)?, hard, None)?
+    };
+    match soft {
+        Some(path) => ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(gt)),
+        None => Ok(gt),
+    }
+}
