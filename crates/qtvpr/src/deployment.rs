@@ -65,12 +65,37 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
     }
     let h = (n - 1) as f64 * q.max(0.0);
     let lo = h.floor() as usize;
-    let x_lo = from_key(select_key(s, lo));
-    if lo + 1 >= n || h == lo as f64 {
-        return x_lo;
-    }
-    let x_hi = next_value(s, to_key(x_lo), lo);
-    x_lo + (h - lo as f64) * (x_hi - x_lo)
+    let frac = h - lo as f64;
+    let (x_lo, x_hi) = if n <= COPY_LIMIT {
+        select_copied(s, lo)
+    } else {
+        select_in_place(s, lo, frac > 0.0)
+    };
+    if frac == 0.0 { x_lo } else { x_lo + frac * (x_hi - x_lo) }
+}
+
+/// Batches up to this many scores are copied and selected (fast, 8 bytes a score);
+/// larger ones are selected in place by radix passes (no copy).
+const COPY_LIMIT: usize = 1 << 22;
+
+/// The `lo`-th and `(lo + 1)`-th smallest scores (the latter clamped to the last).
+fn select_copied<T: Score>(s: ArrayView2<'_, T>, lo: usize) -> (f64, f64) {
+    let mut v: Vec<f64> = s.iter().map(|x| x.to_f64()).collect();
+    let (_, &mut x_lo, above) = v.select_nth_unstable_by(lo, f64::total_cmp);
+    (x_lo, above.iter().copied().reduce(f64::min).unwrap_or(x_lo))
+}
+
+/// As [`select_copied`], by radix select on the scores where they lie; the second
+/// order statistic costs one more pass and is only found if `need_hi`.
+fn select_in_place<T: Score>(s: ArrayView2<'_, T>, lo: usize, need_hi: bool) -> (f64, f64) {
+    let key = select_key(s, lo);
+    let x_lo = from_key(key);
+    let x_hi = if need_hi && lo + 1 < s.len() {
+        next_value(s, key, lo)
+    } else {
+        x_lo
+    };
+    (x_lo, x_hi)
 }
 
 /// Order-preserving map from `f64` to `u64` (both zeros map to the key of +0).
@@ -207,7 +232,7 @@ mod tests {
     }
 
     #[test]
-    fn radix_select_matches_a_sort() {
+    fn both_selections_match_a_sort() {
         // Pseudo-random scores (a fixed LCG) with many repeats and both signs.
         let mut x = 12345u64;
         let s = Array2::from_shape_fn((13, 7), |_| {
