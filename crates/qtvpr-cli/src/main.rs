@@ -19,6 +19,7 @@ macro_rules! with_view {
 }
 
 mod output;
+mod progress;
 mod threshold;
 
 /// Choose the operating point of a visual place recognition system by quantile
@@ -29,8 +30,21 @@ mod threshold;
 #[derive(Debug, Parser)]
 #[command(name = "qtvpr-cli", version, about, long_about)]
 struct Cli {
+    #[command(flatten)]
+    global: Global,
     #[command(subcommand)]
     command: Command,
+}
+
+/// Options of every command.
+#[derive(Debug, clap::Args)]
+pub struct Global {
+    /// Worker threads (default: RAYON_NUM_THREADS if set, else all cores).
+    #[arg(long, global = true, value_name = "N")]
+    threads: Option<usize>,
+    /// No progress bar (it is shown only when stderr is a terminal anyway).
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -42,9 +56,9 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match &cli.command {
-        Command::Threshold(args) => threshold::run(args),
-    };
+    let result = configure_threads(cli.global.threads).and_then(|()| match &cli.command {
+        Command::Threshold(args) => threshold::run(args, &cli.global),
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
@@ -54,6 +68,14 @@ fn main() -> ExitCode {
             eprintln!("error: {}", msg.lines().map(str::trim).collect::<Vec<_>>().join(" "));
             ExitCode::from(2)
         }
+    }
+}
+
+fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    match threads {
+        Some(0) => anyhow::bail!("--threads must be at least 1"),
+        Some(n) => Ok(rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?),
+        None => Ok(()),
     }
 }
 

@@ -9,6 +9,7 @@ use qtvpr::{Calibration, Matching, Params};
 use serde::Serialize;
 
 use crate::output::{Format, emit};
+use crate::{Global, progress};
 use qtvpr::npy::{ScoresView, read_ground_truth, read_scores};
 
 /// Arguments of `threshold`.
@@ -97,7 +98,7 @@ struct ReportSegment {
 }
 
 /// Run `threshold`.
-pub fn run(args: &ThresholdArgs) -> Result<()> {
+pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     // Errors about a file's content name the file; the flag says which input it was.
     let s_cal = read_scores(&args.cal).context("--cal")?;
     let s_val = read_scores(&args.val).context("--val")?;
@@ -119,8 +120,11 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
 
     let cal = with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
         .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?;
-    let transfer =
-        with_view!(s_val, |v| cal.transfer(v, &params)).with_context(|| format!("--val {}", args.val.display()))?;
+    let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
+    let transfer = with_view!(s_val, |v| cal
+        .transfer_with_progress(v, &params, |done, _| bar.set_position(done as u64)))
+    .with_context(|| format!("--val {}", args.val.display()))?;
+    bar.finish_and_clear();
 
     let (n_db, n_val) = s_val.dim();
     let report = Report {

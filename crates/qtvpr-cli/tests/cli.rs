@@ -162,11 +162,20 @@ fn fortran_float32_and_integer_ground_truth_read_the_same() {
 fn big_endian_files_are_read_too() {
     // Big-endian data cannot be viewed in place; it is read and converted instead.
     let case = Case::new();
-    let cal: Vec<u8> = [3.0f64, 1.0, 1.0, 4.0, 2.0, 1.0].iter().flat_map(|x| x.to_be_bytes()).collect();
+    let cal: Vec<u8> = [3.0f64, 1.0, 1.0, 4.0, 2.0, 1.0]
+        .iter()
+        .flat_map(|x| x.to_be_bytes())
+        .collect();
     npy_raw(&case.path("cal_be.npy"), ">f8", false, &[3, 2], &cal);
-    let out = case.run(&[("--cal", case.path("cal_be.npy"))], &["--k", "1", "--matching", "multi", "--format", "csv"]);
+    let out = case.run(
+        &[("--cal", case.path("cal_be.npy"))],
+        &["--k", "1", "--matching", "multi", "--format", "csv"],
+    );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(std::fs::read_to_string(case.path("out.json")).unwrap(), "start,end,quantile,threshold\n0,2,0.5,3\n");
+    assert_eq!(
+        std::fs::read_to_string(case.path("out.json")).unwrap(),
+        "start,end,quantile,threshold\n0,2,0.5,3\n"
+    );
 }
 
 #[test]

@@ -149,6 +149,20 @@ impl Calibration {
     /// Invalid parameters, empty or non-finite scores, a |DB| that differs from the
     /// calibration's, or a segment size of 0 or above |Qval|.
     pub fn transfer<T: Score>(&self, s: ArrayView2<'_, T>, params: &Params) -> Result<Transfer> {
+        self.transfer_with_progress(s, params, |_, _| ())
+    }
+
+    /// [`Calibration::transfer`], calling `progress(done, total)` as deployment queries
+    /// are processed (for a progress bar; called from the calling thread).
+    ///
+    /// # Errors
+    /// As [`Calibration::transfer`].
+    pub fn transfer_with_progress<T: Score>(
+        &self,
+        s: ArrayView2<'_, T>,
+        params: &Params,
+        progress: impl Fn(usize, usize),
+    ) -> Result<Transfer> {
         params.validate()?;
         validate_scores("deployment similarity", s)?;
         if s.nrows() != self.n_db {
@@ -182,6 +196,7 @@ impl Calibration {
                 neighbours.row_mut(j).iter_mut().zip(nb).for_each(|(d, i)| *d = i);
                 (query_weights[j], query_thresholds[j], query_quantiles[j]) = (w, t, q);
             }
+            progress(end, n_val);
         }
 
         let segments = ranges
