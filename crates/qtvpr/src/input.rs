@@ -15,7 +15,7 @@ mod sealed {
 }
 
 /// A similarity score type: `f32` or `f64`. All arithmetic happens in `f64`.
-pub trait Score: Copy + Send + Sync + PartialOrd + sealed::Sealed + 'static {
+pub trait Score: Copy + Default + Send + Sync + PartialOrd + sealed::Sealed + 'static {
     /// The NumPy name of the type, for messages.
     const DTYPE: &'static str;
     /// Widen to `f64` (exact for both types).

@@ -1,112 +1,136 @@
 //! SPEC section 4: calibration sampling by ranked correlation.
 //!
-//! Every query column is sorted into a descending *ranked profile*; the Pearson
-//! correlation of two profiles is the dot product of their centred, unit-norm forms, so
-//! the whole |Qval| x |Qcal| correlation matrix is one matrix product, done by faer in
-//! parallel. Each deployment query then keeps its `k` most correlated calibration
-//! queries ([`top_k`]).
+//! Every query column is sorted into a *ranked profile*; the Pearson correlation of two
+//! profiles is the dot product of their centred, unit-norm forms, so the whole
+//! |Qval| x |Qcal| correlation matrix is one matrix product, done by faer in parallel.
+//! Each deployment query then keeps its `k` most correlated calibration queries
+//! ([`top_k`]).
+//!
+//! Profiles are kept in *ascending* order: reversing both profiles of a pair changes
+//! neither their correlation nor any count of scores below a threshold, and ascending
+//! is what the radix sort gives. [`Ranked`] gathers a block of columns into a
+//! column-major buffer of the input's own type (tile by tile, so a C-order matrix is
+//! read row-wise rather than with one cache miss per score), checks every score is
+//! finite, and sorts each column in place.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
-use ndarray::{Array2, ArrayView1, ArrayView2};
+use ndarray::{Array2, ArrayView2, ShapeBuilder, s};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::input::{Score, validate_scores};
+use crate::input::{Score, check_nonempty};
 
 /// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
 /// neighbours, so that correlations equal in exact arithmetic tie (and go to the lower
 /// calibration index) whatever the floating-point summation order of the product.
 pub const CORRELATION_GRID: f64 = 1.0 / (1u64 << 40) as f64;
 
-/// Ranked profiles of a set of columns: sorted (descending) and standardised.
-pub(crate) struct Profiles {
+/// A block of columns, each sorted ascending, column-major, in the input's type.
+pub(crate) struct Ranked<T> {
     n_db: usize,
-    /// Column-major |DB| x n, each column sorted descending (kept only when asked for).
-    sorted: Vec<f64>,
-    /// Column-major |DB| x n, centred unit-norm profiles (zero for a constant column).
-    unit: Vec<f64>,
+    sorted: Vec<T>,
 }
 
-impl Profiles {
-    /// Rank and standardise every column of `s`; keep the sorted profiles if `keep_sorted`.
-    pub(crate) fn new<T: Score>(s: ArrayView2<'_, T>, keep_sorted: bool) -> Self {
+impl<T: Score> Ranked<T> {
+    /// Gather, check and sort the columns of `s`. `first_col` is the column index of
+    /// `s`'s first column in the matrix `what` names, for error messages.
+    ///
+    /// # Errors
+    /// [`Error::Empty`]; [`Error::NotFinite`] naming the first offending score in
+    /// column-major order.
+    pub(crate) fn new(what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<Self> {
+        check_nonempty(what, s.dim())?;
         let n_db = s.nrows();
-        let mut unit = vec![0.0; n_db * s.ncols()];
-        let mut sorted = if keep_sorted { vec![0.0; unit.len()] } else { Vec::new() };
-        let work = |(j, z): (usize, &mut [f64]), p: &mut [f64], scratch: &mut Vec<T>| {
-            ranked_profile(s.column(j), scratch, p);
-            standardise(p, z);
-        };
-        if keep_sorted {
-            unit.par_chunks_mut(n_db)
-                .enumerate()
-                .zip(sorted.par_chunks_mut(n_db))
-                .for_each_init(Vec::new, |scratch, (jz, p)| work(jz, p, scratch));
-        } else {
-            unit.par_chunks_mut(n_db).enumerate().for_each_init(
-                || (vec![0.0; n_db], Vec::new()),
-                |(p, scratch), jz| work(jz, p, scratch),
-            );
+        let mut sorted = vec![T::default(); s.len()];
+        const TILE: usize = 64;
+        sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
+            let cols = tile * TILE..(tile * TILE + out.len() / n_db);
+            for rows in (0..n_db).step_by(4 * TILE).map(|r| r..(r + 4 * TILE).min(n_db)) {
+                let block = s.slice(s![rows.clone(), cols.clone()]);
+                for (i, row) in rows.zip(block.rows()) {
+                    for (j, &v) in row.iter().enumerate() {
+                        out[j * n_db + i] = v;
+                    }
+                }
+            }
+        });
+        let bad = sorted.par_chunks(n_db).enumerate().find_map_first(|(col, column)| {
+            let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
+            Some(Error::NotFinite {
+                what,
+                row,
+                col: first_col + col,
+                value: v.to_f64(),
+            })
+        });
+        if let Some(err) = bad {
+            return Err(err);
         }
-        Self { n_db, sorted, unit }
+        sorted.par_chunks_mut(n_db).for_each(T::sort_ascending);
+        Ok(Self { n_db, sorted })
     }
 
     pub(crate) fn ncols(&self) -> usize {
-        self.unit.len() / self.n_db
+        self.sorted.len() / self.n_db
     }
 
-    /// Column `j`'s descending profile (only if built with `keep_sorted`).
-    pub(crate) fn sorted(&self, j: usize) -> &[f64] {
+    /// Column `j`, ascending.
+    pub(crate) fn column(&self, j: usize) -> &[T] {
         &self.sorted[j * self.n_db..(j + 1) * self.n_db]
     }
 
-    fn unit(&self) -> MatRef<'_, f64> {
-        MatRef::from_column_major_slice(&self.unit, self.n_db, self.ncols())
+    /// All columns as a |DB| x n view (the same multiset of scores per column as the input).
+    pub(crate) fn view(&self) -> ArrayView2<'_, T> {
+        ArrayView2::from_shape((self.n_db, self.ncols()).f(), &self.sorted).expect("length is n_db * ncols")
+    }
+
+    /// The centred, unit-norm profiles.
+    pub(crate) fn unit(&self) -> Unit {
+        let mut unit = vec![0.0; self.sorted.len()];
+        unit.par_chunks_mut(self.n_db)
+            .zip(self.sorted.par_chunks(self.n_db))
+            .for_each(|(z, p)| standardise(p, z));
+        Unit { n_db: self.n_db, unit }
+    }
+}
+
+/// Centred, unit-norm ranked profiles (zero for a constant column), column-major.
+pub(crate) struct Unit {
+    n_db: usize,
+    unit: Vec<f64>,
+}
+
+impl Unit {
+    fn mat(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.unit, self.n_db, self.unit.len() / self.n_db)
     }
 
     /// Correlations with `cal`, as a column-major |Qcal| x |self| matrix: column `j`
     /// holds row `j` of the spec's `R`, contiguous.
-    pub(crate) fn correlate(&self, cal: &Profiles) -> Vec<f64> {
-        let (n_cal, n_val) = (cal.ncols(), self.ncols());
-        let mut r = vec![0.0; n_cal * n_val];
-        let dst = MatMut::from_column_major_slice_mut(&mut r, n_cal, n_val);
-        matmul(
-            dst,
-            Accum::Replace,
-            cal.unit().transpose(),
-            self.unit(),
-            1.0,
-            Par::rayon(0),
-        );
+    pub(crate) fn correlate(&self, cal: &Unit) -> Vec<f64> {
+        let (lhs, rhs) = (cal.mat(), self.mat());
+        let mut r = vec![0.0; lhs.ncols() * rhs.ncols()];
+        let dst = MatMut::from_column_major_slice_mut(&mut r, lhs.ncols(), rhs.ncols());
+        matmul(dst, Accum::Replace, lhs.transpose(), rhs, 1.0, Par::rayon(0));
         r
     }
 }
 
-/// Sort a column into `out` in descending order, widened to `f64`. The sort runs on the
-/// native type (a radix sort: 4 passes for f32, 8 for f64); widening keeps the order.
-pub(crate) fn ranked_profile<T: Score>(column: ArrayView1<'_, T>, scratch: &mut Vec<T>, out: &mut [f64]) {
-    scratch.clear();
-    scratch.extend(column.iter().copied());
-    T::sort_ascending(scratch);
-    for (o, v) in out.iter_mut().zip(scratch.iter().rev()) {
-        *o = v.to_f64();
-    }
-}
-
-/// Centre a descending profile and scale it to unit norm; all zeros when it is constant
-/// (zero variance is tested exactly, as first == last, not as a small norm).
-pub(crate) fn standardise(profile: &[f64], out: &mut [f64]) {
+/// Centre a sorted profile and scale it to unit norm, into `out`; all zeros when it is
+/// constant (zero variance is tested exactly, as first == last, not as a small norm).
+pub(crate) fn standardise<T: Score>(profile: &[T], out: &mut [f64]) {
     let n = profile.len();
-    if profile[0] == profile[n - 1] {
+    let (first, last) = (profile[0].to_f64(), profile[n - 1].to_f64());
+    if first == last {
         out.fill(0.0);
         return;
     }
-    // Scale by the largest magnitude first so that squares neither overflow nor underflow.
-    // (A division: the reciprocal of a subnormal scale would overflow.)
-    let scale = profile[0].abs().max(profile[n - 1].abs());
+    // Scale by the largest magnitude first so that squares neither overflow nor underflow
+    // (a division: the reciprocal of a subnormal scale would overflow).
+    let scale = first.abs().max(last.abs());
     for (o, x) in out.iter_mut().zip(profile) {
-        *o = x / scale;
+        *o = x.to_f64() / scale;
     }
     let mean = out.iter().sum::<f64>() / n as f64;
     out.iter_mut().for_each(|o| *o -= mean);
@@ -138,15 +162,15 @@ pub fn top_k(row: &[f64], k: usize) -> (Vec<usize>, f64) {
 /// # Errors
 /// Empty or non-finite scores, or a different number of database rows.
 pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
-    validate_scores("calibration similarity", cal)?;
-    validate_scores("deployment similarity", val)?;
-    if val.nrows() != cal.nrows() {
+    let cal = Ranked::new("calibration similarity", cal, 0)?;
+    let val = Ranked::new("deployment similarity", val, 0)?;
+    if val.n_db != cal.n_db {
         return Err(Error::DatabaseMismatch {
-            calibration: cal.nrows(),
-            deployment: val.nrows(),
+            calibration: cal.n_db,
+            deployment: val.n_db,
         });
     }
-    let r = Profiles::new(val, false).correlate(&Profiles::new(cal, false));
+    let r = val.unit().correlate(&cal.unit());
     // Column-major |Qcal| x |Qval| is row-major |Qval| x |Qcal|.
     Ok(Array2::from_shape_vec((val.ncols(), cal.ncols()), r).expect("shape matches length"))
 }

@@ -4,10 +4,14 @@
 //! [`Calibration::new`] does all the work that depends only on the calibration traverse:
 //! ranked profiles, their standardised form, and the per-column candidates. Each
 //! [`Calibration::transfer`] then streams the deployment queries through in column
-//! chunks: rank and standardise a chunk (in parallel), correlate it with the
+//! chunks: gather, check and sort a chunk (in parallel), correlate it with the
 //! calibration profiles (one faer product), and for each query pick its neighbours,
-//! their subset threshold and its quantile (in parallel). Per-segment thresholds come
-//! last. Memory beyond the inputs is the calibration profiles plus one chunk.
+//! their subset threshold and its quantile (in parallel). When segments are small, each
+//! chunk holds whole segments and their thresholds are read off the chunk's sorted
+//! copy, so the deployment scores are read once; a larger batch is read again where it
+//! lies. Memory beyond the inputs is the calibration profiles plus one chunk.
+
+use std::ops::Range;
 
 use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
@@ -16,8 +20,8 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, weighted_median};
 use crate::error::{Error, Result};
-use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate_scores};
-use crate::ranked_correlation::{Profiles, top_k};
+use crate::input::{GroundTruth, Score, check_gt_shape, check_nonempty, check_precision};
+use crate::ranked_correlation::{Ranked, Unit, top_k};
 use crate::subset_quantile::subset_quantile;
 
 /// The paper gives no value of `k`; 10 is this project's default.
@@ -88,9 +92,24 @@ pub struct Transfer {
 /// A calibration traverse with ground truth, ready to transfer thresholds.
 pub struct Calibration {
     matching: Matching,
-    profiles: Profiles,
+    /// The ranked profiles, ascending, in the input's own type (for the subset quantiles).
+    sorted: Box<dyn SortedColumns>,
+    /// Their centred unit-norm form (for the correlation product).
+    unit: Unit,
     candidates: Candidates,
     n_db: usize,
+}
+
+/// The quantile of a subset threshold among a set of sorted calibration columns,
+/// whatever their score type.
+trait SortedColumns: Send + Sync {
+    fn quantile(&self, columns: &[usize], t: f64) -> f64;
+}
+
+impl<T: Score> SortedColumns for Ranked<T> {
+    fn quantile(&self, columns: &[usize], t: f64) -> f64 {
+        subset_quantile(columns.iter().map(|&i| self.column(i)), t)
+    }
 }
 
 impl Calibration {
@@ -99,22 +118,15 @@ impl Calibration {
     /// # Errors
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
-        validate_scores("calibration similarity", s)?;
+        let ranked = Ranked::new("calibration similarity", s, 0)?;
         check_gt_shape(gt, "calibration similarity", s.dim())?;
-        Ok(Self::new_unchecked(s, gt.view(), matching))
-    }
-
-    pub(crate) fn new_unchecked<T: Score>(
-        s: ArrayView2<'_, T>,
-        gt: ArrayView2<'_, crate::Truth>,
-        matching: Matching,
-    ) -> Self {
-        Self {
+        Ok(Self {
             matching,
-            profiles: Profiles::new(s, true),
-            candidates: Candidates::new(s, gt, matching),
+            unit: ranked.unit(),
+            sorted: Box::new(ranked),
+            candidates: Candidates::new(s, gt.view(), matching),
             n_db: s.nrows(),
-        }
+        })
     }
 
     /// Number of calibration queries.
@@ -163,8 +175,19 @@ impl Calibration {
         params: &Params,
         progress: impl Fn(usize, usize),
     ) -> Result<Transfer> {
+        self.transfer_in_chunks(s, params, progress, CHUNK_SCORES)
+    }
+
+    /// The transfer, with deployment chunks of about `chunk_scores` scores.
+    fn transfer_in_chunks<T: Score>(
+        &self,
+        s: ArrayView2<'_, T>,
+        params: &Params,
+        progress: impl Fn(usize, usize),
+        chunk_scores: usize,
+    ) -> Result<Transfer> {
         params.validate()?;
-        validate_scores("deployment similarity", s)?;
+        check_nonempty("deployment similarity", s.dim())?;
         if s.nrows() != self.n_db {
             return Err(Error::DatabaseMismatch {
                 calibration: self.n_db,
@@ -178,17 +201,28 @@ impl Calibration {
         let mut query_thresholds = vec![0.0; n_val];
         let mut query_weights = vec![0.0; n_val];
         let mut neighbours = Array2::zeros((n_val, k));
-        // Chunks of about 2^22 scores bound the working memory whatever the matrix size.
-        let chunk = ((1 << 22) / self.n_db).clamp(16, 4096);
+        let mut segments = Vec::with_capacity(ranges.len());
+        // Chunks bound the working memory whatever the matrix size. Where segments are
+        // smaller, a chunk holds whole segments, whose thresholds are then read off the
+        // chunk's sorted copy while it is at hand: one pass over the data.
+        let base = (chunk_scores / self.n_db).clamp(16, 4096);
+        let segment_size = ranges[0].len();
+        let in_chunks = segment_size <= base;
+        let chunk = if in_chunks {
+            base / segment_size * segment_size
+        } else {
+            base
+        };
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            let r = Profiles::new(s.slice(ndarray::s![.., start..end]), false).correlate(&self.profiles);
+            let ranked = Ranked::new("deployment similarity", s.slice(ndarray::s![.., start..end]), start)?;
+            let r = ranked.unit().correlate(&self.unit);
             let per_query: Vec<(Vec<usize>, f64, f64, f64)> = r
                 .par_chunks(self.len())
                 .map(|row| {
                     let (nb, w) = top_k(row, k);
                     let t = subset_threshold(&self.candidates, &nb, params.precision);
-                    let q = subset_quantile(nb.iter().map(|&i| self.profiles.sorted(i)), t);
+                    let q = self.sorted.quantile(&nb, t);
                     (nb, w, t, q)
                 })
                 .collect();
@@ -196,22 +230,23 @@ impl Calibration {
                 neighbours.row_mut(j).iter_mut().zip(nb).for_each(|(d, i)| *d = i);
                 (query_weights[j], query_thresholds[j], query_quantiles[j]) = (w, t, q);
             }
+            if in_chunks {
+                let sorted = ranked.view();
+                let here: Vec<&Range<usize>> = ranges.iter().filter(|r| r.start >= start && r.end <= end).collect();
+                let local = |r: &Range<usize>| sorted.slice(ndarray::s![.., r.start - start..r.end - start]);
+                segments.par_extend(
+                    here.into_par_iter()
+                        .map(|r| segment(local(r), r.clone(), &query_quantiles, &query_weights)),
+                );
+            }
             progress(end, n_val);
         }
-
-        let segments = ranges
-            .into_par_iter()
-            .map(|r| {
-                let quantile = weighted_median(&query_quantiles[r.clone()], &query_weights[r.clone()]);
-                let threshold = deployment_threshold(s.slice(ndarray::s![.., r.clone()]), quantile);
-                Segment {
-                    start: r.start,
-                    end: r.end,
-                    quantile,
-                    threshold,
-                }
-            })
-            .collect();
+        if !in_chunks {
+            segments = ranges
+                .into_par_iter()
+                .map(|r| segment(s.slice(ndarray::s![.., r.clone()]), r, &query_quantiles, &query_weights))
+                .collect();
+        }
         Ok(Transfer {
             segments,
             query_quantiles,
@@ -219,6 +254,20 @@ impl Calibration {
             query_weights,
             neighbours,
         })
+    }
+}
+
+/// Deployment scores per chunk (32 MB of f64 working memory).
+const CHUNK_SCORES: usize = 1 << 22;
+
+/// The threshold of the segment `r` of deployment queries, whose scores are `scores`.
+fn segment<T: Score>(scores: ArrayView2<'_, T>, r: Range<usize>, q: &[f64], w: &[f64]) -> Segment {
+    let quantile = weighted_median(&q[r.clone()], &w[r.clone()]);
+    Segment {
+        start: r.start,
+        end: r.end,
+        quantile,
+        threshold: deployment_threshold(scores, quantile),
     }
 }
 
@@ -348,6 +397,46 @@ mod tests {
         assert_eq!(cal.transfer(f32_val.view(), &params(1, None)).unwrap(), a);
         let query_major = s_val.t().to_owned();
         assert_eq!(cal.transfer(query_major.t(), &params(1, None)).unwrap(), a);
+    }
+
+    #[test]
+    fn chunking_does_not_change_results() {
+        // 7 x 45 deployment queries scored with a fixed LCG; chunks of at least 16 queries.
+        let mut x = 99u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f64 / 1000.0
+        };
+        let s_cal = Array2::from_shape_fn((7, 9), |_| next());
+        let gt = GroundTruth::new(Array2::from_shape_fn((7, 9), |(i, j)| i == j % 7).view()).unwrap();
+        let s_val = Array2::from_shape_fn((7, 45), |_| next());
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Calibration::new(s_cal.view(), &gt, matching).unwrap();
+            // Segments of 3 fit in chunks (chunks of 15); 20 and the whole batch do not.
+            for segment_size in [Some(3), Some(20), None] {
+                let p = Params {
+                    k: 4,
+                    precision: 0.8,
+                    segment_size,
+                };
+                let one = cal.transfer_in_chunks(s_val.view(), &p, |_, _| (), usize::MAX).unwrap();
+                let many = cal.transfer_in_chunks(s_val.view(), &p, |_, _| (), 0).unwrap();
+                assert_eq!(one, many, "{matching:?} {segment_size:?}");
+                let calls = std::cell::Cell::new(0);
+                cal.transfer_in_chunks(
+                    s_val.view(),
+                    &p,
+                    |done, total| {
+                        calls.set(calls.get() + 1);
+                        assert_eq!(total, 45);
+                        assert!(done <= total);
+                    },
+                    0,
+                )
+                .unwrap();
+                assert_eq!(calls.get(), 3, "45 queries in chunks of 16 (or 15)");
+            }
+        }
     }
 
     #[test]
