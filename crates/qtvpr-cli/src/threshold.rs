@@ -99,27 +99,22 @@ struct ReportSegment {
 
 /// Run `threshold`.
 pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
-    // Errors about a file's content name the file; the flag says which input it was.
-    let s_cal = read_scores(&args.cal).context("--cal")?;
-    let s_val = read_scores(&args.val).context("--val")?;
-    let mut gt = read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
-    if args.query_major {
-        gt = gt.reversed_axes();
-    }
-    let (s_cal, s_val) = (
-        orient(s_cal.view(), args.query_major),
-        orient(s_val.view(), args.query_major),
-    );
     let matching = Matching::from(args.matching);
-    let params = Params {
-        k: args.k,
-        precision: args.precision,
-        segment_size: args.segment_size,
-    };
+    let params = Params { k: args.k, precision: args.precision, segment_size: args.segment_size };
     params.validate()?;
-
-    let cal = with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
-        .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?;
+    // Errors about a file's content name the file; the flag says which input it was.
+    let s_val = read_scores(&args.val).context("--val")?;
+    let s_val = orient(s_val.view(), args.query_major);
+    // The calibration inputs are dropped (and unmapped) once the calibration is built.
+    let cal = {
+        let s_cal = read_scores(&args.cal).context("--cal")?;
+        let mut gt = read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
+        if args.query_major {
+            gt = gt.reversed_axes();
+        }
+        with_view!(orient(s_cal.view(), args.query_major), |v| Calibration::new(v, &gt, matching))
+            .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?
+    };
     let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
     let transfer = with_view!(s_val, |v| cal
         .transfer_with_progress(v, &params, |done, _| bar.set_position(done as u64)))

@@ -1,0 +1,182 @@
+"""End-to-end benchmark of qtvpr: the wheel against qtvpr.reference in one process, the
+CLI as a whole process, and paper-scale synthetic matrices. Prints a Markdown report and
+writes it into README.md between the markers <!-- bench:start --> and <!-- bench:end -->.
+
+    python benches/compare.py [--cli PATH] [--work DIR] [--no-readme] [--skip-scale]
+
+Needs the wheel installed (pip install .), numpy, ../shared/data, and the release CLI
+(cargo build --release -p qtvpr-cli). Paper-scale inputs (about 1.5 GB of .npy) are
+generated once into --work (default: a temporary directory).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+import qtvpr
+from qtvpr import reference
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import synthetic  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared" / "data"
+
+
+def best_of(n: int, f):
+    """(result, best wall seconds of n runs)."""
+    best, out = math.inf, None
+    for _ in range(n):
+        t = time.perf_counter()
+        out = f()
+        best = min(best, time.perf_counter() - t)
+    return out, best
+
+
+def nordland_hog() -> tuple[np.ndarray, np.ndarray]:
+    db = np.load(SHARED / "nordland-hog" / "db_winter.npy").astype(np.float64)
+    q = np.load(SHARED / "nordland-hog" / "query_summer.npy").astype(np.float64)
+    db /= np.linalg.norm(db, axis=1, keepdims=True)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    s = (db @ q.T).astype(np.float32)
+    i = np.arange(s.shape[0])
+    return s, np.abs(i[:, None] - i[None, :]) <= 1
+
+
+def run_cli(cli: Path, cal: Path, gt: Path, val: Path, *extra: str) -> tuple[float, int, dict]:
+    """Wall seconds, peak RSS in bytes and JSON output of one CLI process."""
+    # Peak RSS of this child alone: run it through a tiny wrapper that reports getrusage.
+    code = (
+        "import resource, subprocess, sys, time, json;"
+        "t = time.perf_counter(); p = subprocess.run(sys.argv[1:], capture_output=True, text=True);"
+        "w = time.perf_counter() - t; r = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss;"
+        "print(json.dumps({'wall': w, 'rss_kb': r, 'rc': p.returncode, 'out': p.stdout, 'err': p.stderr}))"
+    )
+    args = [str(cli), "threshold", "--quiet", "--cal", str(cal), "--cal-gt", str(gt), "--val", str(val), *extra]
+    res = json.loads(subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, check=True).stdout)
+    if res["rc"] != 0:
+        raise RuntimeError(res["err"])
+    return res["wall"], res["rss_kb"] * 1024, json.loads(res["out"])
+
+
+def real_case(cli: Path, work: Path) -> list[str]:
+    s, gt = nordland_hog()
+    n_cal, seg = s.shape[1] // 10, math.ceil(0.01 * s.shape[1])
+    s_cal, gt_cal, s_val = s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:]
+    for name, a in (("cal", s_cal), ("gt", gt_cal), ("val", s_val)):
+        np.save(work / f"nordland_{name}.npy", np.ascontiguousarray(a))
+    rows = [
+        "| matching | wheel | reference | speed-up | CLI process | thresholds equal (1e-9) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for matching in ("single", "multi"):
+        kw = dict(matching=matching, segment_size=seg)
+        wheel, t_wheel = best_of(3, lambda: qtvpr.quantile_transfer(s_cal, gt_cal, s_val, **kw))
+        ref, t_ref = best_of(1, lambda: reference.quantile_transfer(s_cal, gt_cal, s_val, **kw))
+        same = np.allclose(wheel.thresholds, ref.thresholds, rtol=0, atol=1e-9)
+        t_cli = min(run_cli(cli, *(work / f"nordland_{n}.npy" for n in ("cal", "gt", "val")),
+                            "--matching", matching, "--segment-size", str(seg))[0] for _ in range(3))
+        rows.append(f"| {matching} | {t_wheel * 1e3:.0f} ms | {t_ref:.2f} s | **{t_ref / t_wheel:.0f}x** "
+                    f"| {t_cli * 1e3:.0f} ms | {'yes' if same else 'NO'} |")
+    return rows
+
+
+def threads_case() -> list[str]:
+    """Two Python threads calling the wheel at once, each with a one-thread core
+    (RAYON_NUM_THREADS=1 in a child process), against the same two calls in sequence."""
+    code = r"""
+import threading, time, numpy as np, qtvpr
+rng = np.random.default_rng(0)
+s = rng.random((3000, 1500), dtype=np.float32)
+gt = np.zeros((3000, 150), bool); gt[np.arange(150) * 20, np.arange(150)] = True
+call = lambda: qtvpr.quantile_transfer(s[:, :150], gt, s[:, 150:], segment_size=15)
+call()
+t = time.perf_counter(); call(); call(); seq = time.perf_counter() - t
+ts = [threading.Thread(target=call) for _ in range(2)]
+t = time.perf_counter(); [x.start() for x in ts]; [x.join() for x in ts]; par = time.perf_counter() - t
+print(seq, par)
+"""
+    env = dict(os.environ, RAYON_NUM_THREADS="1")
+    seq, par = map(float, subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                                         text=True, check=True).stdout.split())
+    return [f"Two calls in sequence: {seq * 1e3:.0f} ms; the same two calls from two Python threads at "
+            f"once: {par * 1e3:.0f} ms ({seq / par:.2f}x; 2 would be perfect on 2 cores). The GIL is "
+            f"released while the core runs."]
+
+
+def scale_case(cli: Path, work: Path) -> list[str]:
+    rows = [
+        "| case | |DB| x |Q| | f32 input | wall | per deployment query | peak RSS | RSS / input |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, n_db, n_q in (("Nordland (paper)", 27592, 2760), ("MSLS val", 18871, 11084)):
+        d = work / f"synthetic_{n_db}x{n_q}"
+        if not (d / "val" / "S.npy").exists():
+            synthetic.make(d, n_db, n_q)
+        n_val = n_q - n_q // 10
+        seg = math.ceil(0.01 * n_q)
+        wall, rss, _ = run_cli(cli, d / "cal" / "S.npy", d / "cal" / "GT.npy", d / "val" / "S.npy",
+                               "--segment-size", str(seg))
+        size = n_db * n_q * 4
+        rows.append(f"| {name} | {n_db} x {n_q} | {size / 2**20:.0f} MiB | {wall:.2f} s "
+                    f"| {wall / n_val * 1e3:.3f} ms | {rss / 2**20:.0f} MiB | {rss / size:.2f} |")
+    return rows
+
+
+def machine() -> str:
+    cpu = "unknown CPU"
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{os.cpu_count()} cores ({cpu}), {platform.system()}, Python {platform.python_version()}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cli", type=Path, default=REPO / "target" / "release" / "qtvpr-cli")
+    ap.add_argument("--work", type=Path, default=None, help="where to keep generated inputs")
+    ap.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    ap.add_argument("--skip-scale", action="store_true", help="skip the paper-scale synthetic cases")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.work or Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        report = [f"Measured by `benches/compare.py` on {machine()}.", "",
+                  "**Real: Nordland HOG** (3576 x 3576 float32 cosine; first 10% calibrate, segments of 36, "
+                  "k = 10, tau = 1). Wheel and reference in the same process, best of 3 for the wheel:", ""]
+        report += real_case(args.cli, work)
+        report += ["", "**Threads:** " + threads_case()[0], ""]
+        if not args.skip_scale:
+            report += ["**Paper scale, synthetic** (benches/synthetic.py: a true match near the diagonal, "
+                       "score drift along the traverse; C-order float32 .npy, memory-mapped; first 10% "
+                       "calibrate, segments of 1%; the CLI as a whole process, reading included):", ""]
+            report += scale_case(args.cli, work)
+    text = "\n".join(report)
+    print(text)
+    if not args.no_readme:
+        readme = REPO / "README.md"
+        body = readme.read_text()
+        new, n = re.subn(r"(<!-- bench:start -->\n).*?(<!-- bench:end -->)", lambda m: m[1] + text + "\n" + m[2],
+                         body, flags=re.S)
+        if n != 1:
+            sys.exit("README.md has no <!-- bench:start --> ... <!-- bench:end --> block")
+        readme.write_text(new)
+
+
+if __name__ == "__main__":
+    main()
