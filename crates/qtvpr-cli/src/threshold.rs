@@ -100,7 +100,11 @@ struct ReportSegment {
 /// Run `threshold`.
 pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     let matching = Matching::from(args.matching);
-    let params = Params { k: args.k, precision: args.precision, segment_size: args.segment_size };
+    let params = Params {
+        k: args.k,
+        precision: args.precision,
+        segment_size: args.segment_size,
+    };
     params.validate()?;
     // Errors about a file's content name the file; the flag says which input it was.
     let s_val = read_scores(&args.val).context("--val")?;
@@ -112,8 +116,10 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         if args.query_major {
             gt = gt.reversed_axes();
         }
-        with_view!(orient(s_cal.view(), args.query_major), |v| Calibration::new(v, &gt, matching))
-            .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?
+        with_view!(orient(s_cal.view(), args.query_major), |v| Calibration::new(
+            v, &gt, matching
+        ))
+        .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?
     };
     let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
     let transfer = with_view!(s_val, |v| cal

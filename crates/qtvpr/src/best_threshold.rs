@@ -3,8 +3,11 @@
 //! An exact sweep over the candidates in descending score order, evaluated only at the
 //! end of each group of equal scores (equal scores are accepted together). Candidates
 //! arrive as per-column sorted lists ([`Candidates`]), so a subset of columns is swept
-//! by a k-way merge rather than a sort. For the common target tau = 1 a closed form
-//! skips the merge altogether (see [`perfect_precision_threshold`]).
+//! by a lazy k-way merge rather than a sort, and the sweep stops as soon as no later
+//! group can be valid: validity needs `FP <= (TP (1 - tau) + 1e-12) / tau` and TP never
+//! exceeds the positives, so past that many false positives nothing can change. At
+//! tau = 1 that is the first false candidate; in general a few times the positives, a
+//! small fraction of a multi-mode subset's |DB| x k candidates.
 
 use itertools::Itertools;
 use ndarray::ArrayView2;
@@ -31,9 +34,6 @@ pub fn best_threshold<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching
 
 /// The best threshold of the candidates of `columns` (in any order).
 pub(crate) fn subset_threshold(cands: &Candidates, columns: &[usize], tau: f64) -> f64 {
-    if tau == 1.0 {
-        return perfect_precision_threshold(cands, columns);
-    }
     let merged = columns
         .iter()
         .map(|&j| {
@@ -41,11 +41,15 @@ pub(crate) fn subset_threshold(cands: &Candidates, columns: &[usize], tau: f64) 
             s.iter().copied().zip(c.iter().copied())
         })
         .kmerge_by(|a, b| a.0 > b.0);
-    sweep(merged, tau)
+    sweep(merged, tau, cands.positives(columns.iter().copied()))
 }
 
-/// The exact sweep (SPEC section 3) over candidates sorted by descending score.
-pub(crate) fn sweep(sorted: impl Iterator<Item = (f64, bool)>, tau: f64) -> f64 {
+/// The exact sweep (SPEC section 3) over candidates sorted by descending score, of which
+/// at most `positives` can be correct.
+pub(crate) fn sweep(sorted: impl Iterator<Item = (f64, bool)>, tau: f64, positives: usize) -> f64 {
+    // No group with more false positives than this can be valid (with a margin of one
+    // for rounding); FP only grows, so the sweep stops there.
+    let max_fp = (((positives as f64 * (1.0 - tau) + 1e-12) / tau).floor() as usize).saturating_add(1);
     let (mut tp, mut fp) = (0usize, 0usize);
     let (mut best_tp, mut best_t) = (0usize, f64::INFINITY);
     let mut it = sorted.peekable();
@@ -54,6 +58,9 @@ pub(crate) fn sweep(sorted: impl Iterator<Item = (f64, bool)>, tau: f64) -> f64 
             tp += 1;
         } else {
             fp += 1;
+            if fp > max_fp {
+                break;
+            }
         }
         if it.peek().is_some_and(|next| next.0 == score) {
             continue; // not the last candidate of its group of equal scores
@@ -67,30 +74,6 @@ pub(crate) fn sweep(sorted: impl Iterator<Item = (f64, bool)>, tau: f64) -> f64 
         }
     }
     best_t
-}
-
-/// The sweep's answer for tau = 1, without merging.
-///
-/// At tau = 1 a group is valid only while no false candidate has been accepted, so the
-/// answer is the lowest correct score strictly above the highest false score (or
-/// reject-all when there is none). In each descending column list the candidates
-/// above that false score form a prefix of correct ones, found by binary search.
-fn perfect_precision_threshold(cands: &Candidates, columns: &[usize]) -> f64 {
-    let max_false = columns
-        .iter()
-        .filter_map(|&j| {
-            let (s, c) = cands.column(j);
-            c.iter().position(|&c| !c).map(|i| s[i])
-        })
-        .fold(f64::NEG_INFINITY, f64::max);
-    columns
-        .iter()
-        .filter_map(|&j| {
-            let (s, _) = cands.column(j);
-            let above = s.partition_point(|&x| x > max_false);
-            (above > 0).then(|| s[above - 1])
-        })
-        .fold(f64::INFINITY, f64::min)
 }
 
 #[cfg(test)]
@@ -130,25 +113,30 @@ mod tests {
     }
 
     #[test]
-    fn closed_form_agrees_with_the_sweep_at_tau_one() {
+    fn early_stop_changes_nothing() {
+        // Against the same sweep told there could be as many positives as candidates
+        // (so it never stops early), on every subset of the example's columns.
         let (s, gt) = example();
         let cands = Candidates::new(s.view(), gt.view(), Matching::Multi);
         for cols in [vec![0], vec![1], vec![0, 1], vec![1, 0]] {
-            let merged = cols
-                .iter()
-                .map(|&j| {
-                    let (s, c) = cands.column(j);
-                    s.iter().copied().zip(c.iter().copied())
-                })
-                .kmerge_by(|a, b| a.0 > b.0);
-            assert_eq!(
-                sweep(merged, 1.0),
-                perfect_precision_threshold(&cands, &cols),
-                "{cols:?}"
-            );
+            for tau in [1.0, 0.9, 0.76, 0.75, 0.6, 0.5, 0.1] {
+                let merged = || {
+                    cols.iter()
+                        .map(|&j| {
+                            let (s, c) = cands.column(j);
+                            s.iter().copied().zip(c.iter().copied())
+                        })
+                        .kmerge_by(|a, b| a.0 > b.0)
+                };
+                assert_eq!(
+                    sweep(merged(), tau, usize::MAX / 2),
+                    subset_threshold(&cands, &cols, tau),
+                    "{cols:?} {tau}"
+                );
+            }
         }
-        // q1 alone: 0.8 T, 0.7 T, 0.05 F -> the lowest correct above 0.05 is 0.7.
-        assert_eq!(perfect_precision_threshold(&cands, &[1]), 0.7);
+        // q1 alone: 0.8 T, 0.7 T, 0.05 F -> tau = 1 stops at 0.05 F, having reached 0.7.
+        assert_eq!(subset_threshold(&cands, &[1], 1.0), 0.7);
     }
 
     #[test]

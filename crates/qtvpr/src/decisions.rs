@@ -155,7 +155,7 @@ fn column_candidates<T: Score>(
                 .filter(|(_, t)| **t != Truth::Ignored)
                 .map(|(s, t)| (s.to_f64(), *t == Truth::True))
                 .collect();
-            cands.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            radsort::sort_by_key(&mut cands, |c| -c.0); // descending by score
             (cands, positives)
         }
     }
