@@ -20,6 +20,11 @@
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
 //!
+//! Extensions, beyond the paper and not SPEC sections, that meet users where their data
+//! is: [`similarity`] (cosine similarity from descriptors), [`sequence`] (SeqSLAM-style
+//! sequence matching, the paper's future work) and [`ground_truth`] (from a frame
+//! tolerance or from positions).
+//!
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and all arithmetic
 //! is in `f64`.
@@ -45,8 +50,12 @@ pub mod best_threshold;
 pub mod decisions;
 pub mod deployment;
 mod error;
+pub mod ground_truth;
 pub mod input;
+mod kd_tree;
 pub mod ranked_correlation;
+pub mod sequence;
+pub mod similarity;
 pub mod subset_quantile;
 pub mod transfer;
 
@@ -55,4 +64,6 @@ pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use input::{GroundTruth, Label, Score, Truth};
 pub use ranked_correlation::ranked_correlation;
+pub use sequence::{Sequence, sequence_match};
+pub use similarity::cosine_similarity;
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
