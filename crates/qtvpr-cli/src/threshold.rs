@@ -8,7 +8,8 @@ use clap::Args;
 use qtvpr::{Calibration, Matching, Params};
 use serde::Serialize;
 
-use crate::npy::{read_ground_truth, read_scores, with_view};
+use crate::gt_source::CalGtSource;
+use crate::npy::{read_scores, with_view};
 use crate::output::{Format, emit};
 
 /// Arguments of `threshold`.
@@ -17,13 +18,9 @@ pub struct ThresholdArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|.
     #[arg(long, value_name = "S_cal.npy")]
     cal: PathBuf,
-    /// Calibration ground truth: .npy (bool or 0/1 integers, same shape as --cal), or a
-    /// VPR_Tutorial .npz with GThard and optional GTsoft.
-    #[arg(long, value_name = "GT.npy|GT.npz")]
-    cal_gt: PathBuf,
-    /// Soft calibration ground truth (.npy): entries soft but not hard are ignored.
-    #[arg(long, value_name = "GTsoft.npy")]
-    cal_gt_soft: Option<PathBuf>,
+    /// Calibration ground truth: --cal-gt, --cal-gt-tolerance or --cal-gt-db-positions.
+    #[command(flatten)]
+    cal_gt: CalGtSource,
     /// Deployment similarity matrix (.npy), |DB| x |Qval|; needs no ground truth.
     #[arg(long, value_name = "S_val.npy")]
     val: PathBuf,
@@ -102,10 +99,8 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
         if args.query_major { s.reversed_axes() } else { s }
     };
     let s_cal = orient(read_scores(&args.cal).with_context(|| "--cal".to_string())?);
-    let mut gt = read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
-    if args.query_major {
-        gt = gt.reversed_axes();
-    }
+    let gt_source = args.cal_gt.source();
+    let gt = gt_source.load(s_cal.dim(), args.query_major)?;
     let s_val = orient(read_scores(&args.val).context("--val")?);
     let matching = Matching::from(args.matching);
     let params = Params {
@@ -116,7 +111,7 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
     params.validate()?;
 
     let cal = with_view!(&s_cal, |v| Calibration::new(v, &gt, matching))
-        .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?;
+        .with_context(|| format!("--cal {} / {}", args.cal.display(), gt_source.describe()))?;
     let transfer =
         with_view!(&s_val, |v| cal.transfer(v, &params)).with_context(|| format!("--val {}", args.val.display()))?;
 
