@@ -169,15 +169,27 @@ impl<T: Score> Window<'_, T> {
     }
 
     /// Turn the window sums of row `i` into those of row `i + 1`:
-    /// `W[i+1, j] = W[i, j-1] - S[i+lo, j-1+lo] + S[i+1+hi, j+hi]`.
+    /// `W[i+1, j] = W[i, j-1] - S[i+lo, j-1+lo] + S[i+1+hi, j+hi]`, zero outside.
     fn slide(&self, i: usize, sums: &mut [f64]) {
-        let i = i as isize;
-        // Descending, so that sums[j - 1] still holds row i's value when it is read.
-        for j in (1..sums.len()).rev() {
-            let jj = j as isize;
-            sums[j] = sums[j - 1] - self.at(i + self.lo, jj - 1 + self.lo) + self.at(i + 1 + self.hi, jj + self.hi);
+        let (n, m) = self.s.dim();
+        let (lo, hi) = (self.lo.unsigned_abs(), self.hi as usize);
+        // Shift right by one column: sums[j] = W[i, j-1].
+        sums.copy_within(0..m - 1, 1);
+        // Leaving row i + lo (lo <= 0), column j - 1 + lo: inside for j in 1 + |lo| .. m.
+        if i >= lo && 1 + lo < m {
+            let leave = self.s.row(i - lo);
+            for (w, v) in sums[1 + lo..].iter_mut().zip(leave.iter()) {
+                *w -= v.to_f64();
+            }
         }
-        sums[0] = self.sum(i as usize + 1, 0);
+        // Entering row i + 1 + hi, column j + hi: inside for j in 1 .. m - hi.
+        if i + 1 + hi < n && 1 + hi < m {
+            let enter = self.s.row(i + 1 + hi);
+            for (w, v) in sums[1..m - hi].iter_mut().zip(enter.iter().skip(1 + hi)) {
+                *w += v.to_f64();
+            }
+        }
+        sums[0] = self.sum(i + 1, 0);
     }
 }
 
