@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 import numpy as np
@@ -178,6 +179,15 @@ def test_cli_similarity_equals_wheel(cli, nordland, shared_data, tmp_path):
         got = np.load(out)
         assert got.dtype == np.float32 and got.shape == (db.shape[0], q.shape[0])
         np.testing.assert_array_equal(got, qtvpr.cosine_similarity(db, q, **kwargs))
+
+
+def test_help_shows_signatures_and_docs():
+    for f in (qtvpr.cosine_similarity, qtvpr.sequence_match, qtvpr.ground_truth_tolerance,
+              qtvpr.ground_truth_positions):
+        assert f.__doc__ and f.__text_signature__, f.__name__
+    assert str(inspect.signature(qtvpr.cosine_similarity)) == "(db, queries, *, sequence=None, causal=False)"
+    assert str(inspect.signature(qtvpr.sequence_match)) == "(s, length, *, causal=False)"
+    assert str(inspect.signature(qtvpr.ground_truth_positions)) == "(db_positions, query_positions, radius)"
 
 
 # ---------------------------------------------------------------------------------------

@@ -25,8 +25,8 @@ fn sequence(length: i64, causal: bool) -> PyResult<Sequence> {
 /// ``queries_descriptors.npy``). Returns the |DB| x |Q| float32 matrix ``S[i, j]`` =
 /// cosine of ``db[i]`` and ``queries[j]``, i.e. ``normalize(db) @ normalize(queries).T``.
 /// The arithmetic is float64 (faer's parallel GEMM) and each entry is rounded once to
-/// float32, so the result does not depend on D's size or the input dtype beyond the
-/// last bit.
+/// float32, so the result is within float32 rounding of the exact cosine whatever the
+/// descriptor dimension D and the input dtypes.
 ///
 /// ``sequence=L`` (odd, >= 1) applies :func:`sequence_match` with window ``L`` (and
 /// ``causal``), an extension beyond the paper: SeqSLAM-style sequence matching.
