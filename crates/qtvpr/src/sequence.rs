@@ -126,8 +126,12 @@ pub fn sequence_match<T: FromF64>(s: ArrayView2<'_, T>, sequence: Sequence) -> R
             if r > 0 {
                 window.slide(i - 1, &mut sums);
             }
+            let (last, first) = window.row_bounds(i);
             for (j, (o, &sum)) in row.iter_mut().zip(&sums).enumerate() {
-                *o = T::from_f64(sum / window.count(i, j) as f64);
+                // The offsets inside the matrix: max(lo, -i, -j) ..= min(hi, n-1-i, m-1-j).
+                let j = j as isize;
+                let count = last.min(m as isize - 1 - j) - first.max(-j) + 1;
+                *o = T::from_f64(sum / count as f64);
             }
         }
     });
@@ -159,13 +163,11 @@ impl<T: Score> Window<'_, T> {
             .sum()
     }
 
-    /// The number of offsets whose entry lies inside the matrix.
-    fn count(&self, i: usize, j: usize) -> usize {
-        let (n, m) = self.s.dim();
-        let (i, j) = (i as isize, j as isize);
-        let first = self.lo.max(-i).max(-j);
-        let last = self.hi.min(n as isize - 1 - i).min(m as isize - 1 - j);
-        (last - first + 1) as usize
+    /// For row `i`, the bounds of the offsets that keep the row inside the matrix:
+    /// `(min(hi, n-1-i), max(lo, -i))`; the column bounds are applied per entry.
+    fn row_bounds(&self, i: usize) -> (isize, isize) {
+        let (n, i) = (self.s.nrows() as isize, i as isize);
+        (self.hi.min(n - 1 - i), self.lo.max(-i))
     }
 
     /// Turn the window sums of row `i` into those of row `i + 1`:
