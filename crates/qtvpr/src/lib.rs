@@ -19,11 +19,13 @@
 //! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
+//! | extension: similarity from descriptors | [`similarity`] |
+//! | extension: sequence matching (the paper's future work) | [`sequence`] |
+//! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
 //!
-//! Extensions, beyond the paper and not SPEC sections, that meet users where their data
-//! is: [`similarity`] (cosine similarity from descriptors), [`sequence`] (SeqSLAM-style
-//! sequence matching, the paper's future work) and [`ground_truth`] (from a frame
-//! tolerance or from positions).
+//! The extensions are beyond the paper and are not SPEC sections: they make the
+//! similarity and ground-truth matrices the method takes from what users have
+//! (descriptors, positions, frame-aligned traverses).
 //!
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and all arithmetic
