@@ -22,6 +22,7 @@ def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
         ["Calibration", "TransferResult", "__version__", "best_threshold", "counts",
          "quantile_transfer", "ranked_correlation"]
+        + ["cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "sequence_match"]  # extensions
     )
     for name in qtvpr.__all__:
         assert hasattr(qtvpr, name), name

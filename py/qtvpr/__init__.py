@@ -31,6 +31,14 @@ from qtvpr._native import (
     ranked_correlation,
 )
 
+# Extensions: meet users where their data is (descriptors, positions, frame tolerance).
+from qtvpr._native import (
+    cosine_similarity,
+    ground_truth_positions,
+    ground_truth_tolerance,
+    sequence_match,
+)
+
 __all__ = [
     "Calibration",
     "TransferResult",
@@ -39,4 +47,9 @@ __all__ = [
     "counts",
     "quantile_transfer",
     "ranked_correlation",
+    # Extensions
+    "cosine_similarity",
+    "ground_truth_positions",
+    "ground_truth_tolerance",
+    "sequence_match",
 ]

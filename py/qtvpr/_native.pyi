@@ -1,6 +1,6 @@
 """Type stubs of the compiled module; the docstrings are on the compiled objects."""
 
-from typing import Literal, TypedDict, final
+from typing import Literal, TypedDict, TypeVar, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -94,3 +94,21 @@ def ranked_correlation(
     *,
     query_major: bool = False,
 ) -> NDArray[np.float64]: ...
+
+# Extensions: similarity from descriptors, sequence matching, ground truth.
+_F = TypeVar("_F", np.float32, np.float64)
+
+def cosine_similarity(
+    db: ArrayLike,
+    queries: ArrayLike,
+    *,
+    sequence: int | None = None,
+    causal: bool = False,
+) -> NDArray[np.float32]: ...
+def sequence_match(s: NDArray[_F], length: int, *, causal: bool = False) -> NDArray[_F]: ...
+def ground_truth_tolerance(n_db: int, n_queries: int, tolerance: int) -> NDArray[np.bool_]: ...
+def ground_truth_positions(
+    db_positions: ArrayLike,
+    query_positions: ArrayLike,
+    radius: float,
+) -> NDArray[np.bool_]: ...

@@ -18,8 +18,12 @@ macro_rules! with_view {
     };
 }
 
+mod ground_truth;
+mod gt_source;
+mod matrix_io;
 mod output;
 mod progress;
+mod similarity;
 mod threshold;
 
 /// Choose the operating point of a visual place recognition system by quantile
@@ -52,12 +56,20 @@ enum Command {
     /// Calibrate on a traverse with ground truth; print one threshold per segment of
     /// deployment queries (no deployment ground truth needed).
     Threshold(threshold::ThresholdArgs),
+    /// Similarity matrix from descriptor files (cosine of L2-normalised rows), optionally
+    /// sequence-matched; writes |DB| x |Q| float32 .npy.
+    Similarity(similarity::SimilarityArgs),
+    /// Ground-truth matrix from a frame tolerance or from positions; writes bool .npy or
+    /// a VPR_Tutorial .npz.
+    GroundTruth(ground_truth::GroundTruthArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = configure_threads(cli.global.threads).and_then(|()| match &cli.command {
         Command::Threshold(args) => threshold::run(args, &cli.global),
+        Command::Similarity(args) => similarity::run(args),
+        Command::GroundTruth(args) => ground_truth::run(args),
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,9 +8,10 @@ use clap::Args;
 use qtvpr::{Calibration, Matching, Params};
 use serde::Serialize;
 
+use crate::gt_source::CalGtSource;
 use crate::output::{Format, emit};
 use crate::{Global, progress};
-use qtvpr::npy::{ScoresView, read_ground_truth, read_scores};
+use qtvpr::npy::{ScoresView, read_scores};
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
@@ -18,13 +19,9 @@ pub struct ThresholdArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|.
     #[arg(long, value_name = "S_cal.npy")]
     cal: PathBuf,
-    /// Calibration ground truth: .npy (bool or 0/1 integers, same shape as --cal), or a
-    /// VPR_Tutorial .npz with GThard and optional GTsoft.
-    #[arg(long, value_name = "GT.npy|GT.npz")]
-    cal_gt: PathBuf,
-    /// Soft calibration ground truth (.npy): entries soft but not hard are ignored.
-    #[arg(long, value_name = "GTsoft.npy")]
-    cal_gt_soft: Option<PathBuf>,
+    /// Calibration ground truth: --cal-gt, --cal-gt-tolerance or --cal-gt-db-positions.
+    #[command(flatten)]
+    cal_gt: CalGtSource,
     /// Deployment similarity matrix (.npy), |DB| x |Qval|; needs no ground truth.
     #[arg(long, value_name = "S_val.npy")]
     val: PathBuf,
@@ -112,14 +109,11 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     // The calibration inputs are dropped (and unmapped) once the calibration is built.
     let cal = {
         let s_cal = read_scores(&args.cal).context("--cal")?;
-        let mut gt = read_ground_truth(&args.cal_gt, args.cal_gt_soft.as_deref()).context("--cal-gt")?;
-        if args.query_major {
-            gt = gt.reversed_axes();
-        }
-        with_view!(orient(s_cal.view(), args.query_major), |v| Calibration::new(
-            v, &gt, matching
-        ))
-        .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?
+        let s_cal = orient(s_cal.view(), args.query_major);
+        let gt_source = args.cal_gt.source();
+        let gt = gt_source.load(s_cal.dim(), args.query_major)?;
+        with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
+            .with_context(|| format!("--cal {} / {}", args.cal.display(), gt_source.describe()))?
     };
     let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
     let transfer = with_view!(s_val, |v| cal

@@ -10,9 +10,12 @@
 //! `#[pyo3(signature = ...)]` so that `help()` shows the real signature; the types live
 //! in `py/qtvpr/_native.pyi`.
 
+mod blame;
 mod calibration;
 mod convert;
 mod error;
+mod ground_truth;
+mod similarity;
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -176,6 +179,11 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(best_threshold, m)?)?;
     m.add_function(wrap_pyfunction!(counts, m)?)?;
     m.add_function(wrap_pyfunction!(ranked_correlation, m)?)?;
+    // Extensions: similarity from descriptors, sequence matching, ground truth.
+    m.add_function(wrap_pyfunction!(similarity::cosine_similarity, m)?)?;
+    m.add_function(wrap_pyfunction!(similarity::sequence_match, m)?)?;
+    m.add_function(wrap_pyfunction!(ground_truth::ground_truth_tolerance, m)?)?;
+    m.add_function(wrap_pyfunction!(ground_truth::ground_truth_positions, m)?)?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
     Ok(())

@@ -118,6 +118,48 @@ pub enum Error {
         /// What is wrong, e.g. `must be >= 1, got 0`.
         message: String,
     },
+    // Inputs of the extensions (descriptors, positions), not of the SPEC pipeline.
+    /// A descriptor or position matrix holds a NaN or infinite value.
+    #[error("{what} contains {value} at row {row}, column {col}; every value must be finite")]
+    NotFiniteValue {
+        /// Which matrix, e.g. `"database descriptor matrix"`.
+        what: &'static str,
+        /// Row of the first offending entry.
+        row: usize,
+        /// Column of the first offending entry.
+        col: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A descriptor is the zero vector, whose cosine similarity is undefined.
+    #[error("{what} row {row} is all zeros; the cosine similarity of a zero vector is undefined")]
+    ZeroNorm {
+        /// Which descriptor matrix.
+        what: &'static str,
+        /// The first all-zero row.
+        row: usize,
+    },
+    /// Two matrices whose rows must have the same length (descriptor dimension,
+    /// coordinates per position) do not.
+    #[error("{what} has {cols} columns but {other} has {other_cols}; both must have the same dimension")]
+    ColumnMismatch {
+        /// The second matrix.
+        what: &'static str,
+        /// Its number of columns.
+        cols: usize,
+        /// The matrix it must match.
+        other: &'static str,
+        /// That matrix's number of columns.
+        other_cols: usize,
+    },
+    /// A position matrix has neither 2 nor 3 columns.
+    #[error("{what} has {cols} columns; positions must be x, y (2 columns) or x, y, z (3 columns)")]
+    PositionColumns {
+        /// Which position matrix.
+        what: &'static str,
+        /// Its number of columns.
+        cols: usize,
+    },
 }
 
 impl Error {

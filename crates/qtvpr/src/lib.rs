@@ -19,7 +19,14 @@
 //! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
-//! | file input (feature `npy`), not a SPEC section | `npy` |
+//! | extension: similarity from descriptors | [`similarity`] |
+//! | extension: sequence matching (the paper's future work) | [`sequence`] |
+//! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
+//! | file input (feature `npy`) | `npy` |
+//!
+//! The extensions are beyond the paper and are not SPEC sections: they make the
+//! similarity and ground-truth matrices the method takes from what users have
+//! (descriptors, positions, frame-aligned traverses).
 //!
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and all arithmetic
@@ -46,10 +53,14 @@ pub mod best_threshold;
 pub mod decisions;
 pub mod deployment;
 mod error;
+pub mod ground_truth;
 pub mod input;
+mod kd_tree;
 #[cfg(feature = "npy")]
 pub mod npy;
 pub mod ranked_correlation;
+pub mod sequence;
+pub mod similarity;
 pub mod subset_quantile;
 pub mod transfer;
 
@@ -58,4 +69,6 @@ pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use input::{GroundTruth, Label, Score, Truth};
 pub use ranked_correlation::ranked_correlation;
+pub use sequence::{Sequence, sequence_match};
+pub use similarity::cosine_similarity;
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};

@@ -1,0 +1,74 @@
+//! `qtvpr-cli similarity`: the similarity matrix from descriptor files, optionally
+//! sequence-matched. The arithmetic is the core's ([`qtvpr::cosine_similarity`],
+//! [`qtvpr::sequence_match`]).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use qtvpr::Sequence;
+use qtvpr::similarity::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+
+use crate::matrix_io::{blame, read_rows, write_npy};
+
+/// Arguments of `similarity`.
+#[derive(Debug, Args)]
+pub struct SimilarityArgs {
+    /// Database descriptors (.npy, float32/float64), |DB| x D, one image per row (e.g.
+    /// VPR-methods-evaluation's database_descriptors.npy).
+    #[arg(long, value_name = "DB.npy")]
+    db: PathBuf,
+    /// Query descriptors (.npy), |Q| x D (e.g. queries_descriptors.npy).
+    #[arg(long, value_name = "Q.npy")]
+    queries: PathBuf,
+    /// Sequence matching over L frames (odd, >= 1), an extension beyond the paper:
+    /// S_seq[i, j] is the mean of S[i+d, j+d] for d in -(L-1)/2 ..= (L-1)/2, over the
+    /// entries inside the matrix (SeqSLAM at velocity 1; for traverses in the same
+    /// direction at a similar frame rate).
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
+    sequence: Option<i64>,
+    /// With --sequence: average the current frame and the L-1 before it only
+    /// (d in -(L-1) ..= 0), as a robot would online.
+    #[arg(long, requires = "sequence")]
+    causal: bool,
+    /// Where to write the similarity matrix: .npy, float32, |DB| x |Q| (atomically).
+    #[arg(long, short, value_name = "S.npy")]
+    output: PathBuf,
+}
+
+/// Run `similarity`.
+pub fn run(args: &SimilarityArgs) -> Result<()> {
+    // Check the cheap parameter before reading anything.
+    let sequence = args
+        .sequence
+        .map(|length| {
+            let Ok(length) = usize::try_from(length) else {
+                bail!("sequence length must be odd and >= 1, got {length}");
+            };
+            let sequence = Sequence {
+                length,
+                causal: args.causal,
+            };
+            sequence.validate()?;
+            Ok(sequence)
+        })
+        .transpose()
+        .context("--sequence")?;
+    const LAYOUT: &str = "an N x D descriptor matrix (one row per image)";
+    let db = read_rows(&args.db, "descriptors", LAYOUT).context("--db")?;
+    let queries = read_rows(&args.queries, "descriptors", LAYOUT).context("--queries")?;
+    let sources = [
+        (DB_DESCRIPTORS, format!("--db {}", args.db.display())),
+        (QUERY_DESCRIPTORS, format!("--queries {}", args.queries.display())),
+    ];
+    let s = with_view!(db.view(), |d| with_view!(queries.view(), |q| qtvpr::cosine_similarity(
+        d, q
+    )))
+    .map_err(|e| blame(e, &sources))?;
+    drop((db, queries));
+    let s = match sequence {
+        Some(sequence) => qtvpr::sequence_match(s.view(), sequence).context("--sequence")?,
+        None => s,
+    };
+    write_npy(&args.output, "--output", s.view())
+}

@@ -1,0 +1,223 @@
+//! Extension (not a SPEC section): ground truth from frame tolerance or from positions.
+//!
+//! Datasets rarely ship a ground-truth matrix. They ship either frame-aligned traverses
+//! (Nordland, SFU, Oxford: query `j` shows the place of database image `j`, give or take
+//! a few frames) or positions (UTM east/north, a match within 25 m). These functions make
+//! the |DB| x |Q| bool matrix of SPEC section 1 from either. A soft ground truth
+//! (VPR_Tutorial's `GTsoft`) is the same function with a larger tolerance or radius.
+//!
+//! - [`within_tolerance`]: `GT[i, j] = |i - j| <= tolerance`.
+//! - [`within_radius`]: `GT[i, j] = |db[i] - q[j]|² <= radius²`, inclusive, with the
+//!   squared distance computed exactly as NumPy's brute force
+//!   `((db[:, None] - q[None]) ** 2).sum(-1) <= radius * radius` computes it on float64
+//!   coordinates, so that points at the radius agree to the last bit. A k-d tree over
+//!   the queries (exact pruning, see the private `kd_tree` module) finds the candidates in O(log |Q|) per
+//!   database position plus the matches; the rows are filled in parallel.
+
+use ndarray::{Array2, ArrayView2};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::input::{Score, check_nonempty};
+use crate::kd_tree::KdTree;
+
+/// What [`within_radius`] calls its first argument in errors.
+pub const DB_POSITIONS: &str = "database position matrix";
+/// What [`within_radius`] calls its second argument in errors.
+pub const QUERY_POSITIONS: &str = "query position matrix";
+
+/// Ground truth of frame-aligned traverses: `GT[i, j] = |i - j| <= tolerance`, shape
+/// `n_db` x `n_queries`.
+///
+/// # Errors
+/// [`Error::Empty`] when either count is 0.
+pub fn within_tolerance(n_db: usize, n_queries: usize, tolerance: usize) -> Result<Array2<bool>> {
+    check_nonempty("ground truth", (n_db, n_queries))?;
+    let mut gt = vec![false; n_db * n_queries];
+    gt.par_chunks_mut(n_queries).enumerate().for_each(|(i, row)| {
+        let first = i.saturating_sub(tolerance);
+        let last = i.saturating_add(tolerance).min(n_queries - 1);
+        if first <= last {
+            row[first..=last].fill(true);
+        }
+    });
+    Ok(Array2::from_shape_vec((n_db, n_queries), gt).expect("shape matches length"))
+}
+
+/// Ground truth from positions: `GT[i, j]` is true when database position `i` is within
+/// `radius` of query position `j` (distance `<= radius`, inclusive).
+///
+/// `db` (|DB| x K) and `queries` (|Q| x K) hold one position per row, K = 2 (x, y: e.g.
+/// UTM east, north) or 3 (x, y, z), `f32` or `f64` (widened to `f64`), any strides.
+/// See the [module docs](self) for the exact arithmetic.
+///
+/// # Errors
+/// - [`Error::InvalidParameter`] when `radius` is negative or not finite;
+/// - [`Error::Empty`] for a matrix without rows or columns;
+/// - [`Error::PositionColumns`] when K is not 2 or 3;
+/// - [`Error::ColumnMismatch`] when the two matrices have a different K;
+/// - [`Error::NotFiniteValue`] for a NaN or infinite coordinate.
+pub fn within_radius<T: Score, U: Score>(
+    db: ArrayView2<'_, T>,
+    queries: ArrayView2<'_, U>,
+    radius: f64,
+) -> Result<Array2<bool>> {
+    check_radius("radius", radius)?;
+    check_positions(DB_POSITIONS, db.view())?;
+    check_positions(QUERY_POSITIONS, queries.view())?;
+    if queries.ncols() != db.ncols() {
+        return Err(Error::ColumnMismatch {
+            what: QUERY_POSITIONS,
+            cols: queries.ncols(),
+            other: DB_POSITIONS,
+            other_cols: db.ncols(),
+        });
+    }
+    let r2 = radius * radius;
+    Ok(match db.ncols() {
+        2 => fill::<2, T, U>(db, queries, r2),
+        _ => fill::<3, T, U>(db, queries, r2),
+    })
+}
+
+/// Check that a radius is finite and `>= 0`; `name` is the parameter as a user spells it.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] named `name`.
+pub fn check_radius(name: &'static str, radius: f64) -> Result<()> {
+    if !(radius.is_finite() && radius >= 0.0) {
+        return Err(Error::param(
+            name,
+            format!("must be a finite number >= 0, got {radius}"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_positions<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<()> {
+    check_nonempty(what, m.dim())?;
+    if !matches!(m.ncols(), 2 | 3) {
+        return Err(Error::PositionColumns { what, cols: m.ncols() });
+    }
+    match m.indexed_iter().find(|(_, v)| !v.to_f64().is_finite()) {
+        Some(((row, col), v)) => Err(Error::NotFiniteValue {
+            what,
+            row,
+            col,
+            value: v.to_f64(),
+        }),
+        None => Ok(()),
+    }
+}
+
+fn point<const K: usize, T: Score>(m: ArrayView2<'_, T>, row: usize) -> [f64; K] {
+    std::array::from_fn(|k| m[[row, k]].to_f64())
+}
+
+fn fill<const K: usize, T: Score, U: Score>(
+    db: ArrayView2<'_, T>,
+    queries: ArrayView2<'_, U>,
+    r2: f64,
+) -> Array2<bool> {
+    let tree = KdTree::<K>::new((0..queries.nrows()).map(|j| point(queries, j)).collect());
+    let n_q = queries.nrows();
+    let mut gt = vec![false; db.nrows() * n_q];
+    gt.par_chunks_mut(n_q).enumerate().for_each(|(i, row)| {
+        tree.within(&point(db, i), r2, &mut |j| row[j] = true);
+    });
+    Array2::from_shape_vec((db.nrows(), n_q), gt).expect("shape matches length")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::array;
+
+    #[test]
+    fn hand_computed_tolerance() {
+        // 4 x 3, tolerance 1: row i is true at columns i-1, i, i+1 inside 0..3.
+        let gt = within_tolerance(4, 3, 1).unwrap();
+        let want = array![
+            [true, true, false],
+            [true, true, true],
+            [false, true, true],
+            [false, false, true]
+        ];
+        assert_eq!(gt, want);
+        // Tolerance 0 is the identity (padded); a huge tolerance is all true.
+        assert_eq!(
+            within_tolerance(2, 3, 0).unwrap(),
+            array![[true, false, false], [false, true, false]]
+        );
+        assert!(within_tolerance(3, 2, usize::MAX).unwrap().iter().all(|&v| v));
+        assert_eq!(
+            within_tolerance(0, 3, 1).unwrap_err().to_string(),
+            "ground truth is empty (shape 0x3)"
+        );
+    }
+
+    #[test]
+    fn hand_computed_positions() {
+        // Queries at (0, 0) and (10, 0); radius 5.
+        // db (3, 4): distances 5 (= radius: inside) and sqrt(49 + 16) = 8.06 (outside).
+        // db (7, 0): 7 (outside) and 3 (inside).
+        // db (5, 0.001): sqrt(25.000001) > 5 (outside) and the same (outside).
+        // db (10, -5): sqrt(125) (outside) and 5 (inside, again exactly at the radius).
+        let q = array![[0.0, 0.0], [10.0, 0.0]];
+        let db = array![[3.0f32, 4.0], [7.0, 0.0], [5.0, 0.001], [10.0, -5.0]];
+        let gt = within_radius(db.view(), q.view(), 5.0).unwrap();
+        assert_eq!(gt, array![[true, false], [false, true], [false, false], [false, true]]);
+        // Radius 0 matches identical positions only; 3-D uses z too:
+        // (1, 2, 3) vs (1, 2, 3): 0; vs (1, 2, 4): 1.
+        let q3 = array![[1.0, 2.0, 3.0], [1.0, 2.0, 4.0]];
+        let db3 = array![[1.0, 2.0, 3.0]];
+        assert_eq!(
+            within_radius(db3.view(), q3.view(), 0.0).unwrap(),
+            array![[true, false]]
+        );
+        assert_eq!(within_radius(db3.view(), q3.view(), 1.0).unwrap(), array![[true, true]]);
+    }
+
+    #[test]
+    fn many_identical_positions() {
+        // A robot standing still: 1000 queries at one position (more than any leaf holds).
+        let q = Array2::from_elem((1000, 2), 2.5);
+        let db = array![[2.5, 2.5], [2.5, 3.5], [2.5, 3.6]];
+        let gt = within_radius(db.view(), q.view(), 1.0).unwrap();
+        assert!(gt.row(0).iter().all(|&v| v));
+        assert!(gt.row(1).iter().all(|&v| v));
+        assert!(gt.row(2).iter().all(|&v| !v));
+    }
+
+    #[test]
+    fn bad_positions_and_radii() {
+        let p = array![[0.0, 0.0], [1.0, 1.0]];
+        for r in [-1.0, f64::NAN, f64::INFINITY] {
+            assert!(
+                within_radius(p.view(), p.view(), r)
+                    .unwrap_err()
+                    .to_string()
+                    .starts_with("radius must be a finite number >= 0, got "),
+            );
+        }
+        let wide = array![[0.0, 0.0, 0.0, 0.0]];
+        assert_eq!(
+            within_radius(wide.view(), p.view(), 1.0).unwrap_err().to_string(),
+            "database position matrix has 4 columns; positions must be x, y (2 columns) or x, y, z (3 columns)"
+        );
+        let three = array![[0.0, 0.0, 0.0]];
+        assert_eq!(
+            within_radius(p.view(), three.view(), 1.0).unwrap_err().to_string(),
+            "query position matrix has 3 columns but database position matrix has 2; both must have the same dimension"
+        );
+        let nan = array![[0.0f32, 0.0], [f32::NAN, 1.0]];
+        assert_eq!(
+            within_radius(p.view(), nan.view(), 1.0).unwrap_err().to_string(),
+            "query position matrix contains NaN at row 1, column 0; every value must be finite"
+        );
+        assert!(matches!(
+            within_radius(Array2::<f64>::zeros((0, 2)).view(), p.view(), 1.0),
+            Err(Error::Empty { what: DB_POSITIONS, .. })
+        ));
+    }
+}
