@@ -19,6 +19,8 @@
 //! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
+//! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
+//! | 8 evaluation protocol (%Segs, AvgR@tauP) | [`evaluate`](mod@evaluate) |
 //!
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and all arithmetic
@@ -41,18 +43,22 @@
 //! # Ok::<(), qtvpr::Error>(())
 //! ```
 
+pub mod baselines;
 pub mod best_threshold;
 pub mod decisions;
 pub mod deployment;
 mod error;
+pub mod evaluate;
 pub mod input;
 pub mod ranked_correlation;
 pub mod subset_quantile;
 pub mod transfer;
 
+pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
+pub use evaluate::{Evaluation, Method, Protocol, Split, evaluate};
 pub use input::{GroundTruth, Label, Score, Truth};
 pub use ranked_correlation::ranked_correlation;
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
