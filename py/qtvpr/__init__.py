@@ -27,8 +27,10 @@ from qtvpr._native import (
     __version__,
     best_threshold,
     counts,
+    evaluate,
     quantile_transfer,
     ranked_correlation,
+    schubert_threshold,
 )
 
 __all__ = [
@@ -37,6 +39,8 @@ __all__ = [
     "__version__",
     "best_threshold",
     "counts",
+    "evaluate",
     "quantile_transfer",
     "ranked_correlation",
+    "schubert_threshold",
 ]

@@ -1,5 +1,6 @@
 """Type stubs of the compiled module; the docstrings are on the compiled objects."""
 
+from collections.abc import Iterable
 from typing import Literal, TypedDict, final
 
 import numpy as np
@@ -8,6 +9,9 @@ from numpy.typing import ArrayLike, NDArray
 __version__: str
 
 _Matching = Literal["single", "multi"]
+_Method = Literal[
+    "quantile-transfer", "schubert", "schubert-calibrated", "calibration-threshold", "oracle"
+]
 
 class _Counts(TypedDict):
     tp: int
@@ -15,6 +19,29 @@ class _Counts(TypedDict):
     positives: int
     precision: float
     recall: float
+
+class _Segment(TypedDict):
+    start: int
+    end: int
+    threshold: float
+    oracle_threshold: float
+    tp: int
+    fp: int
+    positives: int
+    precision: float
+    recall: float
+    meets: bool
+
+class _MethodResult(TypedDict):
+    pct_segs: float | None
+    avg_recall: float | None
+    segments_counted: int
+    segments_skipped: int
+    threshold_mse: float | None
+    segments: list[_Segment]
+
+class _Evaluation(TypedDict):
+    methods: dict[_Method, _MethodResult]
 
 @final
 class TransferResult:
@@ -94,3 +121,20 @@ def ranked_correlation(
     *,
     query_major: bool = False,
 ) -> NDArray[np.float64]: ...
+def schubert_threshold(s: ArrayLike) -> float: ...
+def evaluate(
+    s: ArrayLike,
+    gt: ArrayLike,
+    *,
+    gt_soft: ArrayLike | None = None,
+    methods: Iterable[_Method] | None = None,
+    k: int = 10,
+    precision: float = 1.0,
+    matching: _Matching = "single",
+    cal_fraction: float = 0.1,
+    cal_queries: int | None = None,
+    segment_fraction: float = 0.01,
+    segment_size: int | None = None,
+    deploy_fraction: float | None = None,
+    query_major: bool = False,
+) -> _Evaluation: ...

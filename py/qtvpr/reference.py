@@ -542,7 +542,7 @@ def evaluate(
     k=10,
     precision=1.0,
     matching="single",
-    cal_fraction=0.10,
+    cal_fraction=0.1,
     cal_queries=None,
     segment_fraction=0.01,
     segment_size=None,
