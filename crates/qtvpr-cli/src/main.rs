@@ -8,8 +8,11 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod embedded;
+mod evaluate;
 mod npy;
 mod output;
+mod plot;
 mod threshold;
 
 /// Choose the operating point of a visual place recognition system by quantile
@@ -29,12 +32,19 @@ enum Command {
     /// Calibrate on a traverse with ground truth; print one threshold per segment of
     /// deployment queries (no deployment ground truth needed).
     Threshold(threshold::ThresholdArgs),
+    /// Run the paper's evaluation protocol on a matrix with ground truth for every
+    /// query: the first queries calibrate, the rest are cut into segments, and each
+    /// method's per-segment threshold is scored against the segment's ground truth
+    /// (%Segs: segments that stay at the target precision; AvgR: their mean recall).
+    /// Without --similarity, runs on the embedded demo data and prints a table.
+    Evaluate(evaluate::EvaluateArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Threshold(args) => threshold::run(args),
+        Command::Evaluate(args) => evaluate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
