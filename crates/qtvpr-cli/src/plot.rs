@@ -153,7 +153,10 @@ fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> {
     let mut inf_drawn = false;
     for m in &order {
         let style = ShapeStyle::from(&colour(m.method)).stroke_width(2);
-        let runs = finite_runs(m.segments.iter().map(|g| (g.start as f64, g.end as f64, g.threshold)));
+        let mut runs = finite_runs(m.segments.iter().map(|g| (g.start as f64, g.end as f64, g.threshold)));
+        if runs.is_empty() {
+            runs.push(vec![]); // an empty series, for the legend entry
+        }
         for (i, pts) in runs.into_iter().enumerate() {
             let s = chart.draw_series(LineSeries::new(pts, style)).map_err(err)?;
             if i == 0 {
@@ -289,15 +292,24 @@ fn counts_strip(area: &Area<'_>, m: &MethodResult, end: f64, size: f64, tau: f64
         .margin_right(20)
         .x_label_area_size(20)
         .y_label_area_size(75)
-        .build_cartesian_2d(0.0..end, -down * 1.1..up * 1.1)
+        .build_cartesian_2d(0.0..end, -1.1..1.1)
         .map_err(err)?;
+    // Each half has its own scale, so that a few FPs show next to a hundred FNs.
+    let tick = |v: &f64| {
+        let n = if *v >= 0.0 { v * up } else { -v * down };
+        if (n - n.round()).abs() < 1e-9 {
+            format!("{n:.0}")
+        } else {
+            format!("{n:.1}")
+        }
+    };
     chart
         .configure_mesh()
         .y_desc("FN | TP+FP")
         .axis_desc_style((FONT, 12))
         .label_style((FONT, 12))
         .y_labels(5)
-        .y_label_formatter(&|v| format!("{}", v.abs().round()))
+        .y_label_formatter(&tick)
         .x_label_formatter(&|x| format!("{x:.0}"))
         .light_line_style(WHITE.mix(0.0))
         .draw()
@@ -305,8 +317,8 @@ fn counts_strip(area: &Area<'_>, m: &MethodResult, end: f64, size: f64, tau: f64
     let gap = (0.12 * size).min(0.4);
     let bars = m.segments.iter().flat_map(|g| {
         let (a, b) = (g.start as f64 + gap, g.end as f64 - gap);
-        let (tp, fp) = (g.counts.tp as f64, g.counts.fp as f64);
-        let fn_ = (g.counts.positives - g.counts.tp.min(g.counts.positives)) as f64;
+        let (tp, fp) = (g.counts.tp as f64 / up, g.counts.fp as f64 / up);
+        let fn_ = (g.counts.positives - g.counts.tp.min(g.counts.positives)) as f64 / down;
         [
             Rectangle::new([(a, 0.0), (b, tp)], TP_COLOUR.filled()),
             Rectangle::new([(a, tp), (b, tp + fp)], FP_COLOUR.filled()),
@@ -327,7 +339,7 @@ fn counts_legend(area: &Area<'_>) -> Result<()> {
     let items = [
         (TP_COLOUR, "TP: accepted and correct (up)"),
         (FP_COLOUR, "FP: accepted and wrong (up, above TP)"),
-        (FN_COLOUR, "FN: positives not accepted (down)"),
+        (FN_COLOUR, "FN: positives not accepted (down; own scale)"),
     ];
     let mut x = 90;
     for (c, label) in items {
@@ -346,13 +358,27 @@ fn counts_legend(area: &Area<'_>) -> Result<()> {
 fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> {
     let eval = &run.eval;
     let l = eval.layout;
-    let curve = eval.precision_recall_curve(2000);
+    let curve = eval.precision_recall_curve(4000);
+    // Recall axis: zoomed in when every operating point and the curve's reach at the
+    // target precision are far below 1 (hard data), so that they do not sit on the axis.
+    let reach = eval
+        .methods
+        .iter()
+        .map(|m| m.pooled().recall())
+        .chain(
+            curve
+                .iter()
+                .filter(|p| p.precision >= ctx.precision - 1e-12)
+                .map(|p| p.recall),
+        )
+        .fold(0.0f64, f64::max);
+    let x_max = nice_ceiling((1.5 * reach).clamp(0.01, 1.0));
     // Precision axis from a round value below everything shown (tau, the curve, the points).
     let lowest = eval
         .methods
         .iter()
         .map(|m| m.pooled().precision())
-        .chain(curve.iter().map(|p| p.precision))
+        .chain(curve.iter().filter(|p| p.recall <= x_max).map(|p| p.precision))
         .fold(ctx.precision, f64::min);
     let y_min = ((lowest - 0.05) * 10.0).floor().max(0.0) / 10.0;
     let (chart_area, note) = root.split_vertically(670);
@@ -368,11 +394,15 @@ fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> 
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..1.0, y_min..1.0 + 0.05 * (1.0 - y_min))
+        .build_cartesian_2d(0.0..x_max, y_min..1.0 + 0.05 * (1.0 - y_min))
         .map_err(err)?;
     chart
         .configure_mesh()
-        .x_desc("recall")
+        .x_desc(if x_max < 1.0 {
+            format!("recall (axis zoomed to 0..{})", fmt_num(x_max))
+        } else {
+            "recall".to_string()
+        })
         .y_desc("precision")
         .axis_desc_style((FONT, 16))
         .label_style((FONT, 14))
@@ -382,7 +412,10 @@ fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> 
         .map_err(err)?;
     chart
         .draw_series(LineSeries::new(
-            curve.iter().map(|p| (p.recall, p.precision)),
+            curve
+                .iter()
+                .take_while(|p| p.recall <= x_max)
+                .map(|p| (p.recall, p.precision)),
             RGBColor(110, 110, 110).stroke_width(2),
         ))
         .map_err(err)?
@@ -390,7 +423,7 @@ fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> 
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], RGBColor(110, 110, 110).stroke_width(2)));
     chart
         .draw_series(DashedLineSeries::new(
-            [(0.0, ctx.precision), (1.0, ctx.precision)],
+            [(0.0, ctx.precision), (x_max, ctx.precision)],
             6,
             5,
             ShapeStyle::from(&RGBColor(200, 0, 0)).stroke_width(1),
@@ -443,6 +476,17 @@ fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> 
     ))
     .map_err(err)?;
     Ok(())
+}
+
+/// The smallest of 1, 2 or 5 times a power of ten that is at least `x` (> 0).
+fn nice_ceiling(x: f64) -> f64 {
+    let p = 10f64.powf(x.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * p)
+        .find(|&v| v >= x * (1.0 - 1e-12))
+        .unwrap_or(10.0 * p)
+        .min(1.0)
 }
 
 // ---------------------------------------------------------------------------------------
