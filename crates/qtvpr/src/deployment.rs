@@ -65,11 +65,32 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
     }
     let h = (n - 1) as f64 * q.max(0.0);
     let lo = h.floor() as usize;
+    if n <= SMALL_BATCH {
+        return small_batch_threshold(s, h, lo);
+    }
     let x_lo = from_key(select_key(s, lo));
     if lo + 1 >= n || h == lo as f64 {
         return x_lo;
     }
     let x_hi = next_value(s, to_key(x_lo), lo);
+    x_lo + (h - lo as f64) * (x_hi - x_lo)
+}
+
+/// Batches of at most this many scores are copied and selected in place rather than
+/// radix-selected: the radix select's 2^16-bucket histograms (512 KiB each, per pass and
+/// per parallel task) cost more than a copy of a small batch, and the evaluation
+/// protocol thresholds many small segments.
+const SMALL_BATCH: usize = 1 << 18;
+
+/// [`deployment_threshold`] of a small batch, for `q < 1`: `select_nth_unstable` on a
+/// copy, with both zeros read as +0 like the radix path.
+fn small_batch_threshold<T: Score>(s: ArrayView2<'_, T>, h: f64, lo: usize) -> f64 {
+    let mut v: Vec<f64> = s.iter().map(|x| x.to_f64() + 0.0).collect();
+    let (_, &mut x_lo, above) = v.select_nth_unstable_by(lo, f64::total_cmp);
+    if above.is_empty() || h == lo as f64 {
+        return x_lo;
+    }
+    let x_hi = above.iter().copied().fold(f64::INFINITY, f64::min);
     x_lo + (h - lo as f64) * (x_hi - x_lo)
 }
 
@@ -204,6 +225,36 @@ mod tests {
         assert_eq!(deployment_threshold(s.view(), 0.5), 0.0);
         // A single score: any q < 1 gives it back.
         assert_eq!(deployment_threshold(array![[0.3]].view(), 0.7), 0.3);
+    }
+
+    #[test]
+    fn small_batches_and_radix_select_agree() {
+        // The same quantiles through both paths, on scores with ties, zeros of both signs.
+        let mut x = 99u64;
+        let s = Array2::from_shape_fn((17, 5), |_| {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            match (x >> 40) % 9 {
+                0 => -0.0,
+                1 => 0.0,
+                r => r as f64 / 3.0 - 1.5,
+            }
+        });
+        let n = s.len();
+        for q in [0.0, 0.1, 0.25, 0.5, 0.61, 0.9, 0.99] {
+            let h = (n - 1) as f64 * q;
+            let lo = h.floor() as usize;
+            let x_lo = from_key(select_key(s.view(), lo));
+            let radix = if h == lo as f64 {
+                x_lo
+            } else {
+                x_lo + (h - lo as f64) * (next_value(s.view(), to_key(x_lo), lo) - x_lo)
+            };
+            assert_eq!(
+                small_batch_threshold(s.view(), h, lo).to_bits(),
+                radix.to_bits(),
+                "q {q}"
+            );
+        }
     }
 
     #[test]
