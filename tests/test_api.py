@@ -20,15 +20,15 @@ S_VAL = np.array(
 
 def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
-        ["Calibration", "TransferResult", "__version__", "best_threshold", "counts",
-         "quantile_transfer", "ranked_correlation"]
+        ["Calibration", "TransferResult", "__version__", "best_threshold", "counts", "evaluate",
+         "quantile_transfer", "ranked_correlation", "schubert_threshold"]
     )
     for name in qtvpr.__all__:
         assert hasattr(qtvpr, name), name
     assert isinstance(qtvpr.__version__, str) and qtvpr.__version__
 
 
-@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts"])
+@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts", "evaluate"])
 def test_signatures_match_reference(name):
     assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
         return_annotation=inspect.Signature.empty
