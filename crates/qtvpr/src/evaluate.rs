@@ -9,7 +9,7 @@
 //! this stretch of the traverse, and how much recall did it leave me?*
 //!
 //! Nothing here re-implements an earlier section: decisions and counts are
-//! [`Candidates`] (section 2), the oracle is the section-3 sweep, quantile transfer is
+//! the per-column candidates of section 2, the oracle is the section-3 sweep, quantile transfer is
 //! [`Calibration::transfer`] with one batch per segment (sections 4-6), and the
 //! baselines are [`crate::baselines`] (section 7). Segments are independent, so each
 //! method's thresholds and counts are computed for all segments in parallel.
