@@ -75,12 +75,12 @@ pub fn write_all(dir: &Path, ctx: &RunContext, runs: &[Run], k_varies: bool, cal
         return Ok(());
     }
     if k_varies {
-        svg(dir, "ablation_k.svg", (1200, 560), |root| {
+        svg(dir, "ablation_k.svg", (1200, 600), |root| {
             ablation(root, ctx, runs, Axis::K)
         })?;
     }
     if cal_varies {
-        svg(dir, "ablation_cal.svg", (1200, 560), |root| {
+        svg(dir, "ablation_cal.svg", (1200, 600), |root| {
             ablation(root, ctx, runs, Axis::Calibration)
         })?;
     }
@@ -565,7 +565,7 @@ fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Axis) -> Resu
                         .map(|mr| (x_of(r), mr.pct_segs, mr.avg_recall))
                 })
                 .collect();
-            series.push((format!("quantile-transfer, {o}"), palette[i % palette.len()], pts));
+            series.push((format!("QT, {o}"), palette[i % palette.len()], pts));
         }
     }
 
@@ -651,17 +651,21 @@ fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Axis) -> Resu
                 .map_err(err)?;
         }
     }
-    // One legend for both panels, in a row underneath.
-    let mut x = 80;
+    // One legend for both panels, in rows underneath.
+    let (mut x, mut y) = (80, 20);
     for (label, c, _) in &series {
+        let width = 48 + (8 * label.len() as i32).max(60);
+        if x + width > 1180 {
+            (x, y) = (80, y + 24);
+        }
         legend
-            .draw(&PathElement::new(vec![(x, 20), (x + 26, 20)], c.stroke_width(3)))
+            .draw(&PathElement::new(vec![(x, y), (x + 26, y)], c.stroke_width(3)))
             .map_err(err)?;
-        legend.draw(&Circle::new((x + 13, 20), 4, c.filled())).map_err(err)?;
+        legend.draw(&Circle::new((x + 13, y), 4, c.filled())).map_err(err)?;
         legend
-            .draw(&Text::new(label.as_str(), (x + 34, 12), (FONT, 14)))
+            .draw(&Text::new(label.as_str(), (x + 34, y - 8), (FONT, 14)))
             .map_err(err)?;
-        x += 48 + (8 * label.len() as i32).max(60);
+        x += width;
     }
     Ok(())
 }
