@@ -459,6 +459,25 @@ def test_evaluate_defaults_and_no_counted_segment():
         assert m["pct_segs"] is None and m["avg_recall"] is None and m["threshold_mse"] is None
 
 
+def test_evaluate_deploy_fraction_leaves_a_gap():
+    # |Q| = 7, one calibration query (c0), deploy_fraction 0.72: the last floor(5.04) = 5
+    # queries deploy (d0..d4, columns 2..6); column 1 (c1) is unused.
+    res = evaluate(TINY_S, TINY_GT, precision=0.5, cal_queries=1, segment_size=2,
+                   deploy_fraction=0.72)["methods"]
+    # Same segments as without the gap: (0, 2) = d0 d1 and (2, 4) = d2 d3.
+    assert [(r["start"], r["end"]) for r in res["oracle"]["segments"]] == [(0, 2), (2, 4)]
+    assert [r["oracle_threshold"] for r in res["oracle"]["segments"]] == [0.7, math.inf]
+    # schubert-calibrated on c0 alone (0.9, 0.1, 0.3): mu = 0.3, |S - mu| = (0.6, 0.2, 0)
+    # -> median 0.2 -> t = 0.3 + Z * 0.2 / 0.675
+    t = res["schubert-calibrated"]["segments"][0]["threshold"]
+    assert t == pytest.approx(0.3 + Z * 0.2 / 0.675, abs=1e-12)
+    # calibration-threshold on c0 alone: its best match 0.9 is correct -> 0.9
+    assert res["calibration-threshold"]["segments"][0]["threshold"] == 0.9
+    # 2 calibration queries + the last floor(0.72 * 7) = 5 fit exactly; 3 + 5 overlap
+    with pytest.raises(ValueError, match="overlap"):
+        evaluate(TINY_S, TINY_GT, cal_queries=3, segment_size=2, deploy_fraction=0.72)
+
+
 # ---------------------------------------------------------------------------------------
 # Section 10: bad input
 # ---------------------------------------------------------------------------------------

@@ -27,8 +27,10 @@ from qtvpr._native import (
     __version__,
     best_threshold,
     counts,
+    evaluate,
     quantile_transfer,
     ranked_correlation,
+    schubert_threshold,
 )
 
 # Extensions: meet users where their data is (descriptors, positions, frame tolerance).
@@ -45,6 +47,7 @@ __all__ = [
     "__version__",
     "best_threshold",
     "counts",
+    "evaluate",
     "quantile_transfer",
     "ranked_correlation",
     # Extensions
@@ -52,4 +55,5 @@ __all__ = [
     "ground_truth_positions",
     "ground_truth_tolerance",
     "sequence_match",
+    "schubert_threshold",
 ]

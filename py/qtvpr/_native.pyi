@@ -1,6 +1,8 @@
 """Type stubs of the compiled module; the docstrings are on the compiled objects."""
 
 from typing import Literal, TypedDict, TypeVar, final
+from collections.abc import Iterable
+from typing import Literal, TypedDict, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -8,6 +10,9 @@ from numpy.typing import ArrayLike, NDArray
 __version__: str
 
 _Matching = Literal["single", "multi"]
+_Method = Literal[
+    "quantile-transfer", "schubert", "schubert-calibrated", "calibration-threshold", "oracle"
+]
 
 class _Counts(TypedDict):
     tp: int
@@ -15,6 +20,29 @@ class _Counts(TypedDict):
     positives: int
     precision: float
     recall: float
+
+class _Segment(TypedDict):
+    start: int
+    end: int
+    threshold: float
+    oracle_threshold: float
+    tp: int
+    fp: int
+    positives: int
+    precision: float
+    recall: float
+    meets: bool
+
+class _MethodResult(TypedDict):
+    pct_segs: float | None
+    avg_recall: float | None
+    segments_counted: int
+    segments_skipped: int
+    threshold_mse: float | None
+    segments: list[_Segment]
+
+class _Evaluation(TypedDict):
+    methods: dict[_Method, _MethodResult]
 
 @final
 class TransferResult:
@@ -112,3 +140,20 @@ def ground_truth_positions(
     query_positions: ArrayLike,
     radius: float,
 ) -> NDArray[np.bool_]: ...
+def schubert_threshold(s: ArrayLike) -> float: ...
+def evaluate(
+    s: ArrayLike,
+    gt: ArrayLike,
+    *,
+    gt_soft: ArrayLike | None = None,
+    methods: Iterable[_Method] | None = None,
+    k: int = 10,
+    precision: float = 1.0,
+    matching: _Matching = "single",
+    cal_fraction: float = 0.1,
+    cal_queries: int | None = None,
+    segment_fraction: float = 0.01,
+    segment_size: int | None = None,
+    deploy_fraction: float | None = None,
+    query_major: bool = False,
+) -> _Evaluation: ...

@@ -542,23 +542,29 @@ def evaluate(
     k=10,
     precision=1.0,
     matching="single",
-    cal_fraction=0.10,
+    cal_fraction=0.1,
     cal_queries=None,
     segment_fraction=0.01,
     segment_size=None,
+    deploy_fraction=None,
     query_major=False,
 ) -> dict:
     """The evaluation protocol of the paper's Table I (SPEC sections 7 and 8).
 
     The first ``cal_queries`` (default ``floor(cal_fraction * |Q|)``) columns calibrate;
-    the rest is cut into ``floor(|Qdeploy| / size)`` full segments of ``segment_size``
-    (default ``ceil(segment_fraction * |Q|)``) queries, the remainder dropped. Every
-    method gives each segment a threshold, and the segment's decisions are counted
-    against its own ground truth. For quantile-transfer each segment is its own batch.
+    the deployment set is every later column, or with ``deploy_fraction`` the last
+    ``floor(deploy_fraction * |Q|)`` columns (the paper's Fig. 5 protocol: the
+    deployment set stays fixed while the calibration size varies; columns between the
+    two sets are unused, and the two may not overlap). The deployment set is cut into
+    ``floor(|Qdeploy| / size)`` full segments of ``segment_size`` (default
+    ``ceil(segment_fraction * |Q|)``) queries, the remainder dropped. Every method gives
+    each segment a threshold, and the segment's decisions are counted against its own
+    ground truth. For quantile-transfer each segment is its own batch.
 
     Returns ``{"methods": {name: {"pct_segs", "avg_recall", "segments_counted",
     "segments_skipped", "threshold_mse", "segments": [...]}}}``; each segment reports
-    ``start``, ``end`` (deployment column indices, end exclusive), ``threshold``,
+    ``start``, ``end`` (indices into the deployment set, end exclusive: deployment
+    query i is column ``|Q| - |Qdeploy| + i`` of ``s``), ``threshold``,
     ``oracle_threshold``, ``tp``, ``fp``, ``positives``, ``precision``, ``recall`` and
     ``meets``. Segments without positives are skipped in the summary figures, which
     are None when no segment is counted; ``threshold_mse`` is None when no counted
@@ -583,7 +589,18 @@ def evaluate(
             f"the calibration set must have between 1 and {n_q - 1} of the {n_q} queries, "
             f"got {n_cal}"
         )
-    n_dep = n_q - n_cal
+    if deploy_fraction is None:
+        n_dep = n_q - n_cal
+    else:
+        n_dep = math.floor(_check_fraction("deploy_fraction", deploy_fraction) * n_q)
+        if n_dep < 1:
+            raise ValueError(f"the deployment set has no query: floor({deploy_fraction} * {n_q}) = 0")
+        if n_cal + n_dep > n_q:
+            raise ValueError(
+                f"the calibration set ({n_cal} queries) and the deployment set ({n_dep} queries) "
+                f"overlap: together they exceed the {n_q} queries"
+            )
+    dep_start = n_q - n_dep
     if segment_size is None:
         size = math.ceil(_check_fraction("segment_fraction", segment_fraction) * n_q)
     else:
@@ -595,7 +612,7 @@ def evaluate(
     segments = _segments(n_dep // size * size, size)  # full segments only
 
     s_cal, gt_cal, ign_cal = s[:, :n_cal], gt[:, :n_cal], ignored[:, :n_cal]
-    s_dep, gt_dep, ign_dep = s[:, n_cal:], gt[:, n_cal:], ignored[:, n_cal:]
+    s_dep, gt_dep, ign_dep = s[:, dep_start:], gt[:, dep_start:], ignored[:, dep_start:]
 
     # Each segment's candidates, counted against its own ground truth, and its oracle.
     candidates = [

@@ -18,10 +18,13 @@ macro_rules! with_view {
     };
 }
 
+mod embedded;
+mod evaluate;
 mod ground_truth;
 mod gt_source;
 mod matrix_io;
 mod output;
+mod plot;
 mod progress;
 mod similarity;
 mod threshold;
@@ -56,6 +59,12 @@ enum Command {
     /// Calibrate on a traverse with ground truth; print one threshold per segment of
     /// deployment queries (no deployment ground truth needed).
     Threshold(threshold::ThresholdArgs),
+    /// Run the paper's evaluation protocol on a matrix with ground truth for every
+    /// query: the first queries calibrate, the rest are cut into segments, and each
+    /// method's per-segment threshold is scored against the segment's ground truth
+    /// (%Segs: segments that stay at the target precision; AvgR: their mean recall).
+    /// Without --similarity, runs on the embedded demo data and prints a table.
+    Evaluate(evaluate::EvaluateArgs),
     /// Similarity matrix from descriptor files (cosine of L2-normalised rows), optionally
     /// sequence-matched; writes |DB| x |Q| float32 .npy.
     Similarity(similarity::SimilarityArgs),
@@ -68,6 +77,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = configure_threads(cli.global.threads).and_then(|()| match &cli.command {
         Command::Threshold(args) => threshold::run(args, &cli.global),
+        Command::Evaluate(args) => evaluate::run(args, &cli.global),
         Command::Similarity(args) => similarity::run(args),
         Command::GroundTruth(args) => ground_truth::run(args),
     });

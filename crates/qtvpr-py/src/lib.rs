@@ -14,6 +14,7 @@ mod blame;
 mod calibration;
 mod convert;
 mod error;
+mod evaluate;
 mod ground_truth;
 mod similarity;
 
@@ -171,6 +172,25 @@ fn ranked_correlation<'py>(
     Ok(numpy::IntoPyArray::into_pyarray(r, py))
 }
 
+/// Schubert et al.'s automatic threshold over every raw score of ``s``.
+///
+/// ``mu`` is the median, ``sigma`` the median absolute deviation over 0.675, and the
+/// threshold ``mu + 4.753424308817087 * sigma`` (the standard normal quantile at
+/// 1 - 1e-6), or ``mu`` when ``sigma`` is 0. No ground truth is needed, and the
+/// orientation of ``s`` (float32 or float64) does not matter.
+#[pyfunction]
+#[pyo3(signature = (s))]
+fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let args = Args {
+        gt: "gt",
+        query_major: false,
+    };
+    let s = Scores::extract("s", s)?;
+    let s = s.view(false);
+    py.detach(|| with_scores!(s, s => qtvpr::schubert_threshold(s)))
+        .map_err(|e| args.error(e))
+}
+
 /// Quantile transfer for visual place recognition: the compiled core of ``qtvpr``.
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -184,6 +204,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(similarity::sequence_match, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_tolerance, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_positions, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(schubert_threshold, m)?)?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
     Ok(())

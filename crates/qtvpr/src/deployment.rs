@@ -78,9 +78,10 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
 /// larger ones are selected in place by radix passes (no copy).
 const COPY_LIMIT: usize = 1 << 22;
 
-/// The `lo`-th and `(lo + 1)`-th smallest scores (the latter clamped to the last).
+/// The `lo`-th and `(lo + 1)`-th smallest scores (the latter clamped to the last), with
+/// both zeros read as +0 like the radix path.
 fn select_copied<T: Score>(s: ArrayView2<'_, T>, lo: usize) -> (f64, f64) {
-    let mut v: Vec<f64> = s.iter().map(|x| x.to_f64()).collect();
+    let mut v: Vec<f64> = s.iter().map(|x| x.to_f64() + 0.0).collect();
     let (_, &mut x_lo, above) = v.select_nth_unstable_by(lo, f64::total_cmp);
     (x_lo, above.iter().copied().reduce(f64::min).unwrap_or(x_lo))
 }

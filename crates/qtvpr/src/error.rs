@@ -110,6 +110,19 @@ pub enum Error {
         /// The problem.
         source: Box<Error>,
     },
+    /// A method name the evaluation protocol does not know.
+    #[error(
+        "unknown method '{name}'; expected one of quantile-transfer, schubert, schubert-calibrated, \
+         calibration-threshold, oracle"
+    )]
+    UnknownMethod {
+        /// The name as given.
+        name: String,
+    },
+    /// The evaluation protocol cannot split the queries as asked: no calibration query,
+    /// calibration and deployment sets that overlap, or no full segment.
+    #[error("{0}")]
+    Protocol(String),
     /// A parameter is out of its range.
     #[error("{name} {message}")]
     InvalidParameter {

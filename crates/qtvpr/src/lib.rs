@@ -19,6 +19,8 @@
 //! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
+//! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
+//! | 8 evaluation protocol (%Segs, AvgR@tauP) | [`evaluate`](mod@evaluate) |
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
@@ -49,10 +51,12 @@
 //! # Ok::<(), qtvpr::Error>(())
 //! ```
 
+pub mod baselines;
 pub mod best_threshold;
 pub mod decisions;
 pub mod deployment;
 mod error;
+pub mod evaluate;
 pub mod ground_truth;
 pub mod input;
 mod kd_tree;
@@ -64,9 +68,11 @@ pub mod similarity;
 pub mod subset_quantile;
 pub mod transfer;
 
+pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
+pub use evaluate::{Evaluation, Method, Protocol, Split, evaluate};
 pub use input::{GroundTruth, Label, Score, Truth};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};

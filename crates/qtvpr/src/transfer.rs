@@ -20,7 +20,7 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, weighted_median};
 use crate::error::{Error, Result};
-use crate::input::{GroundTruth, Score, check_gt_shape, check_nonempty, check_precision};
+use crate::input::{GroundTruth, Score, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::ranked_correlation::{Ranked, Unit, top_k};
 use crate::subset_quantile::subset_quantile;
 
@@ -120,13 +120,36 @@ impl Calibration {
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         let ranked = Ranked::new("calibration similarity", s, 0)?;
         check_gt_shape(gt, "calibration similarity", s.dim())?;
-        Ok(Self {
+        Ok(Self::from_ranked(ranked, s, gt.view(), matching))
+    }
+
+    /// [`Calibration::new`] on labels already known to have the shape of `s`.
+    pub(crate) fn with_labels<T: Score>(
+        s: ArrayView2<'_, T>,
+        gt: ArrayView2<'_, Truth>,
+        matching: Matching,
+    ) -> Result<Self> {
+        Ok(Self::from_ranked(
+            Ranked::new("calibration similarity", s, 0)?,
+            s,
+            gt,
+            matching,
+        ))
+    }
+
+    fn from_ranked<T: Score>(
+        ranked: Ranked<T>,
+        s: ArrayView2<'_, T>,
+        gt: ArrayView2<'_, Truth>,
+        matching: Matching,
+    ) -> Self {
+        Self {
             matching,
             unit: ranked.unit(),
             sorted: Box::new(ranked),
-            candidates: Candidates::new(s, gt.view(), matching),
+            candidates: Candidates::new(s, gt, matching),
             n_db: s.nrows(),
-        })
+        }
     }
 
     /// Number of calibration queries.

@@ -1,0 +1,557 @@
+//! `qtvpr-cli evaluate`: the paper's evaluation protocol (SPEC sections 7-8) on one
+//! similarity matrix with ground truth, as JSON, a Markdown table or CSV, with figures.
+//!
+//! Lists given to `--k` and `--cal-fraction`/`--cal-queries` make an ablation: the
+//! protocol runs once per combination and reports one row per setting. All numbers
+//! come from `qtvpr::evaluate`; this module only reads, loops and formats.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use ndarray::ArrayView2;
+use qtvpr::evaluate::{Evaluation, MethodResult};
+use qtvpr::{GroundTruth, Matching, Method, Protocol, Score, Split};
+use serde::Serialize;
+
+use crate::embedded;
+use crate::output::emit;
+use crate::plot;
+use crate::threshold::MatchingArg;
+use qtvpr::npy::{ScoresView, read_ground_truth, read_scores};
+
+/// Arguments of `evaluate`.
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// Similarity matrix (.npy, float32/float64), |DB| x |Q|, with ground truth for
+    /// every query. Default: the embedded demo data (VPR-Bench Corridor, AMOSNet,
+    /// 111 x 111), printed as a table.
+    #[arg(long, value_name = "S.npy", requires = "gt")]
+    similarity: Option<PathBuf>,
+    /// Ground truth of --similarity: .npy (bool or 0/1 integers, same shape), or a
+    /// VPR_Tutorial .npz with GThard and optional GTsoft.
+    #[arg(long, value_name = "GT.npy|GT.npz", requires = "similarity")]
+    gt: Option<PathBuf>,
+    /// Soft ground truth (.npy): entries soft but not hard are ignored.
+    #[arg(long, value_name = "GTsoft.npy", requires = "similarity")]
+    gt_soft: Option<PathBuf>,
+    /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
+    #[arg(long)]
+    query_major: bool,
+    /// Methods to evaluate, comma-separated, or `all`: quantile-transfer, schubert,
+    /// schubert-calibrated, calibration-threshold, oracle.
+    #[arg(long, value_delimiter = ',', default_value = "all", value_name = "M1,M2,...")]
+    method: Vec<String>,
+    /// Calibration queries sampled per deployment query by quantile transfer. A list
+    /// (e.g. 1,3,5,10,20,40) runs one evaluation per value (an ablation).
+    #[arg(long, value_delimiter = ',', default_value = "10", value_name = "K1,K2,...")]
+    k: Vec<usize>,
+    /// Target precision tau, in (0, 1].
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    precision: f64,
+    /// single: one decision per query on its best match; multi: every entry is a candidate.
+    #[arg(long, value_enum, default_value_t = MatchingArg::Single)]
+    matching: MatchingArg,
+    /// The first floor(F x |Q|) queries calibrate [default: 0.10]. A list (e.g.
+    /// 0.01,0.05,0.1,0.2,0.3,0.5) is an ablation.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        conflicts_with = "cal_queries",
+        allow_negative_numbers = true,
+        value_name = "F1,F2,..."
+    )]
+    cal_fraction: Vec<f64>,
+    /// The first N queries calibrate (instead of --cal-fraction); a list is an ablation.
+    #[arg(long, value_delimiter = ',', value_name = "N1,N2,...")]
+    cal_queries: Vec<usize>,
+    /// Segments of ceil(F x |Q|) deployment queries (a fraction of all queries).
+    #[arg(
+        long,
+        default_value_t = 0.01,
+        conflicts_with = "segment_size",
+        allow_negative_numbers = true,
+        value_name = "F"
+    )]
+    segment_fraction: f64,
+    /// Segments of M deployment queries (instead of --segment-fraction).
+    #[arg(long, value_name = "M")]
+    segment_size: Option<usize>,
+    /// Deploy on the last floor(F x |Q|) queries only; the queries between the
+    /// calibration and deployment sets are unused. Default: every query after the
+    /// calibration set, except in an ablation (more than one --k or calibration size),
+    /// where it is 0.5: the deployment set is then the same for every setting (the
+    /// paper's Fig. 5 protocol), while the calibration set is the first queries.
+    #[arg(long, allow_negative_numbers = true, value_name = "F")]
+    deploy_fraction: Option<f64>,
+    /// Output format [default: json, or table for the embedded demo data].
+    #[arg(long, value_enum)]
+    format: Option<EvalFormat>,
+    /// Write to this file (atomically) instead of stdout.
+    #[arg(long, short, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// Write SVG figures into this directory (created if need be): thresholds.svg and
+    /// precision_recall.svg for one setting; ablation_k.svg / ablation_cal.svg for an
+    /// ablation.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
+}
+
+/// Output formats of `evaluate`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EvalFormat {
+    /// One JSON object (SPEC section 9); a reject-all threshold is `null`.
+    Json,
+    /// A Markdown table.
+    Table,
+    /// One CSV row per method (and per ablation setting).
+    Csv,
+}
+
+/// One run of the protocol.
+pub struct Run {
+    /// The k of this run.
+    pub k: usize,
+    /// The calibration size as asked for (a fraction or a count).
+    pub calibration: Split,
+    /// The result.
+    pub eval: Evaluation,
+}
+
+/// What the runs were made on, for captions.
+pub struct RunContext {
+    /// The dataset's name (a path or the embedded data's name).
+    pub dataset: String,
+    /// |DB|.
+    pub database_size: usize,
+    /// The precision target.
+    pub precision: f64,
+    /// Matching mode.
+    pub matching: Matching,
+}
+
+impl RunContext {
+    /// `AvgR@100P` for tau = 1, `AvgR@90P` for 0.9, ...
+    pub fn avg_recall_name(&self) -> String {
+        format!("AvgR@{}P", fmt_num(self.precision * 100.0))
+    }
+}
+
+/// A number without trailing zeros: 100, 90, 0.1.
+pub fn fmt_num(x: f64) -> String {
+    let s = format!("{:.6}", x);
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+fn methods_of(names: &[String]) -> Result<Vec<Method>> {
+    let mut out = Vec::new();
+    for name in names {
+        let name = name.trim();
+        if name == "all" {
+            out.extend(Method::ALL);
+        } else {
+            out.push(name.parse::<Method>()?);
+        }
+    }
+    if out.is_empty() {
+        bail!("no method given");
+    }
+    Ok(out)
+}
+
+/// Run `evaluate`.
+pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
+    let methods = methods_of(&args.method).context("--method")?;
+    let calibrations: Vec<Split> = if !args.cal_queries.is_empty() {
+        args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
+    } else if !args.cal_fraction.is_empty() {
+        args.cal_fraction.iter().map(|&f| Split::Fraction(f)).collect()
+    } else {
+        vec![Split::Fraction(0.10)]
+    };
+    let ablation = args.k.len() > 1 || calibrations.len() > 1;
+    let deploy_fraction = args.deploy_fraction.or(ablation.then_some(0.5));
+    let matching = Matching::from(args.matching);
+    let protocol = |k: usize, calibration: Split| Protocol {
+        calibration,
+        deploy_fraction,
+        segment: match args.segment_size {
+            Some(m) => Split::Count(m),
+            None => Split::Fraction(args.segment_fraction),
+        },
+        k,
+        precision: args.precision,
+        matching,
+    };
+    // Parameters first, so that a typo fails before any file is read.
+    for &k in &args.k {
+        for &c in &calibrations {
+            protocol(k, c).validate()?;
+        }
+    }
+
+    // The scores stay where they are read (memory-mapped) or embedded; `scores` views them.
+    let (file, embedded_scores);
+    let (dataset, scores, gt, default_format) = match (&args.similarity, &args.gt) {
+        (Some(s_path), Some(gt_path)) => {
+            file = read_scores(s_path).context("--similarity")?;
+            let gt = read_ground_truth(gt_path, args.gt_soft.as_deref()).context("--gt")?;
+            let (s, gt) = if args.query_major {
+                (file.view().t(), gt.reversed_axes())
+            } else {
+                (file.view(), gt)
+            };
+            (s_path.display().to_string(), s, gt, EvalFormat::Json)
+        }
+        _ => {
+            let (s, gt) = embedded::corridor()?;
+            embedded_scores = s;
+            let gt = GroundTruth::new(gt.view())?;
+            (
+                embedded::NAME.to_string(),
+                ScoresView::F64(embedded_scores.view()),
+                gt,
+                EvalFormat::Table,
+            )
+        }
+    };
+    let input = || match (&args.similarity, &args.gt) {
+        (Some(s), Some(g)) => format!("--similarity {} / --gt {}", s.display(), g.display()),
+        _ => "embedded data".to_string(),
+    };
+
+    let mut runs = Vec::new();
+    for &calibration in &calibrations {
+        for &k in &args.k {
+            let p = protocol(k, calibration);
+            let eval = with_view!(scores, |v| evaluate_view(v, &gt, &p, &methods)).with_context(input)?;
+            runs.push(Run { k, calibration, eval });
+        }
+    }
+    let ctx = RunContext {
+        dataset,
+        database_size: gt.dim().0,
+        precision: args.precision,
+        matching,
+    };
+
+    if let Some(dir) = &args.plot {
+        plot::write_all(dir, &ctx, &runs, args.k.len() > 1, calibrations.len() > 1)
+            .with_context(|| format!("--plot {}", dir.display()))?;
+    }
+    let text = match args.format.unwrap_or(default_format) {
+        EvalFormat::Json => json(&ctx, &runs, ablation)?,
+        EvalFormat::Table => table(&ctx, &runs, ablation),
+        EvalFormat::Csv => csv(&runs),
+    };
+    emit(&text, args.output.as_deref())
+}
+
+fn evaluate_view<T: Score>(
+    s: ArrayView2<'_, T>,
+    gt: &GroundTruth,
+    p: &Protocol,
+    methods: &[Method],
+) -> qtvpr::Result<Evaluation> {
+    qtvpr::evaluate(s, gt, p, methods)
+}
+
+// ---------------------------------------------------------------------------------------
+// JSON (SPEC section 9)
+// ---------------------------------------------------------------------------------------
+
+#[derive(Serialize)]
+struct JsonParams {
+    k: usize,
+    precision: f64,
+    matching: &'static str,
+    queries: usize,
+    database_size: usize,
+    calibration_queries: usize,
+    deployment_start: usize,
+    deployment_queries: usize,
+    segment_size: usize,
+    segments: usize,
+}
+
+#[derive(Serialize)]
+struct JsonSegment {
+    start: usize,
+    end: usize,
+    threshold: f64,
+    oracle_threshold: f64,
+    tp: usize,
+    fp: usize,
+    positives: usize,
+    precision: f64,
+    recall: f64,
+    meets: bool,
+}
+
+#[derive(Serialize)]
+struct JsonMethod {
+    pct_segs: Option<f64>,
+    avg_recall: Option<f64>,
+    segments_counted: usize,
+    segments_skipped: usize,
+    threshold_mse: Option<f64>,
+    /// Pooled over every full segment: the method's operating point on the deployment set.
+    pooled_precision: f64,
+    pooled_recall: f64,
+    segments: Vec<JsonSegment>,
+}
+
+/// Method name to result, serialised as a JSON object in the order asked for.
+struct Methods(Vec<(&'static str, JsonMethod)>);
+
+impl Serialize for Methods {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = serializer.serialize_map(Some(self.0.len()))?;
+        for (name, m) in &self.0 {
+            map.serialize_entry(name, m)?;
+        }
+        map.end()
+    }
+}
+
+#[derive(Serialize)]
+struct JsonRun {
+    params: JsonParams,
+    methods: Methods,
+}
+
+#[derive(Serialize)]
+struct JsonReport {
+    dataset: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    params: Option<JsonParams>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    methods: Option<Methods>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ablation: Option<Vec<JsonRun>>,
+}
+
+fn json_run(ctx: &RunContext, run: &Run) -> JsonRun {
+    let l = run.eval.layout;
+    let params = JsonParams {
+        k: run.k,
+        precision: ctx.precision,
+        matching: ctx.matching.as_str(),
+        queries: l.queries,
+        database_size: ctx.database_size,
+        calibration_queries: l.calibration_queries,
+        deployment_start: l.deployment_start,
+        deployment_queries: l.deployment_queries,
+        segment_size: l.segment_size,
+        segments: l.segments,
+    };
+    let mut methods = Vec::new();
+    for m in &run.eval.methods {
+        let pooled = m.pooled();
+        let value = JsonMethod {
+            pct_segs: m.pct_segs,
+            avg_recall: m.avg_recall,
+            segments_counted: m.segments_counted,
+            segments_skipped: m.segments_skipped,
+            threshold_mse: m.threshold_mse,
+            pooled_precision: pooled.precision(),
+            pooled_recall: pooled.recall(),
+            segments: m
+                .segments
+                .iter()
+                .map(|g| JsonSegment {
+                    start: g.start,
+                    end: g.end,
+                    threshold: g.threshold,
+                    oracle_threshold: g.oracle_threshold,
+                    tp: g.counts.tp,
+                    fp: g.counts.fp,
+                    positives: g.counts.positives,
+                    precision: g.counts.precision(),
+                    recall: g.counts.recall(),
+                    meets: g.meets,
+                })
+                .collect(),
+        };
+        methods.push((m.method.as_str(), value));
+    }
+    JsonRun {
+        params,
+        methods: Methods(methods),
+    }
+}
+
+fn json(ctx: &RunContext, runs: &[Run], ablation: bool) -> Result<String> {
+    let mut out = JsonReport {
+        dataset: ctx.dataset.clone(),
+        params: None,
+        methods: None,
+        ablation: None,
+    };
+    if ablation {
+        out.ablation = Some(runs.iter().map(|r| json_run(ctx, r)).collect());
+    } else {
+        let one = json_run(ctx, &runs[0]);
+        (out.params, out.methods) = (Some(one.params), Some(one.methods));
+    }
+    Ok(serde_json::to_string_pretty(&out)? + "\n")
+}
+
+// ---------------------------------------------------------------------------------------
+// Markdown table and CSV
+// ---------------------------------------------------------------------------------------
+
+fn pct(x: Option<f64>) -> String {
+    x.map_or("n/a".into(), |v| format!("{v:.1}"))
+}
+
+fn recall(x: Option<f64>) -> String {
+    x.map_or("n/a".into(), |v| format!("{v:.3}"))
+}
+
+fn mse(x: Option<f64>) -> String {
+    x.map_or("n/a".into(), |v| format!("{v:.2e}"))
+}
+
+/// The protocol in one line, for captions.
+pub fn describe(ctx: &RunContext, run: &Run) -> String {
+    let l = run.eval.layout;
+    let used = l.segments * l.segment_size;
+    let dropped = l.deployment_queries - used;
+    let mut s = format!(
+        "{}: {} database images x {} queries; queries 0..{} calibrate; {} segments of {} deployment queries \
+         from query {}",
+        ctx.dataset,
+        ctx.database_size,
+        l.queries,
+        l.calibration_queries,
+        l.segments,
+        l.segment_size,
+        l.deployment_start
+    );
+    if dropped > 0 {
+        write!(s, " ({dropped} left over, dropped)").unwrap();
+    }
+    write!(
+        s,
+        "; k = {}, tau = {}, {} matching.",
+        run.k,
+        fmt_num(ctx.precision),
+        ctx.matching.as_str()
+    )
+    .unwrap();
+    s
+}
+
+fn calibration_label(run: &Run) -> String {
+    match run.calibration {
+        Split::Fraction(f) => format!("{} ({})", fmt_num(f), run.eval.layout.calibration_queries),
+        Split::Count(n) => n.to_string(),
+    }
+}
+
+fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
+    let avg = ctx.avg_recall_name();
+    let mut t = String::new();
+    if !ablation {
+        let run = &runs[0];
+        writeln!(t, "*{}*\n", describe(ctx, run)).unwrap();
+        writeln!(
+            t,
+            "| method | %Segs | {avg} | segments counted | skipped (no positives) | threshold MSE vs oracle |"
+        )
+        .unwrap();
+        writeln!(t, "|:--|--:|--:|--:|--:|--:|").unwrap();
+        for m in &run.eval.methods {
+            writeln!(
+                t,
+                "| {} | {} | {} | {} | {} | {} |",
+                m.method,
+                pct(m.pct_segs),
+                recall(m.avg_recall),
+                m.segments_counted,
+                m.segments_skipped,
+                mse(m.threshold_mse)
+            )
+            .unwrap();
+        }
+        return t;
+    }
+    let l = runs[0].eval.layout;
+    writeln!(
+        t,
+        "*{}: ablation; deployment set: queries {}..{} ({} segments of {}); tau = {}, {} matching. \
+         Cells: %Segs / {avg}.*\n",
+        ctx.dataset,
+        l.deployment_start,
+        l.queries,
+        l.segments,
+        l.segment_size,
+        fmt_num(ctx.precision),
+        ctx.matching.as_str()
+    )
+    .unwrap();
+    let methods: Vec<Method> = runs[0].eval.methods.iter().map(|m| m.method).collect();
+    write!(t, "| k | calibration queries |").unwrap();
+    for m in &methods {
+        write!(t, " {m} |").unwrap();
+    }
+    write!(t, "\n|--:|--:|").unwrap();
+    for _ in &methods {
+        write!(t, "--:|").unwrap();
+    }
+    t.push('\n');
+    for run in runs {
+        write!(t, "| {} | {} |", run.k, calibration_label(run)).unwrap();
+        for m in &run.eval.methods {
+            write!(t, " {} / {} |", pct(m.pct_segs), recall(m.avg_recall)).unwrap();
+        }
+        t.push('\n');
+    }
+    t
+}
+
+fn opt(x: Option<f64>) -> String {
+    x.map_or(String::new(), |v| v.to_string())
+}
+
+fn csv(runs: &[Run]) -> String {
+    let mut t = String::from(
+        "k,calibration_queries,deployment_start,deployment_queries,segment_size,segments,method,\
+         pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_precision,pooled_recall\n",
+    );
+    for run in runs {
+        let l = run.eval.layout;
+        for m in &run.eval.methods {
+            let MethodResult {
+                method,
+                pct_segs,
+                avg_recall,
+                segments_counted,
+                segments_skipped,
+                threshold_mse,
+                ..
+            } = m;
+            let pooled = m.pooled();
+            writeln!(
+                t,
+                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{}",
+                run.k,
+                l.calibration_queries,
+                l.deployment_start,
+                l.deployment_queries,
+                l.segment_size,
+                l.segments,
+                opt(*pct_segs),
+                opt(*avg_recall),
+                opt(*threshold_mse),
+                pooled.precision(),
+                pooled.recall()
+            )
+            .unwrap();
+        }
+    }
+    t
+}

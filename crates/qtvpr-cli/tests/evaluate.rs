@@ -1,0 +1,356 @@
+//! End-to-end tests of `qtvpr-cli evaluate`: a hand-computed run in every format, the
+//! embedded demo data, figures, ablations, and bad input (exit 2, one `error:` line,
+//! no output file).
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use serde_json::{Value, json};
+use tempfile::TempDir;
+
+mod common;
+use common::{npy_bool, npy_f64};
+
+const Z: f64 = 4.753424308817087;
+
+/// |DB| = 3, |Q| = 7: calibration c0, c1, deployment d0..d4 (crates/qtvpr/src/evaluate.rs).
+///
+/// ```text
+///        c0   c1    d0   d1   d2   d3   d4
+/// db0   0.9  0.2   0.7  0.1  0.5  0.2  0.3
+/// db1   0.1  0.95  0.3  0.6  0.4  0.9  0.3
+/// db2   0.3  0.4   0.2  0.5  0.3  0.1  0.3
+/// ```
+/// GT: c0 -> db0, c1 -> db2, d0 -> db0, d1 -> db2.
+struct Case {
+    dir: TempDir,
+}
+
+impl Case {
+    fn new() -> Self {
+        let case = Self {
+            dir: tempfile::tempdir().unwrap(),
+        };
+        npy_f64(
+            &case.path("S.npy"),
+            &[
+                &[0.9, 0.2, 0.7, 0.1, 0.5, 0.2, 0.3],
+                &[0.1, 0.95, 0.3, 0.6, 0.4, 0.9, 0.3],
+                &[0.3, 0.4, 0.2, 0.5, 0.3, 0.1, 0.3],
+            ],
+        );
+        npy_bool(
+            &case.path("GT.npy"),
+            &[&[1, 0, 1, 0, 0, 0, 0], &[0, 0, 0, 0, 0, 0, 0], &[0, 1, 0, 1, 0, 0, 0]],
+        );
+        case
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// `evaluate --similarity S.npy --gt GT.npy` with the tiny protocol (2 calibration
+    /// queries, segments of 2, tau = 0.5) and `extra` arguments.
+    /// Each default is left out when `extra` gives that flag itself.
+    fn run(&self, extra: &[&str]) -> Output {
+        let (s, gt) = (self.path("S.npy"), self.path("GT.npy"));
+        let defaults = [
+            ("--similarity", s.to_str().unwrap()),
+            ("--gt", gt.to_str().unwrap()),
+            ("--cal-queries", "2"),
+            ("--segment-size", "2"),
+            ("--precision", "0.5"),
+        ];
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
+        cmd.arg("evaluate");
+        let given = |flag: &str| {
+            let alias = match flag {
+                "--cal-queries" => "--cal-fraction",
+                "--segment-size" => "--segment-fraction",
+                other => other,
+            };
+            extra.contains(&flag) || extra.contains(&alias)
+        };
+        for (flag, value) in defaults {
+            if !given(flag) {
+                cmd.args([flag, value]);
+            }
+        }
+        cmd.args(extra).output().unwrap()
+    }
+
+    fn ok(&self, extra: &[&str]) -> String {
+        let out = self.run(extra);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    }
+
+    /// A clean failure whose one-line message contains every needle, and no output file.
+    fn fails(&self, extra: &[&str], needles: &[&str]) {
+        let out_file = self.path("out.json");
+        let mut args = vec!["--output", out_file.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let out = self.run(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+        assert!(stderr.starts_with("error: "), "{stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        for needle in needles {
+            assert!(stderr.contains(needle), "{needle:?} not in {stderr}");
+        }
+        assert!(!out_file.exists(), "an output file was left behind");
+    }
+}
+
+fn near(v: &Value, x: f64) -> bool {
+    (v.as_f64().unwrap() - x).abs() < 1e-12
+}
+
+#[test]
+fn hand_computed_json() {
+    let case = Case::new();
+    let text = case.ok(&[]);
+    // Methods come in report order (serde_json::Value would sort them, so look at the text).
+    let at = |name: &str| text.find(&format!("\"{name}\": {{")).unwrap();
+    let names = [
+        "quantile-transfer",
+        "schubert",
+        "schubert-calibrated",
+        "calibration-threshold",
+        "oracle",
+    ];
+    assert!(names.windows(2).all(|w| at(w[0]) < at(w[1])), "{text}");
+    let out: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        out["params"],
+        json!({"k": 10, "precision": 0.5, "matching": "single", "queries": 7, "database_size": 3,
+               "calibration_queries": 2, "deployment_start": 2, "deployment_queries": 5,
+               "segment_size": 2, "segments": 2})
+    );
+    let methods = out["methods"].as_object().unwrap();
+    assert_eq!(methods.len(), 5);
+    for m in methods.values() {
+        // Segment (2, 4) = d2, d3 has no hard match: skipped. Its oracle is reject-all (null).
+        assert_eq!(
+            (m["segments_counted"].as_u64(), m["segments_skipped"].as_u64()),
+            (Some(1), Some(1))
+        );
+        let segs = m["segments"].as_array().unwrap();
+        assert_eq!((segs[0]["start"].as_u64(), segs[0]["end"].as_u64()), (Some(0), Some(2)));
+        assert_eq!(segs[0]["oracle_threshold"], 0.7);
+        assert_eq!(segs[1]["oracle_threshold"], Value::Null);
+    }
+    // Oracle 0.7 on segment 0: d0 (0.7, correct) accepted, d1 (0.6) not: TP 1, FP 0,
+    // 2 positives -> recall 0.5, %Segs 100, MSE 0.
+    let o = &methods["oracle"];
+    assert_eq!(
+        (o["pct_segs"].as_f64(), o["avg_recall"].as_f64()),
+        (Some(100.0), Some(0.5))
+    );
+    assert_eq!(o["threshold_mse"], 0.0);
+    assert_eq!(
+        o["segments"][0],
+        json!({"start": 0, "end": 2, "threshold": 0.7, "oracle_threshold": 0.7, "tp": 1, "fp": 0,
+               "positives": 2, "precision": 1.0, "recall": 0.5, "meets": true})
+    );
+    // Calibration threshold 0.9 (c0's 0.9 correct after c1's 0.95 wrong: 1 >= 0.5 x 2),
+    // for both segments: accepts nothing in segment 0 -> recall 0; MSE (0.9 - 0.7)^2.
+    let c = &methods["calibration-threshold"];
+    assert_eq!(c["segments"][0]["threshold"], 0.9);
+    assert_eq!(c["segments"][1]["threshold"], 0.9);
+    assert_eq!(
+        (c["pct_segs"].as_f64(), c["avg_recall"].as_f64()),
+        (Some(100.0), Some(0.0))
+    );
+    assert!(near(&c["threshold_mse"], 0.04));
+    // Quantile transfer: q = 4/5 everywhere; segment 0 (0.1 .. 0.7) -> 0.6, accepting
+    // d0 (T) and d1 (F): precision 1/2 meets 0.5, recall 1/2. MSE (0.6 - 0.7)^2.
+    let q = &methods["quantile-transfer"];
+    assert!(near(&q["segments"][0]["threshold"], 0.6) && near(&q["segments"][1]["threshold"], 0.5));
+    assert_eq!(
+        (q["segments"][0]["tp"].as_u64(), q["segments"][0]["fp"].as_u64()),
+        (Some(1), Some(1))
+    );
+    assert!(near(&q["threshold_mse"], 0.01));
+    // Schubert on segment 0: median 0.4, MAD 0.2 -> 0.4 + (0.2 / 0.675) z; calibrated:
+    // median 0.35, MAD 0.2.
+    assert!(near(
+        &methods["schubert"]["segments"][0]["threshold"],
+        0.4 + 0.2 / 0.675 * Z
+    ));
+    assert!(near(
+        &methods["schubert-calibrated"]["segments"][1]["threshold"],
+        0.35 + 0.2 / 0.675 * Z
+    ));
+}
+
+#[test]
+fn table_and_csv() {
+    let case = Case::new();
+    let table = case.ok(&["--format", "table", "--method", "oracle,calibration-threshold"]);
+    let lines: Vec<&str> = table.lines().collect();
+    assert!(lines[0].contains("queries 0..2 calibrate; 2 segments of 2"), "{table}");
+    assert_eq!(
+        lines[2],
+        "| method | %Segs | AvgR@50P | segments counted | skipped (no positives) | threshold MSE vs oracle |"
+    );
+    assert_eq!(lines[4], "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 |");
+    assert_eq!(lines[5], "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 |");
+    assert_eq!(lines.len(), 6);
+
+    let csv = case.ok(&["--format", "csv", "--method", "oracle", "--k", "1,2"]);
+    let rows: Vec<&str> = csv.lines().collect();
+    assert!(rows[0].starts_with("k,calibration_queries,deployment_start,"), "{csv}");
+    // Two settings (an ablation): the deployment set becomes the last floor(0.5 x 7) = 3
+    // queries, one segment of 2 (d2, d3 in the original numbering: no positives).
+    assert_eq!(rows.len(), 3, "{csv}");
+    assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,"), "{csv}");
+    assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
+}
+
+#[test]
+fn query_major_and_soft_ground_truth() {
+    let case = Case::new();
+    let base: Value = serde_json::from_str(&case.ok(&["--method", "oracle"])).unwrap();
+    // The same case stored query-major (7 x 3).
+    npy_f64(
+        &case.path("S_t.npy"),
+        &[
+            &[0.9, 0.1, 0.3],
+            &[0.2, 0.95, 0.4],
+            &[0.7, 0.3, 0.2],
+            &[0.1, 0.6, 0.5],
+            &[0.5, 0.4, 0.3],
+            &[0.2, 0.9, 0.1],
+            &[0.3, 0.3, 0.3],
+        ],
+    );
+    npy_bool(
+        &case.path("GT_t.npy"),
+        &[
+            &[1, 0, 0],
+            &[0, 0, 1],
+            &[1, 0, 0],
+            &[0, 0, 1],
+            &[0, 0, 0],
+            &[0, 0, 0],
+            &[0, 0, 0],
+        ],
+    );
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
+    let out = cmd
+        .args(["evaluate", "--query-major", "--method", "oracle"])
+        .args(["--cal-queries", "2", "--segment-size", "2", "--precision", "0.5"])
+        .arg("--similarity")
+        .arg(case.path("S_t.npy"))
+        .arg("--gt")
+        .arg(case.path("GT_t.npy"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let t: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(t["methods"], base["methods"]);
+    // tau = 1 on the calibration set: c1's best match 0.95 (db1, wrong) tops c0's 0.9
+    // (correct), so no group is valid -> reject-all (null), and no MSE.
+    let hard: Value =
+        serde_json::from_str(&case.ok(&["--method", "calibration-threshold", "--precision", "1"])).unwrap();
+    let c = &hard["methods"]["calibration-threshold"];
+    assert_eq!(c["segments"][0]["threshold"], Value::Null);
+    assert_eq!(c["threshold_mse"], Value::Null);
+    // Soft ground truth marking (db1, c1) tolerable: c1 makes no decision, so the
+    // calibration threshold is c0's 0.9, for both segments.
+    npy_bool(
+        &case.path("soft.npy"),
+        &[&[1, 0, 1, 0, 0, 0, 0], &[0, 1, 0, 0, 0, 0, 0], &[0, 1, 0, 1, 0, 0, 0]],
+    );
+    let soft = case.path("soft.npy");
+    let out: Value = serde_json::from_str(&case.ok(&[
+        "--method",
+        "calibration-threshold",
+        "--gt-soft",
+        soft.to_str().unwrap(),
+        "--precision",
+        "1",
+    ]))
+    .unwrap();
+    let c = &out["methods"]["calibration-threshold"];
+    assert_eq!(
+        (&c["segments"][0]["threshold"], &c["segments"][1]["threshold"]),
+        (&json!(0.9), &json!(0.9))
+    );
+}
+
+#[test]
+fn embedded_demo_data_prints_a_table() {
+    let out = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .arg("evaluate")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    // 111 queries: floor(11.1) = 11 calibrate; segments of ceil(1.11) = 2: 50 of them.
+    assert!(
+        text.contains("111 database images x 111 queries; queries 0..11 calibrate; 50 segments of 2"),
+        "{text}"
+    );
+    let rows: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| method"))
+        .collect();
+    assert_eq!(rows.len(), 5, "{text}");
+    assert!(rows[4].starts_with("| oracle | 100.0 |"), "{text}");
+}
+
+#[test]
+fn plots_are_written() {
+    let case = Case::new();
+    let dir = case.path("figs");
+    case.ok(&["--plot", dir.to_str().unwrap()]);
+    for name in ["thresholds.svg", "precision_recall.svg"] {
+        let svg = std::fs::read_to_string(dir.join(name)).unwrap();
+        assert!(svg.starts_with("<svg"), "{name}");
+        // Text is real SVG text, with the legend's method names.
+        assert!(svg.contains("<text") && svg.contains("quantile-transfer"), "{name}");
+    }
+    case.ok(&["--plot", dir.to_str().unwrap(), "--k", "1,2,3"]);
+    let svg = std::fs::read_to_string(dir.join("ablation_k.svg")).unwrap();
+    assert!(svg.contains("Sensitivity to k"));
+    assert!(!dir.join("ablation_cal.svg").exists());
+}
+
+#[test]
+fn bad_input() {
+    let case = Case::new();
+    case.fails(&["--method", "oracle,magic"], &["--method", "unknown method 'magic'"]);
+    case.fails(&["--k", "0"], &["k must be >= 1, got 0"]);
+    case.fails(&["--precision", "1.5"], &["precision must be in (0, 1]"]);
+    case.fails(
+        &["--cal-queries", "7"],
+        &["the calibration set must have between 1 and 6 of the 7 queries, got 7"],
+    );
+    case.fails(
+        &["--segment-size", "6"],
+        &["segment size 6 is larger than the 5 deployment queries"],
+    );
+    case.fails(&["--deploy-fraction", "0.9"], &["overlap"]);
+    // A cal fraction of 0.1 leaves floor(0.7) = 0 calibration queries.
+    case.fails(
+        &["--cal-fraction", "0.1"],
+        &["the calibration set must have between 1 and 6 of the 7 queries, got 0"],
+    );
+    npy_bool(&case.path("GT_narrow.npy"), &[&[1, 0], &[0, 0], &[0, 1]]);
+    case.fails(
+        &["--gt", case.path("GT_narrow.npy").to_str().unwrap()],
+        &["ground truth shape 3x2 does not match similarity shape 3x7"],
+    );
+    npy_f64(&case.path("S_nan.npy"), &[&[0.1, f64::NAN], &[0.2, 0.3]]);
+    case.fails(
+        &["--similarity", case.path("S_nan.npy").to_str().unwrap()],
+        &["--similarity", "S_nan.npy"],
+    );
+    // --plot into a path that is a file.
+    std::fs::write(case.path("not_a_dir"), "x").unwrap();
+    case.fails(&["--plot", case.path("not_a_dir").to_str().unwrap()], &["--plot"]);
+}

@@ -1,0 +1,807 @@
+//! SPEC section 8: the evaluation protocol of the paper's Table I.
+//!
+//! One similarity matrix with ground truth for every query is split in query order:
+//! the first queries calibrate, the deployment set is cut into full segments of
+//! consecutive queries (a shorter remainder is dropped), and every method of
+//! [`Method`] gives each segment a threshold. Each segment's decisions at that
+//! threshold are counted against the segment's own ground truth, which answers the
+//! practical question: *would this threshold have kept me at the target precision on
+//! this stretch of the traverse, and how much recall did it leave me?*
+//!
+//! Nothing here re-implements an earlier section: decisions and counts are
+//! the per-column candidates of section 2, the oracle is the section-3 sweep, quantile transfer is
+//! [`Calibration::transfer`] with one batch per segment (sections 4-6), and the
+//! baselines are [`crate::baselines`] (section 7). Segments are independent, so each
+//! method's thresholds and counts are computed for all segments in parallel.
+//!
+//! [`Protocol::deploy_fraction`] pins the deployment set to the last queries, so that
+//! the calibration size can vary while the deployment set stays the same (the paper's
+//! Fig. 5 ablation).
+
+use std::ops::Range;
+
+use ndarray::{ArrayView2, s};
+use rayon::prelude::*;
+
+use crate::baselines::schubert;
+use crate::best_threshold::subset_threshold;
+use crate::decisions::{Candidates, Counts, Matching};
+use crate::error::{Error, Result};
+use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
+use crate::transfer::{Calibration, DEFAULT_K, Params};
+
+/// Tolerance of the "meets the target" test (SPEC section 8.3).
+const EPS: f64 = 1e-12;
+
+/// A way of choosing each segment's threshold (SPEC sections 4-7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Method {
+    /// Quantile transfer (sections 4-6), each segment its own batch.
+    QuantileTransfer,
+    /// Schubert et al.'s threshold fitted to each segment's raw scores.
+    Schubert,
+    /// Schubert et al.'s threshold fitted once to the calibration scores.
+    SchubertCalibrated,
+    /// The section-3 threshold of the calibration set, kept fixed.
+    CalibrationThreshold,
+    /// The section-3 threshold of each segment under its own ground truth (an upper
+    /// bound, not deployable).
+    Oracle,
+}
+
+impl Method {
+    /// Every method, in report order.
+    pub const ALL: [Method; 5] = [
+        Method::QuantileTransfer,
+        Method::Schubert,
+        Method::SchubertCalibrated,
+        Method::CalibrationThreshold,
+        Method::Oracle,
+    ];
+
+    /// The name used on the command line, in JSON and in Python.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::QuantileTransfer => "quantile-transfer",
+            Method::Schubert => "schubert",
+            Method::SchubertCalibrated => "schubert-calibrated",
+            Method::CalibrationThreshold => "calibration-threshold",
+            Method::Oracle => "oracle",
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.as_str() == s)
+            .ok_or_else(|| Error::UnknownMethod { name: s.to_string() })
+    }
+}
+
+/// A number of queries, given as a fraction of |Q| or as a count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Split {
+    /// A fraction of all |Q| queries, in (0, 1).
+    Fraction(f64),
+    /// A number of queries, at least 1.
+    Count(usize),
+}
+
+/// The protocol's parameters (SPEC section 8.1); [`Default`] is the paper's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Protocol {
+    /// Calibration queries, the first ones: `floor(f |Q|)` for a fraction `f`.
+    /// Default: 10%.
+    pub calibration: Split,
+    /// `None` (default): the deployment set is every query after the calibration set.
+    /// `Some(f)`: it is the last `floor(f |Q|)` queries, whatever the calibration size;
+    /// queries between the two sets are unused, and the sets may not overlap.
+    pub deploy_fraction: Option<f64>,
+    /// Segment size: `ceil(f |Q|)` for a fraction `f` (of all |Q| queries, not of the
+    /// deployment set). Default: 1%.
+    pub segment: Split,
+    /// Calibration queries sampled per deployment query by quantile transfer.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Single- or multi-match decisions.
+    pub matching: Matching,
+}
+
+impl Default for Protocol {
+    fn default() -> Self {
+        Self {
+            calibration: Split::Fraction(0.10),
+            deploy_fraction: None,
+            segment: Split::Fraction(0.01),
+            k: DEFAULT_K,
+            precision: 1.0,
+            matching: Matching::Single,
+        }
+    }
+}
+
+/// Where the protocol puts the queries of a matrix with |Q| columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    /// |Q|.
+    pub queries: usize,
+    /// Columns `0..calibration_queries` calibrate.
+    pub calibration_queries: usize,
+    /// Column of the first deployment query; segment bounds count from here.
+    pub deployment_start: usize,
+    /// |Qdeploy|, the full segments and the dropped remainder together.
+    pub deployment_queries: usize,
+    /// Queries per segment.
+    pub segment_size: usize,
+    /// Number of full segments.
+    pub segments: usize,
+}
+
+fn fraction(name: &'static str, f: f64) -> Result<f64> {
+    if !(f > 0.0 && f < 1.0) {
+        return Err(Error::param(name, format!("must be in (0, 1), got {f}")));
+    }
+    Ok(f)
+}
+
+fn count(name: &'static str, n: usize) -> Result<usize> {
+    if n < 1 {
+        return Err(Error::param(name, format!("must be >= 1, got {n}")));
+    }
+    Ok(n)
+}
+
+impl Protocol {
+    /// Check the parameters that do not depend on the matrix: `k >= 1`, tau in (0, 1],
+    /// fractions in (0, 1), counts >= 1.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        Params {
+            k: self.k,
+            precision: self.precision,
+            segment_size: None,
+        }
+        .validate()?;
+        match self.calibration {
+            Split::Fraction(f) => fraction("cal fraction", f).map(drop)?,
+            Split::Count(n) => count("cal queries", n).map(drop)?,
+        }
+        if let Some(f) = self.deploy_fraction {
+            fraction("deploy fraction", f)?;
+        }
+        match self.segment {
+            Split::Fraction(f) => fraction("segment fraction", f).map(drop),
+            Split::Count(n) => count("segment size", n).map(drop),
+        }
+    }
+
+    /// Split `queries` columns as the protocol says.
+    ///
+    /// # Errors
+    /// Invalid parameters ([`Protocol::validate`]), or a split that leaves no
+    /// calibration query, no deployment query, overlapping sets or no full segment
+    /// ([`Error::Protocol`]).
+    pub fn layout(&self, queries: usize) -> Result<Layout> {
+        self.validate()?;
+        let n_q = queries;
+        let n_cal = match self.calibration {
+            Split::Fraction(f) => (f * n_q as f64).floor() as usize,
+            Split::Count(n) => n,
+        };
+        if !(1..n_q).contains(&n_cal) {
+            return Err(Error::Protocol(format!(
+                "the calibration set must have between 1 and {} of the {n_q} queries, got {n_cal}",
+                n_q.saturating_sub(1)
+            )));
+        }
+        let n_dep = match self.deploy_fraction {
+            None => n_q - n_cal,
+            Some(f) => {
+                let n_dep = (f * n_q as f64).floor() as usize;
+                if n_dep < 1 {
+                    return Err(Error::Protocol(format!(
+                        "the deployment set has no query: floor({f} * {n_q}) = 0"
+                    )));
+                }
+                if n_cal + n_dep > n_q {
+                    return Err(Error::Protocol(format!(
+                        "the calibration set ({n_cal} queries) and the deployment set ({n_dep} queries) \
+                         overlap: together they exceed the {n_q} queries"
+                    )));
+                }
+                n_dep
+            }
+        };
+        let size = match self.segment {
+            Split::Fraction(f) => (f * n_q as f64).ceil() as usize,
+            Split::Count(n) => n,
+        };
+        if size > n_dep {
+            return Err(Error::Protocol(format!(
+                "segment size {size} is larger than the {n_dep} deployment queries"
+            )));
+        }
+        Ok(Layout {
+            queries: n_q,
+            calibration_queries: n_cal,
+            deployment_start: n_q - n_dep,
+            deployment_queries: n_dep,
+            segment_size: size,
+            segments: n_dep / size,
+        })
+    }
+}
+
+/// One segment under one method (SPEC section 8.6).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentResult {
+    /// First query of the segment, counted from the first deployment query.
+    pub start: usize,
+    /// One past its last query.
+    pub end: usize,
+    /// The method's threshold (`inf` is reject-all).
+    pub threshold: f64,
+    /// The oracle's threshold of the segment (`inf` when no threshold meets the target).
+    pub oracle_threshold: f64,
+    /// TP, FP and positives at `threshold`.
+    pub counts: Counts,
+    /// Whether the precision is at least tau (less 1e-12).
+    pub meets: bool,
+}
+
+/// A method's results over every full segment (SPEC section 8).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MethodResult {
+    /// Which method.
+    pub method: Method,
+    /// %Segs: 100 x segments that meet / segments counted; `None` when none is counted.
+    pub pct_segs: Option<f64>,
+    /// AvgR@tauP: the mean over counted segments of their recall if they meet, else 0;
+    /// `None` when none is counted.
+    pub avg_recall: Option<f64>,
+    /// Segments with at least one positive.
+    pub segments_counted: usize,
+    /// Segments without positives, left out of both figures.
+    pub segments_skipped: usize,
+    /// Mean squared difference from the oracle's threshold over the counted segments
+    /// where both are finite; `None` when there is no such segment.
+    pub threshold_mse: Option<f64>,
+    /// Every full segment, in order.
+    pub segments: Vec<SegmentResult>,
+}
+
+impl MethodResult {
+    /// TP, FP and positives summed over every full segment (skipped ones included): the
+    /// method's operating point on the whole deployment set.
+    pub fn pooled(&self) -> Counts {
+        self.segments.iter().fold(
+            Counts {
+                tp: 0,
+                fp: 0,
+                positives: 0,
+            },
+            |a, s| Counts {
+                tp: a.tp + s.counts.tp,
+                fp: a.fp + s.counts.fp,
+                positives: a.positives + s.counts.positives,
+            },
+        )
+    }
+}
+
+/// One point of a precision-recall curve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrPoint {
+    /// Accept scores `>=` this.
+    pub threshold: f64,
+    /// Precision there.
+    pub precision: f64,
+    /// Recall there.
+    pub recall: f64,
+}
+
+/// The result of [`evaluate`].
+#[derive(Debug, Clone)]
+pub struct Evaluation {
+    /// How the queries were split.
+    pub layout: Layout,
+    /// The protocol's parameters.
+    pub protocol: Protocol,
+    /// One result per method asked for, in the order asked (duplicates removed).
+    pub methods: Vec<MethodResult>,
+    /// The candidates of the full segments' queries, for the precision-recall curve.
+    deployment: Candidates,
+}
+
+impl Evaluation {
+    /// The result of `method`, if it was asked for.
+    pub fn method(&self, method: Method) -> Option<&MethodResult> {
+        self.methods.iter().find(|m| m.method == method)
+    }
+
+    /// The precision-recall curve of the deployment set (every full segment pooled,
+    /// one threshold for all), from the highest threshold down, evaluated at the end of
+    /// each group of equal scores as in SPEC section 3.
+    ///
+    /// To keep a plot light, a point is kept only when precision or recall has moved
+    /// by at least `1 / resolution` since the last kept point (the first and last
+    /// points are always kept); `resolution = usize::MAX` keeps every point.
+    pub fn precision_recall_curve(&self, resolution: usize) -> Vec<PrPoint> {
+        let c = &self.deployment;
+        let mut all: Vec<(f64, bool)> = (0..c.ncols())
+            .flat_map(|j| {
+                let (s, ok) = c.column(j);
+                s.iter().copied().zip(ok.iter().copied())
+            })
+            .collect();
+        all.par_sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+        let positives = c.positives(0..c.ncols());
+        let step = 1.0 / resolution as f64;
+        let mut curve: Vec<PrPoint> = Vec::new();
+        let (mut tp, mut fp) = (0usize, 0usize);
+        for (i, &(score, correct)) in all.iter().enumerate() {
+            if correct {
+                tp += 1;
+            } else {
+                fp += 1;
+            }
+            let last = i + 1 == all.len();
+            if !last && all[i + 1].0 == score {
+                continue;
+            }
+            let counts = Counts { tp, fp, positives };
+            let p = PrPoint {
+                threshold: score,
+                precision: counts.precision(),
+                recall: counts.recall(),
+            };
+            let keep = curve.last().is_none_or(|q| {
+                last || (p.precision - q.precision).abs() >= step || (p.recall - q.recall).abs() >= step
+            });
+            if keep {
+                curve.push(p);
+            }
+        }
+        curve
+    }
+}
+
+/// Run the protocol on `s` (|DB| x |Q|) with ground truth `gt` for every query.
+///
+/// `methods` are evaluated in the order given (a repeated method once); the oracle
+/// threshold of every segment is computed whether or not [`Method::Oracle`] is asked
+/// for, since every method reports it.
+///
+/// # Errors
+/// Invalid parameters or split ([`Protocol::layout`]), empty or non-finite scores, or
+/// ground truth of another shape.
+pub fn evaluate<T: Score>(
+    s: ArrayView2<'_, T>,
+    gt: &GroundTruth,
+    protocol: &Protocol,
+    methods: &[Method],
+) -> Result<Evaluation> {
+    protocol.validate()?;
+    validate_scores("similarity", s)?;
+    check_gt_shape(gt, "similarity", s.dim())?;
+    let layout = protocol.layout(s.ncols())?;
+    let mut unique: Vec<Method> = Vec::with_capacity(methods.len());
+    for &m in methods {
+        if !unique.contains(&m) {
+            unique.push(m);
+        }
+    }
+
+    let (tau, size) = (protocol.precision, layout.segment_size);
+    let cal = s![.., ..layout.calibration_queries];
+    let dep = s![
+        ..,
+        layout.deployment_start..layout.deployment_start + layout.segments * size
+    ];
+    let (s_cal, gt_cal) = (s.slice(cal), gt.view().slice_move(cal));
+    let (s_dep, gt_dep) = (s.slice(dep), gt.view().slice_move(dep));
+    let ranges: Vec<Range<usize>> = (0..layout.segments).map(|i| i * size..(i + 1) * size).collect();
+
+    let deployment = Candidates::new(s_dep, gt_dep, protocol.matching);
+    let oracle: Vec<f64> = ranges
+        .par_iter()
+        .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
+        .collect();
+    let needs_calibration = unique
+        .iter()
+        .any(|m| matches!(m, Method::QuantileTransfer | Method::CalibrationThreshold));
+    let calibration = needs_calibration
+        .then(|| Calibration::with_labels(s_cal, gt_cal, protocol.matching))
+        .transpose()?;
+
+    let mut results = Vec::with_capacity(unique.len());
+    for method in unique {
+        let thresholds: Vec<f64> = match method {
+            Method::QuantileTransfer => {
+                let params = Params {
+                    k: protocol.k,
+                    precision: tau,
+                    segment_size: Some(size),
+                };
+                let cal = calibration.as_ref().expect("built for quantile transfer");
+                cal.transfer(s_dep, &params)?
+                    .segments
+                    .iter()
+                    .map(|g| g.threshold)
+                    .collect()
+            }
+            Method::Schubert => ranges
+                .par_iter()
+                .map(|r| schubert(s_dep.slice(s![.., r.clone()])))
+                .collect(),
+            Method::SchubertCalibrated => vec![schubert(s_cal); ranges.len()],
+            Method::CalibrationThreshold => {
+                let cal = calibration.as_ref().expect("built for the calibration threshold");
+                vec![cal.threshold(tau)?; ranges.len()]
+            }
+            Method::Oracle => oracle.clone(),
+        };
+        results.push(score(method, &deployment, &ranges, &thresholds, &oracle, tau));
+    }
+    Ok(Evaluation {
+        layout,
+        protocol: *protocol,
+        methods: results,
+        deployment,
+    })
+}
+
+/// Count every segment at its threshold and summarise (SPEC sections 8.2-8.6).
+fn score(
+    method: Method,
+    deployment: &Candidates,
+    ranges: &[Range<usize>],
+    thresholds: &[f64],
+    oracle: &[f64],
+    tau: f64,
+) -> MethodResult {
+    let segments: Vec<SegmentResult> = (ranges, thresholds, oracle)
+        .into_par_iter()
+        .map(|(r, &threshold, &oracle_threshold)| {
+            let counts = deployment.counts(r.clone(), threshold);
+            SegmentResult {
+                start: r.start,
+                end: r.end,
+                threshold,
+                oracle_threshold,
+                counts,
+                meets: counts.precision() >= tau - EPS,
+            }
+        })
+        .collect();
+    let counted: Vec<&SegmentResult> = segments.iter().filter(|g| g.counts.positives > 0).collect();
+    let n = counted.len();
+    let (pct_segs, avg_recall) = if n == 0 {
+        (None, None)
+    } else {
+        let meet = counted.iter().filter(|g| g.meets).count();
+        let recall: f64 = counted
+            .iter()
+            .map(|g| if g.meets { g.counts.recall() } else { 0.0 })
+            .sum();
+        (Some(100.0 * meet as f64 / n as f64), Some(recall / n as f64))
+    };
+    let squares: Vec<f64> = counted
+        .iter()
+        .filter(|g| g.threshold.is_finite() && g.oracle_threshold.is_finite())
+        .map(|g| (g.threshold - g.oracle_threshold).powi(2))
+        .collect();
+    let threshold_mse = (!squares.is_empty()).then(|| squares.iter().sum::<f64>() / squares.len() as f64);
+    MethodResult {
+        method,
+        pct_segs,
+        avg_recall,
+        segments_counted: n,
+        segments_skipped: segments.len() - n,
+        threshold_mse,
+        segments,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::baselines::SCHUBERT_Z;
+    use ndarray::{Array2, array};
+
+    /// |DB| = 3, |Q| = 7 (the reference's TINY case): calibration c0, c1, then
+    /// deployment d0..d4.
+    ///
+    /// ```text
+    ///        c0   c1    d0   d1   d2   d3   d4
+    /// db0   0.9  0.2   0.7  0.1  0.5  0.2  0.3
+    /// db1   0.1  0.95  0.3  0.6  0.4  0.9  0.3
+    /// db2   0.3  0.4   0.2  0.5  0.3  0.1  0.3
+    /// ```
+    /// GT: c0 -> db0, c1 -> db2, d0 -> db0, d1 -> db2; d2..d4 have no match.
+    fn tiny() -> (Array2<f64>, GroundTruth) {
+        let s = array![
+            [0.9, 0.2, 0.7, 0.1, 0.5, 0.2, 0.3],
+            [0.1, 0.95, 0.3, 0.6, 0.4, 0.9, 0.3],
+            [0.3, 0.4, 0.2, 0.5, 0.3, 0.1, 0.3],
+        ];
+        let gt =
+            GroundTruth::new(array![[1u8, 0, 1, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0, 0], [0, 1, 0, 1, 0, 0, 0],].view())
+                .unwrap();
+        (s, gt)
+    }
+
+    /// tau = 0.5, two calibration queries, segments of two: (0, 2) = d0 d1 and
+    /// (2, 4) = d2 d3; d4 is the dropped remainder.
+    fn protocol() -> Protocol {
+        Protocol {
+            calibration: Split::Count(2),
+            segment: Split::Count(2),
+            precision: 0.5,
+            ..Protocol::default()
+        }
+    }
+
+    fn run(methods: &[Method]) -> Evaluation {
+        let (s, gt) = tiny();
+        evaluate(s.view(), &gt, &protocol(), methods).unwrap()
+    }
+
+    #[test]
+    fn layout_of_the_tiny_case() {
+        let e = run(&[Method::Oracle]);
+        assert_eq!(
+            e.layout,
+            Layout {
+                queries: 7,
+                calibration_queries: 2,
+                deployment_start: 2,
+                deployment_queries: 5,
+                segment_size: 2,
+                segments: 2
+            }
+        );
+    }
+
+    #[test]
+    fn oracle_and_a_skipped_segment() {
+        // Segment 0 (single): d0's best match 0.7 (db0, correct), d1's 0.6 (db1, wrong);
+        // positives 2. Sweep at tau 0.5: 0.7 (1, 0) valid; 0.6 (1, 1): 1 >= 0.5 * 2 valid;
+        // TP* = 1, first reached at 0.7 -> oracle 0.7: TP 1, FP 0, recall 1/2, meets.
+        // Segment 1: d2, d3 have no match -> positives 0 -> skipped; oracle inf.
+        // %Segs = 100 * 1/1 = 100; AvgR = 0.5 / 1; MSE over segment 0 = 0.
+        let e = run(&[Method::Oracle]);
+        let o = &e.methods[0];
+        assert_eq!((o.segments_counted, o.segments_skipped), (1, 1));
+        assert_eq!(
+            (o.pct_segs, o.avg_recall, o.threshold_mse),
+            (Some(100.0), Some(0.5), Some(0.0))
+        );
+        let g = o.segments[0];
+        assert_eq!((g.start, g.end, g.threshold, g.oracle_threshold), (0, 2, 0.7, 0.7));
+        assert_eq!((g.counts.tp, g.counts.fp, g.counts.positives, g.meets), (1, 0, 2, true));
+        assert_eq!(o.segments[1].oracle_threshold, f64::INFINITY);
+        assert_eq!(o.segments[1].counts.positives, 0);
+    }
+
+    #[test]
+    fn calibration_threshold_is_reused_for_every_segment() {
+        // Calibration (single): c0 best 0.9 (db0, correct), c1 best 0.95 (db1, wrong).
+        // Sweep: 0.95 (0, 1) TP 0 invalid; 0.9 (1, 1): 1 >= 0.5 * 2 valid -> t = 0.9.
+        // Segment 0 at 0.9 accepts nothing: precision 1 (meets), recall 0.
+        // Segment 1 accepts d3's 0.9 (inclusive, wrong): FP 1, precision 0 -- but skipped.
+        // %Segs 100, AvgR 0; MSE over segment 0: (0.9 - 0.7)^2 = 0.04.
+        let e = run(&[Method::CalibrationThreshold]);
+        let c = &e.methods[0];
+        assert_eq!(
+            c.segments.iter().map(|g| g.threshold).collect::<Vec<_>>(),
+            vec![0.9, 0.9]
+        );
+        assert_eq!((c.segments[0].counts.tp, c.segments[0].counts.fp), (0, 0));
+        assert_eq!((c.segments[1].counts.fp, c.segments[1].meets), (1, false));
+        assert_eq!((c.pct_segs, c.avg_recall), (Some(100.0), Some(0.0)));
+        assert!((c.threshold_mse.unwrap() - 0.04).abs() < 1e-15);
+    }
+
+    #[test]
+    fn quantile_transfer_per_segment() {
+        // k = 10 clips to 2: every deployment query's subset is {c0, c1}, threshold 0.9 (as
+        // above). Sample (0.1, 0.2, 0.3, 0.4, 0.9, 0.95): c(<= 0.9) = 5 -> q = 4/5 for all.
+        // Segment 0 scores ascending (0.1, 0.2, 0.3, 0.5, 0.6, 0.7): h = 5 * 0.8 = 4 -> 0.6;
+        // it accepts 0.7 (T) and 0.6 (F): precision 1/2 >= 0.5 meets, recall 1/2.
+        // Segment 1 ascending (0.1, 0.2, 0.3, 0.4, 0.5, 0.9): h = 4 -> 0.5.
+        // %Segs 100, AvgR 0.5 / 1, MSE (0.6 - 0.7)^2 = 0.01.
+        let e = run(&[Method::QuantileTransfer]);
+        let q = &e.methods[0];
+        let t: Vec<f64> = q.segments.iter().map(|g| g.threshold).collect();
+        assert!((t[0] - 0.6).abs() < 1e-15 && (t[1] - 0.5).abs() < 1e-15, "{t:?}");
+        assert_eq!((q.segments[0].counts.tp, q.segments[0].counts.fp), (1, 1));
+        assert_eq!((q.pct_segs, q.avg_recall), (Some(100.0), Some(0.5)));
+        assert!((q.threshold_mse.unwrap() - 0.01).abs() < 1e-15);
+    }
+
+    #[test]
+    fn schubert_per_segment_and_calibrated() {
+        // Segment 0 scores (0.1, 0.2, 0.3, 0.5, 0.6, 0.7): mu = (0.3 + 0.5) / 2 = 0.4;
+        // |S - mu| = (0.3, 0.2, 0.1, 0.1, 0.2, 0.3) -> median (0.2 + 0.2) / 2 = 0.2;
+        // t = 0.4 + (0.2 / 0.675) * z = 1.808... accepts nothing: meets, recall 0.
+        // Calibration (0.1, 0.2, 0.3, 0.4, 0.9, 0.95): mu = (0.3 + 0.4) / 2 = 0.35;
+        // |S - mu| sorted (0.05, 0.05, 0.15, 0.25, 0.55, 0.6) -> median 0.2;
+        // t = 0.35 + (0.2 / 0.675) * z for both segments.
+        let e = run(&[Method::Schubert, Method::SchubertCalibrated]);
+        let (sch, cal) = (&e.methods[0], &e.methods[1]);
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(near(sch.segments[0].threshold, 0.4 + 0.2 / 0.675 * SCHUBERT_Z));
+        assert_eq!((sch.pct_segs, sch.avg_recall), (Some(100.0), Some(0.0)));
+        for g in &cal.segments {
+            assert!(near(g.threshold, 0.35 + 0.2 / 0.675 * SCHUBERT_Z));
+        }
+    }
+
+    #[test]
+    fn no_counted_segment_gives_no_figures() {
+        // Columns c0, c1, d2, d3 only: the one segment (d2, d3) has no positives.
+        let (s, gt) = tiny();
+        let cols = [0, 1, 4, 5];
+        let s = s.select(ndarray::Axis(1), &cols);
+        let gt = GroundTruth::from_truth(gt.view().select(ndarray::Axis(1), &cols));
+        let e = evaluate(s.view(), &gt, &protocol(), &[Method::Oracle, Method::Schubert]).unwrap();
+        for m in &e.methods {
+            assert_eq!((m.segments_counted, m.segments_skipped), (0, 1));
+            assert_eq!((m.pct_segs, m.avg_recall, m.threshold_mse), (None, None, None));
+        }
+    }
+
+    #[test]
+    fn pct_segs_avg_recall_and_mse_by_hand() {
+        // |DB| = 2, |Q| = 5: c0, then four deployment queries in segments of one, tau = 1,
+        // with a fixed threshold 0.5 (calibration-threshold: c0's best match 0.8 is correct,
+        // so t = 0.8; the arithmetic below uses that).
+        //        c0   d0   d1   d2   d3
+        // db0   0.8  0.9  0.7  0.85 0.1
+        // db1   0.1  0.2  0.3  0.9  0.2
+        // GT:   db0  db0  db0  db0  none
+        // d0: best 0.9 (db0, T) accepted -> TP 1, meets, recall 1; oracle 0.9.
+        // d1: best 0.7 (T) < 0.8 -> nothing accepted, meets, recall 0; oracle 0.7.
+        // d2: best 0.9 (db1, F) accepted -> FP 1, fails; oracle inf (no valid group).
+        // d3: no positive -> skipped.
+        // Counted 3, meet 2 -> %Segs 66.67; AvgR (1 + 0 + 0) / 3; MSE over d0, d1 (d2's
+        // oracle is inf): ((0.8 - 0.9)^2 + (0.8 - 0.7)^2) / 2 = 0.01.
+        let s = array![[0.8, 0.9, 0.7, 0.85, 0.1], [0.1, 0.2, 0.3, 0.9, 0.2]];
+        let gt = GroundTruth::new(array![[1u8, 1, 1, 1, 0], [0, 0, 0, 0, 0]].view()).unwrap();
+        let p = Protocol {
+            calibration: Split::Count(1),
+            segment: Split::Count(1),
+            ..Protocol::default()
+        };
+        let e = evaluate(s.view(), &gt, &p, &[Method::CalibrationThreshold]).unwrap();
+        let c = &e.methods[0];
+        assert_eq!((c.segments_counted, c.segments_skipped), (3, 1));
+        assert_eq!(c.pct_segs, Some(100.0 * 2.0 / 3.0));
+        assert_eq!(c.avg_recall, Some(1.0 / 3.0));
+        assert!((c.threshold_mse.unwrap() - 0.01).abs() < 1e-15);
+        let pooled = c.pooled();
+        assert_eq!((pooled.tp, pooled.fp, pooled.positives), (1, 1, 3));
+    }
+
+    #[test]
+    fn deploy_fraction_pins_the_last_queries() {
+        // |Q| = 10, 50% deploy: the last 5 (columns 5..10); 20% calibrates (columns 0, 1);
+        // columns 2..5 are unused. Segment size ceil(0.2 * 10) = 2: 2 full segments.
+        let p = Protocol {
+            calibration: Split::Fraction(0.2),
+            deploy_fraction: Some(0.5),
+            segment: Split::Fraction(0.2),
+            ..Protocol::default()
+        };
+        let l = p.layout(10).unwrap();
+        assert_eq!(
+            (
+                l.calibration_queries,
+                l.deployment_start,
+                l.deployment_queries,
+                l.segments
+            ),
+            (2, 5, 5, 2)
+        );
+        // 60% + 50% of 10 overlap.
+        let p = Protocol {
+            calibration: Split::Fraction(0.6),
+            ..p
+        };
+        assert_eq!(
+            p.layout(10).unwrap_err().to_string(),
+            "the calibration set (6 queries) and the deployment set (5 queries) overlap: \
+             together they exceed the 10 queries"
+        );
+    }
+
+    #[test]
+    fn bad_protocols() {
+        let msg = |p: Protocol, n: usize| p.layout(n).unwrap_err().to_string();
+        let d = Protocol::default();
+        // floor(0.1 * 7) = 0 calibration queries.
+        assert_eq!(
+            msg(d, 7),
+            "the calibration set must have between 1 and 6 of the 7 queries, got 0"
+        );
+        let p = |calibration, segment| Protocol {
+            calibration,
+            segment,
+            ..d
+        };
+        assert_eq!(
+            msg(p(Split::Fraction(1.5), Split::Count(1)), 7),
+            "cal fraction must be in (0, 1), got 1.5"
+        );
+        assert_eq!(
+            msg(p(Split::Count(0), Split::Count(1)), 7),
+            "cal queries must be >= 1, got 0"
+        );
+        assert_eq!(
+            msg(p(Split::Count(2), Split::Count(6)), 7),
+            "segment size 6 is larger than the 5 deployment queries"
+        );
+        assert_eq!(
+            msg(p(Split::Count(2), Split::Fraction(0.0)), 7),
+            "segment fraction must be in (0, 1), got 0"
+        );
+        assert_eq!(
+            msg(p(Split::Count(7), Split::Count(1)), 7),
+            "the calibration set must have between 1 and 6 of the 7 queries, got 7"
+        );
+        assert_eq!(
+            "magic".parse::<Method>().unwrap_err().to_string(),
+            "unknown method 'magic'; expected one of quantile-transfer, schubert, schubert-calibrated, \
+             calibration-threshold, oracle"
+        );
+        assert_eq!(
+            "schubert-calibrated".parse::<Method>().unwrap(),
+            Method::SchubertCalibrated
+        );
+        let (s, gt) = tiny();
+        let err = evaluate(s.view(), &gt, &Protocol { k: 0, ..protocol() }, &Method::ALL).unwrap_err();
+        assert_eq!(err.to_string(), "k must be >= 1, got 0");
+    }
+
+    #[test]
+    fn precision_recall_curve_of_the_deployment_set() {
+        // Full segments d0..d3 (single): best matches 0.7 T, 0.6 F, 0.5 F, 0.9 F; 2 positives.
+        // Descending: 0.9 F (P 0, R 0), 0.7 T (P 1/2, R 1/2), 0.6 F (1/3, 1/2), 0.5 F (1/4, 1/2).
+        let e = run(&[Method::Oracle]);
+        let curve = e.precision_recall_curve(usize::MAX);
+        let got: Vec<(f64, f64, f64)> = curve.iter().map(|p| (p.threshold, p.precision, p.recall)).collect();
+        assert_eq!(
+            got,
+            vec![
+                (0.9, 0.0, 0.0),
+                (0.7, 0.5, 0.5),
+                (0.6, 1.0 / 3.0, 0.5),
+                (0.5, 0.25, 0.5)
+            ]
+        );
+        // At a resolution of 2 (steps of 0.5), 0.6 moves precision by 1/6 only: dropped;
+        // the last point is always kept.
+        let thin: Vec<f64> = e.precision_recall_curve(2).iter().map(|p| p.threshold).collect();
+        assert_eq!(thin, vec![0.9, 0.7, 0.5]);
+    }
+
+    #[test]
+    fn repeated_methods_are_reported_once() {
+        let e = run(&[Method::Oracle, Method::Schubert, Method::Oracle]);
+        let names: Vec<&str> = e.methods.iter().map(|m| m.method.as_str()).collect();
+        assert_eq!(names, vec!["oracle", "schubert"]);
+    }
+}

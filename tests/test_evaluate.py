@@ -1,0 +1,329 @@
+"""The evaluation protocol (SPEC sections 7 and 8): the wheel's ``qtvpr.evaluate`` and
+``qtvpr-cli evaluate --format json`` equal ``qtvpr.reference.evaluate``.
+
+On the real VPR-Bench matrices in ../shared/data: every method, both matching modes,
+precision targets 1.0 and 0.9, soft ground truth, query-major input, and the
+fixed-deployment protocol of the calibration-size ablation. Then hypothesis parity on
+small random matrices, and the bad inputs both implementations must refuse alike.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import qtvpr
+from qtvpr import reference as ref
+from test_cli import cli, run_cli  # noqa: F401  (the session fixture that finds the binary)
+
+TECHNIQUES = [
+    "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
+    "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
+]
+SEGMENT_KEYS = ["start", "end", "threshold", "oracle_threshold", "tp", "fp", "positives",
+                "precision", "recall", "meets"]
+
+
+@functools.cache
+def load(root: Path, dataset: str, technique: str):
+    d = root / dataset
+    return np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+
+
+def soft_of(gt: np.ndarray) -> np.ndarray:
+    """Every hard match widened by one database image either side."""
+    soft = gt.copy()
+    soft[1:] |= gt[:-1]
+    soft[:-1] |= gt[1:]
+    return soft
+
+
+def same_figure(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return abs(a - b) <= 1e-9
+
+
+def assert_same_evaluation(got: dict, want: dict) -> None:
+    """Equal to 1e-9 (thresholds, figures), exactly for every count and flag."""
+    assert list(got) == ["methods"]
+    assert list(got["methods"]) == list(want["methods"])
+    for name, w in want["methods"].items():
+        g = got["methods"][name]
+        assert (g["segments_counted"], g["segments_skipped"]) == (
+            w["segments_counted"], w["segments_skipped"]), name
+        for key in ("pct_segs", "avg_recall", "threshold_mse"):
+            assert same_figure(g[key], w[key]), (name, key, g[key], w[key])
+        assert len(g["segments"]) == len(w["segments"]), name
+        for gs, ws in zip(g["segments"], w["segments"]):
+            assert list(gs) == SEGMENT_KEYS, name
+            for key in ("start", "end", "tp", "fp", "positives", "meets"):
+                assert gs[key] == ws[key], (name, key, gs, ws)
+            for key in ("threshold", "oracle_threshold", "precision", "recall"):
+                a, b = gs[key], ws[key]
+                assert (math.isinf(a) and a == b) or abs(a - b) <= 1e-9, (name, key, gs, ws)
+
+
+@functools.cache
+def expected(root: Path, dataset: str, technique: str, matching: str, precision: float):
+    s, gt = load(root, dataset, technique)
+    return ref.evaluate(s, gt, matching=matching, precision=precision)
+
+
+# ---------------------------------------------------------------------------------------
+# Wheel vs reference on real data
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("matching", ["single", "multi"])
+@pytest.mark.parametrize("precision", [1.0, 0.9])
+def test_corridor_every_method(shared_data, technique, matching, precision):
+    s, gt = load(shared_data, "vprbench-corridor", technique)
+    got = qtvpr.evaluate(s, gt, matching=matching, precision=precision)
+    assert_same_evaluation(got, expected(shared_data, "vprbench-corridor", technique, matching, precision))
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("matching", ["single", "multi"])
+def test_spedtest_every_method(shared_data, technique, matching):
+    # tau = 0.9 on three of them keeps the run short; the sweep differs from tau = 1.
+    for precision in (1.0, 0.9) if technique in ("CoHOG", "NetVLAD", "HOG") else (1.0,):
+        s, gt = load(shared_data, "vprbench-spedtest", technique)
+        got = qtvpr.evaluate(s, gt, matching=matching, precision=precision)
+        assert_same_evaluation(got, expected(shared_data, "vprbench-spedtest", technique, matching, precision))
+
+
+@pytest.mark.parametrize("technique", ["AMOSNet", "CoHOG", "NetVLAD"])
+@pytest.mark.parametrize("matching", ["single", "multi"])
+def test_soft_ground_truth_and_query_major(shared_data, technique, matching):
+    s, gt = load(shared_data, "vprbench-corridor", technique)
+    soft = soft_of(gt)
+    kwargs = dict(matching=matching, precision=0.9, k=5, segment_size=4)
+    want = ref.evaluate(s, gt, gt_soft=soft, **kwargs)
+    assert_same_evaluation(qtvpr.evaluate(s, gt, gt_soft=soft, **kwargs), want)
+    # VPR-Bench's own layout, |Q| x |DB|, in Fortran order and with integer labels.
+    got = qtvpr.evaluate(np.asfortranarray(s.T), gt.T.astype(np.uint8), gt_soft=soft.T,
+                         query_major=True, **kwargs)
+    assert_same_evaluation(got, want)
+    assert_same_evaluation(
+        ref.evaluate(s.T, gt.T, gt_soft=soft.T, query_major=True, **kwargs), want)
+
+
+@pytest.mark.parametrize("cal_fraction", [0.01, 0.05, 0.2, 0.5])
+def test_fixed_deployment_protocol(shared_data, cal_fraction):
+    """The calibration-size ablation: the last 50% deploy whatever the calibration size."""
+    s, gt = load(shared_data, "vprbench-spedtest", "NetVLAD")
+    kwargs = dict(cal_fraction=cal_fraction, deploy_fraction=0.5)
+    want = ref.evaluate(s, gt, **kwargs)
+    got = qtvpr.evaluate(s, gt, **kwargs)
+    assert_same_evaluation(got, want)
+    # 607 queries: the last floor(303.5) = 303 deploy, in floor(303 / 7) = 43 segments of 7.
+    assert [(r["start"], r["end"]) for r in got["methods"]["oracle"]["segments"]][-1] == (294, 301)
+    # The oracle and per-segment Schubert depend on the deployment set only.
+    base = qtvpr.evaluate(s, gt, cal_fraction=0.1, deploy_fraction=0.5, methods=["oracle", "schubert"])
+    for name in ("oracle", "schubert"):
+        assert got["methods"][name] == base["methods"][name]
+
+
+def test_methods_subset_and_order(shared_data):
+    s, gt = load(shared_data, "vprbench-corridor", "HOG")
+    methods = ["oracle", "schubert", "quantile-transfer"]
+    got = qtvpr.evaluate(s, gt, methods=methods, cal_queries=20, segment_fraction=0.05)
+    assert list(got["methods"]) == methods
+    assert_same_evaluation(got, ref.evaluate(s, gt, methods=methods, cal_queries=20, segment_fraction=0.05))
+
+
+def test_schubert_threshold(shared_data):
+    for technique in ("CoHOG", "HOG"):  # float32 and float64
+        s, _ = load(shared_data, "vprbench-spedtest", technique)
+        assert abs(qtvpr.schubert_threshold(s) - ref.schubert_threshold(s)) <= 1e-12
+        assert qtvpr.schubert_threshold(s.T) == qtvpr.schubert_threshold(s)
+
+
+# ---------------------------------------------------------------------------------------
+# CLI vs reference
+# ---------------------------------------------------------------------------------------
+
+
+def from_json(out: dict) -> dict:
+    """The CLI's JSON in the reference's form: null thresholds are reject-all."""
+    methods = {}
+    for name, m in out["methods"].items():
+        segments = []
+        for seg in m["segments"]:
+            seg = {k: seg[k] for k in SEGMENT_KEYS}
+            for key in ("threshold", "oracle_threshold"):
+                if seg[key] is None:
+                    seg[key] = math.inf
+            segments.append(seg)
+        methods[name] = {k: m[k] for k in ("pct_segs", "avg_recall", "segments_counted",
+                                           "segments_skipped", "threshold_mse")}
+        methods[name]["segments"] = segments
+    return {"methods": methods}
+
+
+@pytest.mark.parametrize(
+    ("dataset", "technique", "matching", "precision"),
+    [
+        ("vprbench-corridor", "AMOSNet", "single", 1.0),
+        ("vprbench-corridor", "CoHOG", "multi", 0.9),
+        ("vprbench-spedtest", "NetVLAD", "single", 0.9),
+        ("vprbench-spedtest", "HOG", "multi", 1.0),
+    ],
+)
+def test_cli_json_equals_reference(cli, shared_data, dataset, technique, matching, precision):
+    d = shared_data / dataset
+    res = run_cli(cli, "evaluate", "--similarity", d / f"S_{technique}.npy", "--gt", d / "GT.npy",
+                  "--matching", matching, "--precision", precision)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    n_q = load(shared_data, dataset, technique)[0].shape[1]
+    assert out["params"]["calibration_queries"] == n_q // 10
+    assert out["params"]["segment_size"] == math.ceil(0.01 * n_q)
+    assert_same_evaluation(from_json(out), expected(shared_data, dataset, technique, matching, precision))
+
+
+def test_cli_query_major_soft_ground_truth_and_protocol_options(cli, shared_data, tmp_path):
+    s, gt = load(shared_data, "vprbench-corridor", "NetVLAD")
+    soft = soft_of(gt)
+    for name, a in {"S": s.T, "GT": gt.T, "soft": soft.T}.items():
+        np.save(tmp_path / f"{name}.npy", a)
+    res = run_cli(cli, "evaluate", "--query-major", "--similarity", tmp_path / "S.npy",
+                  "--gt", tmp_path / "GT.npy", "--gt-soft", tmp_path / "soft.npy",
+                  "--cal-queries", 30, "--segment-size", 5, "--k", 3,
+                  "--method", "quantile-transfer,oracle,schubert-calibrated")
+    assert res.returncode == 0, res.stderr
+    want = ref.evaluate(s, gt, gt_soft=soft, cal_queries=30, segment_size=5, k=3,
+                        methods=["quantile-transfer", "oracle", "schubert-calibrated"])
+    assert_same_evaluation(from_json(json.loads(res.stdout)), want)
+
+
+def test_cli_ablation_rows_equal_reference(cli, shared_data):
+    d = shared_data / "vprbench-corridor"
+    res = run_cli(cli, "evaluate", "--similarity", d / "S_HOG.npy", "--gt", d / "GT.npy",
+                  "--cal-fraction", "0.05,0.3", "--method", "quantile-transfer,calibration-threshold")
+    assert res.returncode == 0, res.stderr
+    runs = json.loads(res.stdout)["ablation"]
+    s, gt = load(shared_data, "vprbench-corridor", "HOG")
+    for run, f in zip(runs, (0.05, 0.3), strict=True):
+        # 111 queries: the first floor(f x 111) calibrate, the last floor(55.5) = 55 deploy.
+        assert run["params"]["calibration_queries"] == math.floor(f * 111)
+        assert run["params"]["deployment_start"] == 111 - 55
+        want = ref.evaluate(s, gt, cal_fraction=f, deploy_fraction=0.5,
+                            methods=["quantile-transfer", "calibration-threshold"])
+        assert_same_evaluation(from_json(run), want)
+
+
+def test_cli_embedded_data_matches_the_reference(cli):
+    """The README's main command runs the reference protocol on data/corridor."""
+    res = run_cli(cli, "evaluate", "--format", "json")
+    assert res.returncode == 0, res.stderr
+    data = Path(__file__).resolve().parents[1] / "data" / "corridor"
+    s = np.concatenate([np.load(data / "cal_S.npy"), np.load(data / "deploy_S.npy")], axis=1)
+    gt = np.concatenate([np.load(data / "cal_GT.npy"), np.load(data / "deploy_GT.npy")], axis=1)
+    assert_same_evaluation(from_json(json.loads(res.stdout)), ref.evaluate(s, gt))
+
+
+# ---------------------------------------------------------------------------------------
+# Property tests on small random matrices
+# ---------------------------------------------------------------------------------------
+
+LEVELS = [-1.0, 0.0, 0.25, 0.5, 0.75, 1.0, 2.0]
+
+
+@st.composite
+def evaluate_cases(draw):
+    n_db = draw(st.integers(1, 8))
+    n_q = draw(st.integers(2, 14))
+    dtype = draw(st.sampled_from([np.float32, np.float64]))
+    levels = draw(st.lists(st.sampled_from(LEVELS), min_size=1, max_size=4, unique=True))
+    s = np.array(draw(st.lists(st.sampled_from(levels), min_size=n_db * n_q, max_size=n_db * n_q)),
+                 dtype=dtype).reshape(n_db, n_q)
+    p = draw(st.sampled_from([0.2, 0.5]))
+    bits = draw(st.lists(st.floats(0, 1), min_size=n_db * n_q, max_size=n_db * n_q))
+    gt = (np.array(bits) < p).reshape(n_db, n_q)
+    soft = gt | (np.roll(np.array(bits), 1).reshape(n_db, n_q) < 0.3) if draw(st.booleans()) else None
+    n_cal = draw(st.integers(1, n_q - 1))
+    kwargs = dict(
+        gt_soft=soft,
+        methods=draw(st.none() | st.lists(st.sampled_from(ref.METHODS), min_size=1, max_size=5)),
+        k=draw(st.integers(1, 6)),
+        precision=draw(st.sampled_from([1.0, 0.9, 0.5])),
+        matching=draw(st.sampled_from(["single", "multi"])),
+        cal_queries=n_cal,
+        segment_size=draw(st.integers(1, n_q - n_cal)),
+    )
+    if draw(st.booleans()):
+        kwargs["query_major"] = True
+        s, gt = s.T.copy(), gt.T.copy()
+        kwargs["gt_soft"] = None if soft is None else soft.T.copy()
+    return s, gt, kwargs
+
+
+@settings(max_examples=250, deadline=None, derandomize=True)
+@given(evaluate_cases())
+def test_random_matrices_equal_reference(case):
+    s, gt, kwargs = case
+    want = ref.evaluate(s, gt, **kwargs)
+    assert_same_evaluation(qtvpr.evaluate(s, gt, **kwargs), want)
+
+
+# ---------------------------------------------------------------------------------------
+# API and bad input
+# ---------------------------------------------------------------------------------------
+
+
+def test_signature_matches_reference():
+    for name in ("evaluate", "schubert_threshold"):
+        assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
+            return_annotation=inspect.Signature.empty
+        )
+    assert qtvpr.evaluate.__doc__ and "pct_segs" in qtvpr.evaluate.__doc__
+
+
+S7 = np.array([
+    [0.9, 0.2, 0.7, 0.1, 0.5, 0.2, 0.3],
+    [0.1, 0.95, 0.3, 0.6, 0.4, 0.9, 0.3],
+    [0.3, 0.4, 0.2, 0.5, 0.3, 0.1, 0.3],
+])
+G7 = np.zeros((3, 7), bool)
+G7[0, 0] = G7[2, 1] = G7[0, 2] = G7[2, 3] = True
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "match"),
+    [
+        (dict(methods=["magic"]), ValueError, "unknown method 'magic'"),
+        (dict(cal_queries=7), ValueError, "calibration set must have between 1 and 6"),
+        (dict(cal_queries=0), ValueError, "cal_queries must be >= 1"),
+        (dict(), ValueError, "calibration set"),  # floor(0.1 x 7) = 0
+        (dict(cal_fraction=1.5), ValueError, "cal_fraction must be in"),
+        (dict(cal_queries=2, segment_size=6), ValueError, "segment size 6 is larger than the 5"),
+        (dict(cal_queries=2, segment_size=0), ValueError, "segment_size must be >= 1"),
+        (dict(cal_queries=2, segment_fraction=0.0), ValueError, "segment_fraction must be in"),
+        (dict(cal_queries=2, deploy_fraction=1.0), ValueError, "deploy_fraction must be in"),
+        (dict(cal_queries=5, deploy_fraction=0.5), ValueError, "overlap"),  # 5 + floor(3.5) > 7
+        (dict(cal_queries=2, deploy_fraction=0.1), ValueError, "deployment set has no query"),
+        (dict(cal_queries=2, k=0), ValueError, "k must be >= 1"),
+        (dict(cal_queries=2, precision=0.0), ValueError, "precision must be in"),
+        (dict(cal_queries=2, matching="best"), ValueError, "matching must be"),
+        (dict(cal_queries=2, gt=G7[:, :6]), ValueError, "gt.* shape 3x6 does not match .*shape 3x7"),
+        (dict(cal_queries=2, s=S7.astype(np.int32)), TypeError, "s must be"),
+        (dict(cal_queries=2, gt=G7.astype(float)), TypeError, "gt must be"),
+        (dict(cal_queries=2, s=np.where(S7 > 0.8, np.nan, S7)), ValueError, "NaN"),
+    ],
+)
+@pytest.mark.parametrize("impl", [qtvpr, ref], ids=["wheel", "reference"])
+def test_bad_input(impl, kwargs, exc, match):
+    kwargs = dict(s=S7, gt=G7) | kwargs
+    with pytest.raises(exc, match=match):
+        impl.evaluate(kwargs.pop("s"), kwargs.pop("gt"), **kwargs)
