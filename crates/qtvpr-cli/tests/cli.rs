@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 use tempfile::TempDir;
 
 mod common;
-use common::{f64s, npy_bool, npy_f64, npy_raw};
+use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_raw};
 
 /// The `transfer.rs` unit-test example: |DB| = 3, two calibration, two deployment queries.
 struct Case {
@@ -56,22 +56,7 @@ impl Case {
     /// Assert a clean failure whose one-line message contains every `needle`.
     fn fails(&self, replace: &[(&str, PathBuf)], extra: &[&str], needles: &[&str]) {
         let out = self.run(replace, extra);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
-        assert!(stderr.starts_with("error: "), "{stderr}");
-        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-        assert!(
-            !stderr.contains("panicked") && !stderr.contains("backtrace"),
-            "{stderr}"
-        );
-        for needle in needles {
-            assert!(stderr.contains(needle), "{needle:?} not in {stderr}");
-        }
-        assert!(!self.path("out.json").exists(), "an output file was left behind");
-        let stray = std::fs::read_dir(self.dir.path())
-            .unwrap()
-            .any(|e| e.unwrap().file_name().to_string_lossy().starts_with(".tmp"));
-        assert!(!stray, "a temporary output file was left behind");
+        assert_clean_failure(&out, self.dir.path(), &[&self.path("out.json")], needles);
     }
 }
 
