@@ -117,10 +117,15 @@ pub fn run(args: &ThresholdArgs) -> Result<()> {
     };
     params.validate()?;
 
+    // The core reports positions and shapes in its |DB| x |Q| views; give them back in
+    // the files' orientation. (Errors of reading above are in that orientation already.)
+    let oriented = |e: qtvpr::Error| if args.query_major { e.transposed() } else { e };
     let cal = with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
+        .map_err(oriented)
         .with_context(|| format!("--cal {} / --cal-gt {}", args.cal.display(), args.cal_gt.display()))?;
-    let transfer =
-        with_view!(s_val, |v| cal.transfer(v, &params)).with_context(|| format!("--val {}", args.val.display()))?;
+    let transfer = with_view!(s_val, |v| cal.transfer(v, &params))
+        .map_err(oriented)
+        .with_context(|| format!("--val {}", args.val.display()))?;
 
     let (n_db, n_val) = s_val.dim();
     let report = Report {

@@ -76,7 +76,8 @@ impl Case {
                 .for_each(|(_, p)| *p = path.clone());
         }
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
-        cmd.arg("threshold");
+        // A panic would print a backtrace: make sure that none does.
+        cmd.env("RUST_BACKTRACE", "1").arg("threshold");
         for (flag, path) in files {
             cmd.arg(flag).arg(path);
         }
@@ -162,11 +163,20 @@ fn fortran_float32_and_integer_ground_truth_read_the_same() {
 fn big_endian_files_are_read_too() {
     // Big-endian data cannot be viewed in place; it is read and converted instead.
     let case = Case::new();
-    let cal: Vec<u8> = [3.0f64, 1.0, 1.0, 4.0, 2.0, 1.0].iter().flat_map(|x| x.to_be_bytes()).collect();
+    let cal: Vec<u8> = [3.0f64, 1.0, 1.0, 4.0, 2.0, 1.0]
+        .iter()
+        .flat_map(|x| x.to_be_bytes())
+        .collect();
     npy_raw(&case.path("cal_be.npy"), ">f8", false, &[3, 2], &cal);
-    let out = case.run(&[("--cal", case.path("cal_be.npy"))], &["--k", "1", "--matching", "multi", "--format", "csv"]);
+    let out = case.run(
+        &[("--cal", case.path("cal_be.npy"))],
+        &["--k", "1", "--matching", "multi", "--format", "csv"],
+    );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(std::fs::read_to_string(case.path("out.json")).unwrap(), "start,end,quantile,threshold\n0,2,0.5,3\n");
+    assert_eq!(
+        std::fs::read_to_string(case.path("out.json")).unwrap(),
+        "start,end,quantile,threshold\n0,2,0.5,3\n"
+    );
 }
 
 #[test]
@@ -228,7 +238,7 @@ fn shape_mismatches() {
         &[
             "--val",
             "val_short.npy",
-            "deployment similarity has 2 database rows but calibration similarity has 3",
+            "deployment similarity has 2 database images but calibration similarity has 3",
         ],
     );
 }
@@ -288,7 +298,11 @@ fn wrong_dimensions_and_dtypes() {
         );
     }
     npy_raw(&case.path("object.npy"), "|O", false, &[3, 2], &[0u8; 48]);
-    case.fails(&[("--cal", case.path("object.npy"))], &[], &["--cal", "object.npy"]);
+    case.fails(
+        &[("--cal", case.path("object.npy"))],
+        &[],
+        &["--cal", "object.npy has dtype |O"],
+    );
     npy_raw(
         &case.path("gt_float.npy"),
         "<f8",
@@ -330,6 +344,12 @@ fn broken_files() {
         &[("--val", case.path("truncated.npy"))],
         &[],
         &["--val", "truncated.npy is truncated"],
+    );
+    std::fs::write(case.path("cut_header.npy"), &good[..30]).unwrap();
+    case.fails(
+        &[("--cal", case.path("cut_header.npy"))],
+        &[],
+        &["--cal", "cut_header.npy is not a valid .npy file"],
     );
     let mut corrupt = good.clone();
     corrupt[12..20].copy_from_slice(b"garbage!");
@@ -394,5 +414,59 @@ fn npz_ground_truth() {
         &[("--cal-gt", case.path("bad.npz"))],
         &[],
         &["--cal-gt", "bad.npz is not a valid .npz archive"],
+    );
+}
+
+#[test]
+fn query_major_errors_use_the_files_orientation() {
+    // Query-major files are |Q| x |DB|: positions and shapes in messages are the files'.
+    let case = Case::new();
+    npy_f64(&case.path("cal_t.npy"), &[&[3.0, 1.0, 2.0], &[1.0, 4.0, 1.0]]);
+    npy_bool(&case.path("gt_t.npy"), &[&[1, 0, 1], &[1, 1, 0]]);
+    // NaN at the file's row 1, column 2 (the core sees row 2, column 1).
+    npy_f64(&case.path("val_t.npy"), &[&[2.0, 6.0, 4.0], &[2.0, 5.0, f64::NAN]]);
+    let files = [
+        ("--cal", case.path("cal_t.npy")),
+        ("--cal-gt", case.path("gt_t.npy")),
+        ("--val", case.path("val_t.npy")),
+    ];
+    case.fails(
+        &files,
+        &["--query-major"],
+        &["--val", "deployment similarity contains NaN at row 1, column 2"],
+    );
+    // Ground truth of 3 queries x 3 database images against 2 x 3 calibration scores.
+    npy_bool(&case.path("gt_tall.npy"), &[&[1, 0, 1], &[1, 1, 0], &[0, 0, 0]]);
+    case.fails(
+        &[
+            ("--cal", case.path("cal_t.npy")),
+            ("--cal-gt", case.path("gt_tall.npy")),
+            ("--val", case.path("cal_t.npy")),
+        ],
+        &["--query-major"],
+        &["ground truth shape 3x3 does not match calibration similarity shape 2x3"],
+    );
+    // A bad label is reported where it is in the file, query-major or not.
+    let gt: Vec<u8> = [1i16, 0, 1, 1, 1, 2].iter().flat_map(|x| x.to_le_bytes()).collect();
+    npy_raw(&case.path("gt_bad_t.npy"), "<i2", false, &[2, 3], &gt);
+    case.fails(
+        &[
+            ("--cal", case.path("cal_t.npy")),
+            ("--cal-gt", case.path("gt_bad_t.npy")),
+            ("--val", case.path("cal_t.npy")),
+        ],
+        &["--query-major"],
+        &["gt_bad_t.npy: ground truth has value 2 at row 1, column 2"],
+    );
+    // An empty query-major matrix: 0 queries x 3 database images.
+    npy_raw(&case.path("val_empty_t.npy"), "<f8", false, &[0, 3], &[]);
+    case.fails(
+        &[
+            ("--cal", case.path("cal_t.npy")),
+            ("--cal-gt", case.path("gt_t.npy")),
+            ("--val", case.path("val_empty_t.npy")),
+        ],
+        &["--query-major"],
+        &["deployment similarity is empty (shape 0x3)"],
     );
 }
