@@ -1,5 +1,6 @@
 """Type stubs of the compiled module; the docstrings are on the compiled objects."""
 
+import os
 from typing import Literal, TypedDict, final
 
 import numpy as np
@@ -8,6 +9,9 @@ from numpy.typing import ArrayLike, NDArray
 __version__: str
 
 _Matching = Literal["single", "multi"]
+# A matrix argument: an array, or the path of a .npy file (ground truth: .npy or a
+# VPR_Tutorial .npz with GThard and optional GTsoft), read by the same reader as the CLI.
+_Matrix = ArrayLike | str | os.PathLike[str]
 
 class _Counts(TypedDict):
     tp: int
@@ -37,16 +41,16 @@ class TransferResult:
 class Calibration:
     def __init__(
         self,
-        s_cal: ArrayLike,
-        gt_cal: ArrayLike,
+        s_cal: _Matrix,
+        gt_cal: _Matrix,
         *,
-        gt_soft: ArrayLike | None = None,
+        gt_soft: _Matrix | None = None,
         matching: _Matching = "single",
         query_major: bool = False,
     ) -> None: ...
     def transfer(
         self,
-        s_val: ArrayLike,
+        s_val: _Matrix,
         *,
         k: int = 10,
         precision: float = 1.0,
@@ -59,11 +63,11 @@ class Calibration:
     def matching(self) -> _Matching: ...
 
 def quantile_transfer(
-    s_cal: ArrayLike,
-    gt_cal: ArrayLike,
-    s_val: ArrayLike,
+    s_cal: _Matrix,
+    gt_cal: _Matrix,
+    s_val: _Matrix,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     k: int = 10,
     precision: float = 1.0,
     matching: _Matching = "single",
@@ -71,26 +75,26 @@ def quantile_transfer(
     query_major: bool = False,
 ) -> TransferResult: ...
 def best_threshold(
-    s: ArrayLike,
-    gt: ArrayLike,
+    s: _Matrix,
+    gt: _Matrix,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     precision: float = 1.0,
     matching: _Matching = "single",
     query_major: bool = False,
 ) -> float: ...
 def counts(
-    s: ArrayLike,
-    gt: ArrayLike,
+    s: _Matrix,
+    gt: _Matrix,
     threshold: float,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     matching: _Matching = "single",
     query_major: bool = False,
 ) -> _Counts: ...
 def ranked_correlation(
-    s_val: ArrayLike,
-    s_cal: ArrayLike,
+    s_val: _Matrix,
+    s_cal: _Matrix,
     *,
     query_major: bool = False,
 ) -> NDArray[np.float64]: ...

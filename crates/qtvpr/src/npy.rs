@@ -335,31 +335,64 @@ fn ground_truth_of<R: Read>(npy: NpyFile<R>, path: &Path, hard: Option<GroundTru
 ///
 /// `hard` may be an `.npy` file or an `.npz` archive in the VPR_Tutorial convention
 /// (`GThard`, optional `GTsoft`); an explicit `soft` file takes precedence over `GTsoft`.
+/// The result is in the files' orientation, as are the positions in its errors.
 ///
 /// # Errors
 /// As [`read_scores`] (with bool/integer in place of float), an `.npz` without
 /// `GThard`, and [`Error::InFile`] around [`Error::BadLabel`] / [`Error::ShapeMismatch`]
 /// for the labels.
 pub fn read_ground_truth(hard: &Path, soft: Option<&Path>) -> Result<GroundTruth> {
-    let is_npz = hard.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
-    let gt = if is_npz {
-        let mut npz = NpzArchive::new(io::BufReader::new(open_file(hard)?))
-            .map_err(|e| file_error(hard, format!("is not a valid .npz archive: {e}")))?;
-        let npy = npz
-            .by_name("GThard")
-            .map_err(|e| file_error(hard, format!("cannot read GThard: {e}")))?
-            .ok_or_else(|| file_error(hard, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
-        let gt = ground_truth_of(npy, hard, None)?;
+    let gt = if is_npz(hard) {
+        let (gt, mut npz) = read_gthard(hard)?;
         match (soft, npz.by_name("GTsoft")) {
             (None, Ok(Some(npy))) => return ground_truth_of(npy, hard, Some(gt)),
             (None, Err(e)) => return Err(file_error(hard, format!("cannot read GTsoft: {e}"))),
             _ => gt,
         }
     } else {
-        ground_truth_of(parse(io::BufReader::new(open_file(hard)?), hard)?, hard, None)?
+        read_hard_ground_truth(hard)?
     };
     match soft {
-        Some(path) => ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(gt)),
+        Some(path) => add_soft_ground_truth(gt, path),
         None => Ok(gt),
     }
+}
+
+/// Read hard ground truth only: an `.npy` file, or `GThard` of an `.npz` archive (its
+/// `GTsoft`, if any, is not read). For a caller that has the soft ground truth elsewhere.
+///
+/// # Errors
+/// As [`read_ground_truth`].
+pub fn read_hard_ground_truth(path: &Path) -> Result<GroundTruth> {
+    if is_npz(path) {
+        Ok(read_gthard(path)?.0)
+    } else {
+        ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, None)
+    }
+}
+
+/// Add the soft ground truth of `.npy` file `path` to `hard` (entries soft but not hard
+/// become ignored).
+///
+/// # Errors
+/// As [`read_ground_truth`]; a shape other than `hard`'s is an [`Error::InFile`] around
+/// [`Error::ShapeMismatch`].
+pub fn add_soft_ground_truth(hard: GroundTruth, path: &Path) -> Result<GroundTruth> {
+    ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(hard))
+}
+
+fn is_npz(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"))
+}
+
+/// `GThard` of an `.npz` archive, and the archive (for its `GTsoft`).
+fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<io::BufReader<File>>)> {
+    let mut npz = NpzArchive::new(io::BufReader::new(open_file(path)?))
+        .map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))?;
+    let npy = npz
+        .by_name("GThard")
+        .map_err(|e| file_error(path, format!("cannot read GThard: {e}")))?
+        .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
+    let gt = ground_truth_of(npy, path, None)?;
+    Ok((gt, npz))
 }
