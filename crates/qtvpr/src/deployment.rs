@@ -70,7 +70,15 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
         return x_lo;
     }
     let x_hi = next_value(s, to_key(x_lo), lo);
-    x_lo + (h - lo as f64) * (x_hi - x_lo)
+    let f = h - lo as f64;
+    let t = x_lo + f * (x_hi - x_lo);
+    if t.is_finite() {
+        t
+    } else {
+        // x_hi - x_lo overflowed (scores near +-f64::MAX): the same point, as a convex
+        // combination, which cannot overflow; clamped against rounding.
+        ((1.0 - f) * x_lo + f * x_hi).clamp(x_lo, x_hi)
+    }
 }
 
 /// Order-preserving map from `f64` to `u64` (both zeros map to the key of +0).
