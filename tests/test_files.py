@@ -390,3 +390,13 @@ def test_oserror_subclasses_carry_the_file(tmp_path):
         qtvpr.Calibration(S_CAL, d)
     assert isinstance(info.value, IsADirectoryError)
     assert os.fspath(d) in str(info.value)
+
+
+def test_headers_claiming_impossible_shapes(tmp_path):
+    """Regression: an element count that overflows 64 bits used to wrap and panic."""
+    for descr, argument in [("|b1", "gt"), ("<f8", "s"), (">f8", "s")]:
+        path = npy_raw(tmp_path / "huge.npy", descr, (1 << 32, 1 << 32), bytes(16))
+        args = (S_CAL, path) if argument == "gt" else (path, GT_CAL)
+        with pytest.raises(ValueError) as info:
+            qtvpr.best_threshold(*args)
+        check(info, ValueError, argument, path, "is corrupt: its shape 4294967296x4294967296 is larger than any file")

@@ -470,3 +470,46 @@ fn query_major_errors_use_the_files_orientation() {
         &["deployment similarity is empty (shape 0x3)"],
     );
 }
+
+#[test]
+fn headers_claiming_impossible_shapes() {
+    // Regression: a shape whose element count overflows 64 bits wraps to 0 in npyz (it
+    // multiplies unchecked), passed the reader's length check, and the reader panicked
+    // building the array (debug builds panicked inside npyz). Found reading npyz for
+    // the fuzz/npy_read target.
+    let case = Case::new();
+    let huge = 1usize << 32;
+    for (flag, descr) in [
+        ("--cal-gt", "|b1"),
+        ("--cal", "<f8"),
+        ("--val", ">f8"),
+        ("--cal-gt", "<i8"),
+    ] {
+        npy_raw(&case.path("huge.npy"), descr, false, &[huge, huge], &[0u8; 16]);
+        case.fails(
+            &[(flag, case.path("huge.npy"))],
+            &[],
+            &[
+                flag,
+                "huge.npy is corrupt: its shape 4294967296x4294967296 is larger than any file",
+            ],
+        );
+    }
+    // 2^63 bytes: more than isize::MAX, which no array can hold.
+    npy_raw(&case.path("large.npy"), "|b1", false, &[1 << 40, 1 << 23], &[1u8; 16]);
+    case.fails(
+        &[("--cal-gt", case.path("large.npy"))],
+        &[],
+        &[
+            "--cal-gt",
+            "large.npy is corrupt: its shape 1099511627776x8388608 is larger than any file",
+        ],
+    );
+    // Large but possible: simply truncated.
+    npy_raw(&case.path("large.npy"), "|b1", false, &[1 << 30, 1 << 20], &[1u8; 16]);
+    case.fails(
+        &[("--cal-gt", case.path("large.npy"))],
+        &[],
+        &["--cal-gt", "large.npy is truncated"],
+    );
+}

@@ -182,7 +182,20 @@ fn dtype_name<R: Read>(npy: &NpyFile<R>) -> String {
 
 fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(usize, usize)> {
     match npy.shape() {
-        &[rows, cols] => Ok((rows as usize, cols as usize)),
+        &[rows, cols] => {
+            // A corrupt header may claim more bytes than an address space holds; its
+            // element count would wrap and pass a later length check.
+            let bytes = rows
+                .checked_mul(cols)
+                .and_then(|n| n.checked_mul(npy.dtype().num_bytes().unwrap_or(1) as u64));
+            if bytes.is_none_or(|b| b > isize::MAX as u64) {
+                return Err(file_error(
+                    path,
+                    format!("is corrupt: its shape {rows}x{cols} is larger than any file"),
+                ));
+            }
+            Ok((rows as usize, cols as usize))
+        }
         shape => Err(file_error(
             path,
             format!(
