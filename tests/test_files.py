@@ -400,3 +400,24 @@ def test_headers_claiming_impossible_shapes(tmp_path):
         with pytest.raises(ValueError) as info:
             qtvpr.best_threshold(*args)
         check(info, ValueError, argument, path, "is corrupt: its shape 4294967296x4294967296 is larger than any file")
+
+
+def test_deeply_nested_headers_fail_fast(tmp_path):
+    """Regression (found by fuzz/npy_read, a hang): npyz's header parser backtracks
+    exponentially in bracket nesting, so such headers are refused before it runs."""
+    import zipfile
+
+    header = "{'descr': '|b1', 'shape': " + "[" * 100 + "('fortran'" * 3
+    header += " " * ((-(10 + len(header) + 1)) % 64) + "\n"
+    raw = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode()
+    npy = tmp_path / "nested.npy"
+    npy.write_bytes(raw)
+    with pytest.raises(ValueError) as info:
+        qtvpr.best_threshold(npy, GT_CAL)
+    check(info, ValueError, "s", npy, "is not a valid .npy file: its header nests brackets 104 deep")
+    npz = tmp_path / "nested.npz"
+    with zipfile.ZipFile(npz, "w") as z:
+        z.writestr("GThard.npy", raw)
+    with pytest.raises(ValueError) as info:
+        qtvpr.best_threshold(S_CAL, npz)
+    check(info, ValueError, "gt", npz, "is not a valid .npy file: its header nests brackets 104 deep")

@@ -513,3 +513,48 @@ fn headers_claiming_impossible_shapes() {
         &["--cal-gt", "large.npy is truncated"],
     );
 }
+
+#[test]
+fn deeply_nested_headers_fail_fast() {
+    // Regression: npyz's header parser backtracks exponentially in bracket nesting; a
+    // 100-byte header of `[[[[...` never finished. Found by fuzz/npy_read (a hang).
+    let case = Case::new();
+    let nested = |depth: usize| {
+        let mut header = format!("{{'descr': '|b1', 'shape': {}", "[".repeat(depth));
+        header.push_str(&"('fortran'".repeat(3));
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend((header.len() as u16).to_le_bytes());
+        bytes.extend(header.as_bytes());
+        bytes
+    };
+    std::fs::write(case.path("nested.npy"), nested(100)).unwrap();
+    case.fails(
+        &[("--cal-gt", case.path("nested.npy"))],
+        &[],
+        &[
+            "--cal-gt",
+            "nested.npy is not a valid .npy file: its header nests brackets 104 deep",
+        ],
+    );
+    case.fails(
+        &[("--val", case.path("nested.npy"))],
+        &[],
+        &[
+            "--val",
+            "nested.npy is not a valid .npy file: its header nests brackets 104 deep",
+        ],
+    );
+    // At the deepest nesting allowed (6) the parser still answers at once.
+    std::fs::write(case.path("nested.npy"), nested(2)).unwrap();
+    let start = std::time::Instant::now();
+    case.fails(
+        &[("--val", case.path("nested.npy"))],
+        &[],
+        &["--val", "is not a valid .npy file"],
+    );
+    assert!(start.elapsed().as_secs() < 10);
+}
