@@ -8,7 +8,10 @@
 //! truth (bool or integer 0/1) is read by npyz and turned into a [`GroundTruth`] at once;
 //! an `.npz` in the VPR_Tutorial convention (`GThard`, optional `GTsoft`) is accepted.
 //!
-//! Every error names the file and says what is wrong with it.
+//! Every error names the file and says what is wrong with it. A header is checked before
+//! npyz parses it (at most 10000 bytes, as NumPy's `max_header_size`, and brackets at
+//! most 6 deep), and a shape is checked against the largest possible array, so that a
+//! corrupt or hostile file can neither hang the parser nor make the reader panic.
 
 use std::fs::File;
 use std::io::{self, Cursor, Read};
