@@ -7,7 +7,13 @@ that has ground truth.
 
 Similarity matrices are |DB| x |Q| (one column per query; pass ``query_major=True`` for
 |Q| x |DB|), float32 or float64, higher meaning more similar. Ground truth is bool or
-integer 0/1 of the same shape.
+integer 0/1 of the same shape. Any matrix argument may also be the path of a ``.npy``
+file (ground truth: ``.npy`` or a VPR_Tutorial ``.npz``), read by the CLI's reader;
+similarity files are memory-mapped.
+
+Bad input raises ``ValueError`` (``TypeError`` for a wrong dtype; ``FileNotFoundError``,
+``IsADirectoryError``, ``PermissionError`` or ``OSError`` for a file that cannot be
+read), with a message naming the argument, the file and what is wrong.
 
 >>> import numpy as np, qtvpr
 >>> s_cal = np.array([[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]])

@@ -2,6 +2,7 @@
 
 from typing import Literal, TypedDict, TypeVar, final
 from collections.abc import Iterable
+import os
 from typing import Literal, TypedDict, final
 
 import numpy as np
@@ -13,6 +14,9 @@ _Matching = Literal["single", "multi"]
 _Method = Literal[
     "quantile-transfer", "schubert", "schubert-calibrated", "calibration-threshold", "oracle"
 ]
+# A matrix argument: an array, or the path of a .npy file (ground truth: .npy or a
+# VPR_Tutorial .npz with GThard and optional GTsoft), read by the same reader as the CLI.
+_Matrix = ArrayLike | str | os.PathLike[str]
 
 class _Counts(TypedDict):
     tp: int
@@ -65,16 +69,16 @@ class TransferResult:
 class Calibration:
     def __init__(
         self,
-        s_cal: ArrayLike,
-        gt_cal: ArrayLike,
+        s_cal: _Matrix,
+        gt_cal: _Matrix,
         *,
-        gt_soft: ArrayLike | None = None,
+        gt_soft: _Matrix | None = None,
         matching: _Matching = "single",
         query_major: bool = False,
     ) -> None: ...
     def transfer(
         self,
-        s_val: ArrayLike,
+        s_val: _Matrix,
         *,
         k: int = 10,
         precision: float = 1.0,
@@ -87,11 +91,11 @@ class Calibration:
     def matching(self) -> _Matching: ...
 
 def quantile_transfer(
-    s_cal: ArrayLike,
-    gt_cal: ArrayLike,
-    s_val: ArrayLike,
+    s_cal: _Matrix,
+    gt_cal: _Matrix,
+    s_val: _Matrix,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     k: int = 10,
     precision: float = 1.0,
     matching: _Matching = "single",
@@ -99,26 +103,26 @@ def quantile_transfer(
     query_major: bool = False,
 ) -> TransferResult: ...
 def best_threshold(
-    s: ArrayLike,
-    gt: ArrayLike,
+    s: _Matrix,
+    gt: _Matrix,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     precision: float = 1.0,
     matching: _Matching = "single",
     query_major: bool = False,
 ) -> float: ...
 def counts(
-    s: ArrayLike,
-    gt: ArrayLike,
+    s: _Matrix,
+    gt: _Matrix,
     threshold: float,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     matching: _Matching = "single",
     query_major: bool = False,
 ) -> _Counts: ...
 def ranked_correlation(
-    s_val: ArrayLike,
-    s_cal: ArrayLike,
+    s_val: _Matrix,
+    s_cal: _Matrix,
     *,
     query_major: bool = False,
 ) -> NDArray[np.float64]: ...

@@ -384,7 +384,13 @@ def _linear_quantile(scores: np.ndarray, q: float) -> float:
     lo = math.floor(h)
     if lo + 1 >= n:
         return float(x[lo])
-    return float(x[lo] + (h - lo) * (x[lo + 1] - x[lo]))
+    x_lo, x_hi, f = float(x[lo]), float(x[lo + 1]), h - lo
+    t = x_lo + f * (x_hi - x_lo)
+    if not math.isfinite(t):
+        # x_hi - x_lo overflowed (scores near +-float max): the same point as a convex
+        # combination, clamped against rounding.
+        t = min(max((1 - f) * x_lo + f * x_hi, x_lo), x_hi)
+    return t
 
 
 def _segments(n_queries: int, segment_size: int | None) -> list[tuple[int, int]]:

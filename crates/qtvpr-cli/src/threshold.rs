@@ -104,6 +104,9 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     };
     params.validate()?;
     // Errors about a file's content name the file; the flag says which input it was.
+    // The core reports positions and shapes in its |DB| x |Q| views; give them back in
+    // the files' orientation.
+    let oriented = |e: qtvpr::Error| if args.query_major { e.transposed() } else { e };
     let s_val = read_scores(&args.val).context("--val")?;
     let s_val = orient(s_val.view(), args.query_major);
     // The calibration inputs are dropped (and unmapped) once the calibration is built.
@@ -113,11 +116,13 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         let gt_source = args.cal_gt.source();
         let gt = gt_source.load(s_cal.dim(), args.query_major)?;
         with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
+            .map_err(oriented)
             .with_context(|| format!("--cal {} / {}", args.cal.display(), gt_source.describe()))?
     };
     let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
     let transfer = with_view!(s_val, |v| cal
         .transfer_with_progress(v, &params, |done, _| bar.set_position(done as u64)))
+    .map_err(oriented)
     .with_context(|| format!("--val {}", args.val.display()))?;
     bar.finish_and_clear();
 

@@ -43,7 +43,8 @@ impl Case {
                 .for_each(|(_, p)| *p = path.clone());
         }
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
-        cmd.arg("threshold");
+        // A panic would print a backtrace: make sure that none does.
+        cmd.env("RUST_BACKTRACE", "1").arg("threshold");
         for (flag, path) in files {
             cmd.arg(flag).arg(path);
         }
@@ -189,7 +190,7 @@ fn shape_mismatches() {
         &[
             "--val",
             "val_short.npy",
-            "deployment similarity has 2 database rows but calibration similarity has 3",
+            "deployment similarity has 2 database images but calibration similarity has 3",
         ],
     );
 }
@@ -249,7 +250,11 @@ fn wrong_dimensions_and_dtypes() {
         );
     }
     npy_raw(&case.path("object.npy"), "|O", false, &[3, 2], &[0u8; 48]);
-    case.fails(&[("--cal", case.path("object.npy"))], &[], &["--cal", "object.npy"]);
+    case.fails(
+        &[("--cal", case.path("object.npy"))],
+        &[],
+        &["--cal", "object.npy has dtype |O"],
+    );
     npy_raw(
         &case.path("gt_float.npy"),
         "<f8",
@@ -291,6 +296,12 @@ fn broken_files() {
         &[("--val", case.path("truncated.npy"))],
         &[],
         &["--val", "truncated.npy is truncated"],
+    );
+    std::fs::write(case.path("cut_header.npy"), &good[..30]).unwrap();
+    case.fails(
+        &[("--cal", case.path("cut_header.npy"))],
+        &[],
+        &["--cal", "cut_header.npy is not a valid .npy file"],
     );
     let mut corrupt = good.clone();
     corrupt[12..20].copy_from_slice(b"garbage!");
@@ -356,4 +367,146 @@ fn npz_ground_truth() {
         &[],
         &["--cal-gt", "bad.npz is not a valid .npz archive"],
     );
+}
+
+#[test]
+fn query_major_errors_use_the_files_orientation() {
+    // Query-major files are |Q| x |DB|: positions and shapes in messages are the files'.
+    let case = Case::new();
+    npy_f64(&case.path("cal_t.npy"), &[&[3.0, 1.0, 2.0], &[1.0, 4.0, 1.0]]);
+    npy_bool(&case.path("gt_t.npy"), &[&[1, 0, 1], &[1, 1, 0]]);
+    // NaN at the file's row 1, column 2 (the core sees row 2, column 1).
+    npy_f64(&case.path("val_t.npy"), &[&[2.0, 6.0, 4.0], &[2.0, 5.0, f64::NAN]]);
+    let files = [
+        ("--cal", case.path("cal_t.npy")),
+        ("--cal-gt", case.path("gt_t.npy")),
+        ("--val", case.path("val_t.npy")),
+    ];
+    case.fails(
+        &files,
+        &["--query-major"],
+        &["--val", "deployment similarity contains NaN at row 1, column 2"],
+    );
+    // Ground truth of 3 queries x 3 database images against 2 x 3 calibration scores.
+    npy_bool(&case.path("gt_tall.npy"), &[&[1, 0, 1], &[1, 1, 0], &[0, 0, 0]]);
+    case.fails(
+        &[
+            ("--cal", case.path("cal_t.npy")),
+            ("--cal-gt", case.path("gt_tall.npy")),
+            ("--val", case.path("cal_t.npy")),
+        ],
+        &["--query-major"],
+        &["ground truth shape 3x3 does not match calibration similarity shape 2x3"],
+    );
+    // A bad label is reported where it is in the file, query-major or not.
+    let gt: Vec<u8> = [1i16, 0, 1, 1, 1, 2].iter().flat_map(|x| x.to_le_bytes()).collect();
+    npy_raw(&case.path("gt_bad_t.npy"), "<i2", false, &[2, 3], &gt);
+    case.fails(
+        &[
+            ("--cal", case.path("cal_t.npy")),
+            ("--cal-gt", case.path("gt_bad_t.npy")),
+            ("--val", case.path("cal_t.npy")),
+        ],
+        &["--query-major"],
+        &["gt_bad_t.npy: ground truth has value 2 at row 1, column 2"],
+    );
+    // An empty query-major matrix: 0 queries x 3 database images.
+    npy_raw(&case.path("val_empty_t.npy"), "<f8", false, &[0, 3], &[]);
+    case.fails(
+        &[
+            ("--cal", case.path("cal_t.npy")),
+            ("--cal-gt", case.path("gt_t.npy")),
+            ("--val", case.path("val_empty_t.npy")),
+        ],
+        &["--query-major"],
+        &["deployment similarity is empty (shape 0x3)"],
+    );
+}
+
+#[test]
+fn headers_claiming_impossible_shapes() {
+    // Regression: a shape whose element count overflows 64 bits wraps to 0 in npyz (it
+    // multiplies unchecked), passed the reader's length check, and the reader panicked
+    // building the array (debug builds panicked inside npyz). Found reading npyz for
+    // the fuzz/npy_read target.
+    let case = Case::new();
+    let huge = 1usize << 32;
+    for (flag, descr) in [
+        ("--cal-gt", "|b1"),
+        ("--cal", "<f8"),
+        ("--val", ">f8"),
+        ("--cal-gt", "<i8"),
+    ] {
+        npy_raw(&case.path("huge.npy"), descr, false, &[huge, huge], &[0u8; 16]);
+        case.fails(
+            &[(flag, case.path("huge.npy"))],
+            &[],
+            &[
+                flag,
+                "huge.npy is corrupt: its shape 4294967296x4294967296 is larger than any file",
+            ],
+        );
+    }
+    // 2^63 bytes: more than isize::MAX, which no array can hold.
+    npy_raw(&case.path("large.npy"), "|b1", false, &[1 << 40, 1 << 23], &[1u8; 16]);
+    case.fails(
+        &[("--cal-gt", case.path("large.npy"))],
+        &[],
+        &[
+            "--cal-gt",
+            "large.npy is corrupt: its shape 1099511627776x8388608 is larger than any file",
+        ],
+    );
+    // Large but possible: simply truncated.
+    npy_raw(&case.path("large.npy"), "|b1", false, &[1 << 30, 1 << 20], &[1u8; 16]);
+    case.fails(
+        &[("--cal-gt", case.path("large.npy"))],
+        &[],
+        &["--cal-gt", "large.npy is truncated"],
+    );
+}
+
+#[test]
+fn deeply_nested_headers_fail_fast() {
+    // Regression: npyz's header parser backtracks exponentially in bracket nesting; a
+    // 100-byte header of `[[[[...` never finished. Found by fuzz/npy_read (a hang).
+    let case = Case::new();
+    let nested = |depth: usize| {
+        let mut header = format!("{{'descr': '|b1', 'shape': {}", "[".repeat(depth));
+        header.push_str(&"('fortran'".repeat(3));
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend((header.len() as u16).to_le_bytes());
+        bytes.extend(header.as_bytes());
+        bytes
+    };
+    std::fs::write(case.path("nested.npy"), nested(100)).unwrap();
+    case.fails(
+        &[("--cal-gt", case.path("nested.npy"))],
+        &[],
+        &[
+            "--cal-gt",
+            "nested.npy is not a valid .npy file: its header nests brackets 104 deep",
+        ],
+    );
+    case.fails(
+        &[("--val", case.path("nested.npy"))],
+        &[],
+        &[
+            "--val",
+            "nested.npy is not a valid .npy file: its header nests brackets 104 deep",
+        ],
+    );
+    // At the deepest nesting allowed (6) the parser still answers at once.
+    std::fs::write(case.path("nested.npy"), nested(2)).unwrap();
+    let start = std::time::Instant::now();
+    case.fails(
+        &[("--val", case.path("nested.npy"))],
+        &[],
+        &["--val", "is not a valid .npy file"],
+    );
+    assert!(start.elapsed().as_secs() < 10);
 }

@@ -19,13 +19,22 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// or ``"multi"`` (every entry is a candidate). ``query_major=True`` takes every matrix
 /// as |Qcal| x |DB| instead.
 ///
+/// Every matrix may also be given as a path (``str`` or ``os.PathLike``) to a ``.npy``
+/// file (``gt_cal`` also a VPR_Tutorial ``.npz`` with ``GThard`` and optional
+/// ``GTsoft``; an explicit ``gt_soft`` takes precedence over ``GTsoft``), read by the
+/// same reader as ``qtvpr-cli``. Similarity files are memory-mapped: a path is the
+/// zero-copy way to pass a matrix too large to load.
+///
 /// Everything that depends on the calibration traverse alone (ranked profiles,
 /// candidates) is computed here, once; each :meth:`transfer` reuses it. Arrays are read
 /// in place and the GIL is released while the work runs.
 ///
-/// Raises ``TypeError`` for an unsupported dtype and ``ValueError`` for bad input
-/// (shape mismatch, empty matrix, NaN or infinite score, label other than 0/1,
-/// unknown ``matching``).
+/// Raises ``TypeError`` for an unsupported dtype (of an array or a file),
+/// ``ValueError`` for bad input (shape mismatch, empty matrix, NaN or infinite score,
+/// label other than 0/1, truncated or corrupt file, unknown ``matching``), and for a
+/// file that cannot be read ``FileNotFoundError``, ``IsADirectoryError``,
+/// ``PermissionError`` or ``OSError``. Messages name the argument, the file and the
+/// offending shape or value (positions as the caller stored the matrix).
 #[pyclass(frozen, module = "qtvpr", name = "Calibration")]
 pub(crate) struct PyCalibration {
     inner: qtvpr::Calibration,
@@ -51,8 +60,9 @@ impl PyCalibration {
         let s = Scores::extract("s_cal", s_cal)?;
         let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
         let (s, gt) = (s.view(query_major), gt.view(query_major));
+        let gt = py.detach(|| gt.build())?;
         let inner = py
-            .detach(|| with_scores!(s, s => qtvpr::Calibration::new(s, &gt.build()?, matching)))
+            .detach(|| with_scores!(s, s => qtvpr::Calibration::new(s, &gt, matching)))
             .map_err(|e| args.error(e))?;
         Ok(Self { inner })
     }
@@ -65,12 +75,14 @@ impl PyCalibration {
     /// turned into a quantile of their scores; each segment of ``segment_size``
     /// consecutive deployment queries (``None``: all of them in one segment; a shorter
     /// last segment is kept) gets the weighted-median quantile of its queries, read off
-    /// its own scores. ``query_major=True`` takes ``s_val`` as |Qval| x |DB|.
+    /// its own scores. ``query_major=True`` takes ``s_val`` as |Qval| x |DB|. ``s_val``
+    /// may be an array or the path of a ``.npy`` file (memory-mapped).
     ///
     /// Returns a :class:`TransferResult`. Raises ``TypeError`` for an unsupported dtype
     /// and ``ValueError`` for bad input (a |DB| other than the calibration's, empty,
-    /// NaN or infinite scores, ``k < 1``, ``precision`` outside (0, 1], ``segment_size``
-    /// outside 1..=|Qval|).
+    /// NaN or infinite scores, a truncated or corrupt file, ``k < 1``, ``precision``
+    /// outside (0, 1], ``segment_size`` outside 1..=|Qval|); ``OSError`` (or its
+    /// subclass ``FileNotFoundError``, ...) for a file that cannot be read.
     #[pyo3(signature = (s_val, *, k = 10, precision = 1.0, segment_size = None, query_major = false))]
     pub(crate) fn transfer(
         &self,

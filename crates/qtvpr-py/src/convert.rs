@@ -1,4 +1,4 @@
-//! NumPy arguments in, core views out.
+//! NumPy arguments (or files) in, core views out.
 //!
 //! Every matrix argument is borrowed read-only where it lies and handed to the core as
 //! an [`ArrayView2`] with NumPy's strides (C, Fortran, sliced or negative), so nothing
@@ -6,9 +6,17 @@
 //! non-NumPy objects (converted by `numpy.asarray`), and arrays that are byte-swapped
 //! or misaligned (converted to the native type by `astype`).
 //!
-//! The dtype is checked here because only the binding sees it: scores must be float32
-//! or float64, ground truth bool or an integer type, anything else is a `TypeError`
-//! naming the argument. Values (finiteness, 0/1 labels, shapes) are the core's to check.
+//! A matrix argument may also be a path (`str` or `os.PathLike`) to a `.npy` file
+//! (ground truth: `.npy` or a VPR_Tutorial `.npz`). It is read by the core's
+//! [`qtvpr::npy`] reader, the CLI's, with the GIL released: similarity matrices are
+//! memory-mapped, so a path is also the zero-copy way to pass a matrix larger than RAM.
+//!
+//! The dtype of an array is checked here because only the binding sees it: scores must
+//! be float32 or float64, ground truth bool or an integer type, anything else is a
+//! `TypeError` naming the argument (the reader does the same for files). Values
+//! (finiteness, 0/1 labels, shapes) are the core's to check.
+
+use std::path::{Path, PathBuf};
 
 use ndarray::ArrayView2;
 use numpy::{
@@ -18,11 +26,23 @@ use numpy::{
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
+use pyo3::types::PyString;
+
+use crate::error::input_error;
 
 /// `numpy.asarray`, looked up once.
 fn asarray(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
     static ASARRAY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
     ASARRAY.import(py, "numpy", "asarray")
+}
+
+/// `obj` as a path if it is a `str` or an `os.PathLike`, else `None`.
+fn path_of(obj: &Bound<'_, PyAny>) -> PyResult<Option<PathBuf>> {
+    static PATH_LIKE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    if obj.is_instance_of::<PyString>() || obj.is_instance(PATH_LIKE.import(obj.py(), "os", "PathLike")?)? {
+        return Ok(Some(obj.extract::<PathBuf>()?));
+    }
+    Ok(None)
 }
 
 /// `obj` as a NumPy array: itself if it is one, else `numpy.asarray(obj)`.
@@ -70,6 +90,8 @@ pub(crate) enum Scores<'py> {
     F32(PyReadonlyArray2<'py, f32>),
     /// float64 scores.
     F64(PyReadonlyArray2<'py, f64>),
+    /// Scores read from a `.npy` file (memory-mapped where possible).
+    File(qtvpr::npy::Scores),
 }
 
 /// A similarity matrix as the core reads it, |DB| x |Q|.
@@ -94,10 +116,16 @@ pub(crate) use with_scores;
 
 impl<'py> Scores<'py> {
     /// Borrow argument `name` as a float32 or float64 matrix.
+    /// A `str` or `os.PathLike` is read as a `.npy` file.
     ///
     /// # Errors
-    /// `TypeError` for any other dtype, `ValueError` if it is not 2-D.
+    /// `TypeError` for any other dtype, `ValueError` if it is not 2-D; for a file, the
+    /// reader's errors as [`input_error`]s (`OSError`s for a file that cannot be read).
     pub(crate) fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Some(path) = path_of(obj)? {
+            let scores = obj.py().detach(|| qtvpr::npy::read_scores(&path));
+            return scores.map(Self::File).map_err(|e| input_error(name, e));
+        }
         let array = ndarray(obj)?;
         let descr = array.dtype();
         match (descr.kind(), descr.itemsize()) {
@@ -114,6 +142,10 @@ impl<'py> Scores<'py> {
         match self {
             Self::F32(a) => ScoreView::F32(oriented(a.as_array(), query_major)),
             Self::F64(a) => ScoreView::F64(oriented(a.as_array(), query_major)),
+            Self::File(scores) => match scores.view() {
+                qtvpr::npy::ScoresView::F32(v) => ScoreView::F32(oriented(v, query_major)),
+                qtvpr::npy::ScoresView::F64(v) => ScoreView::F64(oriented(v, query_major)),
+            },
         }
     }
 }
@@ -155,10 +187,10 @@ macro_rules! labels {
                 }
             }
 
-            /// The |DB| x |Q| view the core takes.
-            pub(crate) fn view(&self, query_major: bool) -> LabelView<'_> {
+            /// The array as the caller gave it.
+            pub(crate) fn view(&self) -> LabelView<'_> {
                 match self {
-                    $(Self::$variant(a) => LabelView::$variant(oriented(a.as_array(), query_major)),)*
+                    $(Self::$variant(a) => LabelView::$variant(a.as_array()),)*
                 }
             }
         }
@@ -193,52 +225,109 @@ labels! {
     U64(u64) = (b'u', 8),
 }
 
+/// One ground-truth argument: an array, or the path of a file.
+pub(crate) enum LabelArg<'py> {
+    /// A bool or integer array, borrowed.
+    Array(Labels<'py>),
+    /// A `.npy` file (or, for hard ground truth, a VPR_Tutorial `.npz`), read when the
+    /// ground truth is built.
+    File(PathBuf),
+}
+
+impl<'py> LabelArg<'py> {
+    fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        match path_of(obj)? {
+            Some(path) => Ok(Self::File(path)),
+            None => Ok(Self::Array(Labels::extract(name, obj)?)),
+        }
+    }
+
+    fn view(&self) -> LabelSource<'_> {
+        match self {
+            Self::Array(labels) => LabelSource::Array(labels.view()),
+            Self::File(path) => LabelSource::File(path),
+        }
+    }
+}
+
 /// Hard and optional soft ground-truth arguments, borrowed.
 pub(crate) struct GroundTruthArgs<'py> {
-    hard: Labels<'py>,
-    soft: Option<Labels<'py>>,
+    name: &'static str,
+    hard: LabelArg<'py>,
+    soft: Option<LabelArg<'py>>,
 }
 
 impl<'py> GroundTruthArgs<'py> {
     /// Borrow the hard ground truth (argument `name`) and the optional `gt_soft`.
     ///
     /// # Errors
-    /// As [`Labels::extract`].
-    pub(crate) fn extract(name: &str, hard: &Bound<'py, PyAny>, soft: Option<&Bound<'py, PyAny>>) -> PyResult<Self> {
+    /// As [`Labels::extract`] for arrays; files are only read by
+    /// [`GroundTruthView::build`].
+    pub(crate) fn extract(
+        name: &'static str,
+        hard: &Bound<'py, PyAny>,
+        soft: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Self> {
         Ok(Self {
-            hard: Labels::extract(name, hard)?,
-            soft: soft.map(|s| Labels::extract("gt_soft", s)).transpose()?,
+            name,
+            hard: LabelArg::extract(name, hard)?,
+            soft: soft.map(|s| LabelArg::extract("gt_soft", s)).transpose()?,
         })
     }
 
-    /// Views of both, |DB| x |Q|, to build the core's ground truth from without the GIL.
+    /// What [`GroundTruthView::build`] needs, without the GIL.
     pub(crate) fn view(&self, query_major: bool) -> GroundTruthView<'_> {
         GroundTruthView {
-            hard: self.hard.view(query_major),
-            soft: self.soft.as_ref().map(|s| s.view(query_major)),
+            name: self.name,
+            hard: self.hard.view(),
+            soft: self.soft.as_ref().map(LabelArg::view),
+            query_major,
         }
     }
 }
 
-/// Hard and optional soft ground truth, as views the core reads.
+/// A ground-truth argument as the core reads it.
+#[derive(Clone, Copy)]
+enum LabelSource<'a> {
+    Array(LabelView<'a>),
+    File(&'a Path),
+}
+
+/// Hard and optional soft ground truth, as views or paths the core reads.
 #[derive(Clone, Copy)]
 pub(crate) struct GroundTruthView<'a> {
-    hard: LabelView<'a>,
-    soft: Option<LabelView<'a>>,
+    name: &'static str,
+    hard: LabelSource<'a>,
+    soft: Option<LabelSource<'a>>,
+    query_major: bool,
 }
 
 impl GroundTruthView<'_> {
-    /// The core's ground truth (this is where labels are checked to be 0/1).
+    /// The core's |DB| x |Q| ground truth (this is where labels are checked to be 0/1
+    /// and files are read). Call it without the GIL.
+    ///
+    /// The labels are combined in the caller's orientation and only then transposed for
+    /// query-major input, so positions and shapes in errors are the caller's. An explicit
+    /// `gt_soft` takes precedence over the `GTsoft` of an `.npz`.
     ///
     /// # Errors
-    /// The core's errors: empty matrices, values other than 0/1, soft ground truth of
-    /// another shape.
-    pub(crate) fn build(self) -> qtvpr::Result<qtvpr::GroundTruth> {
-        let gt = self.hard.hard()?;
-        match self.soft {
-            Some(soft) => soft.soft(gt),
-            None => Ok(gt),
+    /// The core's errors as [`input_error`]s naming the argument: a file that cannot be
+    /// read, empty matrices, values other than 0/1, soft ground truth of another shape.
+    pub(crate) fn build(self) -> PyResult<qtvpr::GroundTruth> {
+        use qtvpr::npy::{add_soft_ground_truth, read_ground_truth, read_hard_ground_truth};
+        let gt = match self.hard {
+            LabelSource::Array(labels) => labels.hard(),
+            LabelSource::File(path) if self.soft.is_some() => read_hard_ground_truth(path),
+            LabelSource::File(path) => read_ground_truth(path, None),
         }
+        .map_err(|e| input_error(self.name, e))?;
+        let gt = match self.soft {
+            None => Ok(gt),
+            Some(LabelSource::Array(labels)) => labels.soft(gt),
+            Some(LabelSource::File(path)) => add_soft_ground_truth(gt, path),
+        }
+        .map_err(|e| input_error("gt_soft", e))?;
+        Ok(if self.query_major { gt.reversed_axes() } else { gt })
     }
 }
 

@@ -1,12 +1,20 @@
 //! Core errors as Python exceptions.
 //!
-//! Every [`qtvpr::Error`] is bad input, so it becomes a `ValueError` carrying the
-//! core's message, prefixed by the Python argument it is about. Positions and shapes
-//! are given in the caller's orientation: the core sees |DB| x |Q| views, so for
-//! query-major input they are swapped back.
+//! Every [`qtvpr::Error`] is bad input. Its variant chooses the exception a Python user
+//! expects ([`exception`]): a file that cannot be opened is the `OSError` subclass of its
+//! kind (`FileNotFoundError`, `IsADirectoryError`, `PermissionError`), a wrong dtype is a
+//! `TypeError`, anything else a `ValueError`. The message is the core's, prefixed by the
+//! Python argument it is about.
+//!
+//! Positions and shapes are given in the caller's orientation: the core computes on
+//! |DB| x |Q| views, so for query-major input its errors are transposed back
+//! ([`Args::error`]). Errors of reading an argument (a file, or ground truth built in
+//! the caller's orientation) are in that orientation already ([`input_error`]).
 
 use pyo3::PyErr;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyTypeError, PyValueError,
+};
 use qtvpr::Error;
 
 /// How a call names its arguments, and whether its matrices were transposed.
@@ -20,7 +28,7 @@ pub(crate) struct Args {
 
 impl Args {
     /// The Python argument the core's matrix name `what` refers to.
-    fn argument(self, what: &str) -> &str {
+    fn argument(self, what: &'static str) -> &'static str {
         match what {
             "calibration similarity" => "s_cal",
             "deployment similarity" => "s_val",
@@ -31,54 +39,42 @@ impl Args {
         }
     }
 
-    /// `(a, b)`, swapped for query-major input.
-    fn pair(self, (a, b): (usize, usize)) -> (usize, usize) {
-        if self.query_major { (b, a) } else { (a, b) }
-    }
-
-    /// The `ValueError` for a core error.
+    /// The exception for an error of the core's computation on the oriented views.
     pub(crate) fn error(self, err: Error) -> PyErr {
-        let message = match err {
-            Error::Empty { what, rows, cols } => {
-                let (rows, cols) = self.pair((rows, cols));
-                format!("{}: {}", self.argument(what), Error::Empty { what, rows, cols })
+        let err = if self.query_major { err.transposed() } else { err };
+        match &err {
+            Error::Empty { what, .. }
+            | Error::NotFinite { what, .. }
+            | Error::BadLabel { what, .. }
+            | Error::ShapeMismatch { what, .. } => input_error(self.argument(what), err),
+            Error::DatabaseMismatch { .. } => input_error("s_val", err),
+            // The core names parameters as a user spells them; Python spells them with
+            // underscores.
+            Error::InvalidParameter { name, message } => {
+                PyValueError::new_err(format!("{} {message}", name.replace(' ', "_")))
             }
-            Error::NotFinite { what, row, col, value } => {
-                let (row, col) = self.pair((row, col));
-                format!(
-                    "{}: {}",
-                    self.argument(what),
-                    Error::NotFinite { what, row, col, value }
-                )
-            }
-            Error::BadLabel { what, row, col, value } => {
-                let (row, col) = self.pair((row, col));
-                format!("{}: {}", self.argument(what), Error::BadLabel { what, row, col, value })
-            }
-            Error::ShapeMismatch {
-                what,
-                shape,
-                other,
-                other_shape,
-            } => {
-                let (shape, other_shape) = (self.pair(shape), self.pair(other_shape));
-                format!(
-                    "{}: {}",
-                    self.argument(what),
-                    Error::ShapeMismatch {
-                        what,
-                        shape,
-                        other,
-                        other_shape
-                    }
-                )
-            }
-            err @ Error::DatabaseMismatch { .. } => format!("s_val: {err}"),
-            // The core names parameters as a user spells them; Python spells them
-            // with underscores.
-            Error::InvalidParameter { name, message } => format!("{} {message}", name.replace(' ', "_")),
-            err => err.to_string(),
-        };
-        PyValueError::new_err(message)
+            _ => exception(&err, err.to_string()),
+        }
+    }
+}
+
+/// The exception for an error about argument `argument` as the caller gave it.
+pub(crate) fn input_error(argument: &str, err: Error) -> PyErr {
+    exception(&err, format!("{argument}: {err}"))
+}
+
+/// The exception class for `err`, carrying `message`.
+fn exception(err: &Error, message: String) -> PyErr {
+    use std::io::ErrorKind;
+    match err {
+        Error::Io { kind, .. } => match kind {
+            ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
+            ErrorKind::IsADirectory => PyIsADirectoryError::new_err(message),
+            ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
+            _ => PyOSError::new_err(message),
+        },
+        Error::Dtype { .. } => PyTypeError::new_err(message),
+        Error::InFile { source, .. } => exception(source, message),
+        _ => PyValueError::new_err(message),
     }
 }

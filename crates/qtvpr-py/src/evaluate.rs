@@ -82,8 +82,9 @@ pub(crate) fn evaluate<'py>(
     let s = Scores::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
+    let gt = py.detach(|| gt.build())?;
     let out = py
-        .detach(|| with_scores!(s, s => qtvpr::evaluate(s, &gt.build()?, &protocol, &methods)))
+        .detach(|| with_scores!(s, s => qtvpr::evaluate(s, &gt, &protocol, &methods)))
         .map_err(|e| args.error(e))?;
 
     let report = PyDict::new(py);

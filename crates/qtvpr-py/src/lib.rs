@@ -34,9 +34,12 @@ use crate::error::Args;
 ///
 /// ``s_cal`` (|DB| x |Qcal|) and ``s_val`` (|DB| x |Qval|) are float32 or float64
 /// similarity matrices, higher is more similar; ``gt_cal`` and ``gt_soft`` are the
-/// calibration's hard and soft ground truth (bool or integer 0/1). With
-/// ``query_major=True`` every matrix is given transposed (|Q| x |DB|, as VPR-Bench
-/// stores them). Returns a :class:`TransferResult`.
+/// calibration's hard and soft ground truth (bool or integer 0/1). Each may also be a
+/// path (``str`` or ``os.PathLike``) to a ``.npy`` file, or for ``gt_cal`` a
+/// VPR_Tutorial ``.npz`` (``GThard``, optional ``GTsoft``), read as ``qtvpr-cli`` reads
+/// it. With ``query_major=True`` every matrix is given transposed (|Q| x |DB|, as
+/// VPR-Bench stores them). Returns a :class:`TransferResult`; raises as
+/// :class:`Calibration` and :meth:`Calibration.transfer` do.
 #[pyfunction]
 #[pyo3(signature = (
     s_cal, gt_cal, s_val, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
@@ -87,6 +90,11 @@ fn quantile_transfer(
 /// precision is at least ``precision`` (in (0, 1]), the highest such: always the score
 /// of a correct candidate, or ``math.inf`` (reject all) when there is none.
 /// ``query_major=True`` takes both matrices as |Q| x |DB|.
+///
+/// Each matrix may be an array or a path to a ``.npy`` file (``gt`` also a
+/// VPR_Tutorial ``.npz``). Raises ``TypeError`` for an unsupported dtype,
+/// ``ValueError`` for bad input or a bad file, ``OSError`` (``FileNotFoundError``,
+/// ...) for a file that cannot be read.
 #[pyfunction]
 #[pyo3(signature = (s, gt, *, gt_soft = None, precision = 1.0, matching = "single", query_major = false))]
 fn best_threshold(
@@ -103,7 +111,8 @@ fn best_threshold(
     let s = Scores::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
-    py.detach(|| with_scores!(s, s => qtvpr::best_threshold(s, &gt.build()?, matching, precision)))
+    let gt = py.detach(|| gt.build())?;
+    py.detach(|| with_scores!(s, s => qtvpr::best_threshold(s, &gt, matching, precision)))
         .map_err(|e| args.error(e))
 }
 
@@ -113,7 +122,8 @@ fn best_threshold(
 /// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
 /// "recall"}``: precision is 1 when nothing is accepted, recall 0 when there are no
 /// positives (queries with a hard match in ``"single"`` mode, hard matches in
-/// ``"multi"``). ``threshold`` may be ``inf`` (accepts nothing) but not NaN.
+/// ``"multi"``). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
+/// may be arrays or paths, and errors are raised, as in :func:`best_threshold`.
 #[pyfunction]
 #[pyo3(signature = (s, gt, threshold, *, gt_soft = None, matching = "single", query_major = false))]
 fn counts<'py>(
@@ -136,8 +146,9 @@ fn counts<'py>(
     let s = Scores::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
+    let gt = py.detach(|| gt.build())?;
     let c = py
-        .detach(|| with_scores!(s, s => qtvpr::counts(s, &gt.build()?, matching, threshold)))
+        .detach(|| with_scores!(s, s => qtvpr::counts(s, &gt, matching, threshold)))
         .map_err(|e| args.error(e))?;
     let out = PyDict::new(py);
     out.set_item("tp", c.tp)?;
@@ -153,7 +164,8 @@ fn counts<'py>(
 /// Every column of ``s_val`` (|DB| x |Qval|) and ``s_cal`` (|DB| x |Qcal|) is sorted
 /// in descending order; entry ``[j, i]`` of the result (|Qval| x |Qcal|, float64) is
 /// the Pearson correlation of deployment profile j with calibration profile i, 0 when
-/// either is constant. ``query_major=True`` takes both matrices as |Q| x |DB|.
+/// either is constant. ``query_major=True`` takes both matrices as |Q| x |DB|. Either
+/// may be the path of a ``.npy`` file (memory-mapped).
 #[pyfunction]
 #[pyo3(signature = (s_val, s_cal, *, query_major = false))]
 fn ranked_correlation<'py>(

@@ -71,7 +71,17 @@ pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
     } else {
         select_in_place(s, lo, frac > 0.0)
     };
-    if frac == 0.0 { x_lo } else { x_lo + frac * (x_hi - x_lo) }
+    if frac == 0.0 {
+        return x_lo;
+    }
+    let t = x_lo + frac * (x_hi - x_lo);
+    if t.is_finite() {
+        t
+    } else {
+        // x_hi - x_lo overflowed (scores near +-f64::MAX): the same point, as a convex
+        // combination, which cannot overflow; clamped against rounding.
+        ((1.0 - frac) * x_lo + frac * x_hi).clamp(x_lo, x_hi)
+    }
 }
 
 /// Batches up to this many scores are copied and selected (fast, 8 bytes a score);

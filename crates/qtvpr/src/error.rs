@@ -51,9 +51,11 @@ pub enum Error {
         /// That matrix's shape.
         other_shape: (usize, usize),
     },
-    /// Calibration and deployment similarity have a different number of database rows.
+    /// Calibration and deployment similarity are scored against databases of different
+    /// sizes (|DB| is the number of rows, or of columns for query-major input; the
+    /// message names neither, so it holds in both orientations).
     #[error(
-        "deployment similarity has {deployment} database rows but calibration similarity has {calibration}; \
+        "deployment similarity has {deployment} database images but calibration similarity has {calibration}; \
          both must be scored against the same database"
     )]
     DatabaseMismatch {
@@ -176,10 +178,118 @@ pub enum Error {
 }
 
 impl Error {
+    /// The same error for a caller whose matrices are the transpose of the core's
+    /// |DB| x |Q| views (query-major input): rows and columns, shapes and positions
+    /// swapped, recursively inside [`Error::InFile`]. Errors without a position are
+    /// returned unchanged; `transposed` twice is the identity.
+    ///
+    /// Front ends call it on errors of the core's computation for query-major input, so
+    /// that a message points at the entry as the caller stored it. Errors about a file
+    /// as read (its shape, a bad label in it) are already in the file's orientation and
+    /// must not be transposed.
+    #[must_use]
+    pub fn transposed(self) -> Self {
+        match self {
+            Error::Empty { what, rows, cols } => Error::Empty {
+                what,
+                rows: cols,
+                cols: rows,
+            },
+            Error::NotFinite { what, row, col, value } => Error::NotFinite {
+                what,
+                row: col,
+                col: row,
+                value,
+            },
+            Error::BadLabel { what, row, col, value } => Error::BadLabel {
+                what,
+                row: col,
+                col: row,
+                value,
+            },
+            Error::ShapeMismatch {
+                what,
+                shape,
+                other,
+                other_shape,
+            } => Error::ShapeMismatch {
+                what,
+                shape: (shape.1, shape.0),
+                other,
+                other_shape: (other_shape.1, other_shape.0),
+            },
+            Error::InFile { path, source } => Error::InFile {
+                path,
+                source: Box::new(source.transposed()),
+            },
+            other => other,
+        }
+    }
+
     pub(crate) fn param(name: &'static str, message: impl Into<String>) -> Self {
         Self::InvalidParameter {
             name,
             message: message.into(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transposed_swaps_positions_and_shapes() {
+        let e = Error::NotFinite {
+            what: "similarity",
+            row: 1,
+            col: 2,
+            value: f64::NAN,
+        };
+        assert_eq!(
+            e.transposed().to_string(),
+            "similarity contains NaN at row 2, column 1; scores must be finite"
+        );
+        let e = Error::ShapeMismatch {
+            what: "ground truth",
+            shape: (3, 4),
+            other: "similarity",
+            other_shape: (3, 5),
+        };
+        assert_eq!(
+            e.clone().transposed().to_string(),
+            "ground truth shape 4x3 does not match similarity shape 5x3"
+        );
+        assert_eq!(e.clone().transposed().transposed(), e);
+        let e = Error::Empty {
+            what: "similarity",
+            rows: 0,
+            cols: 7,
+        };
+        assert_eq!(e.transposed().to_string(), "similarity is empty (shape 7x0)");
+        let e = Error::InFile {
+            path: "gt.npy".into(),
+            source: Box::new(Error::BadLabel {
+                what: "ground truth",
+                row: 5,
+                col: 0,
+                value: -1,
+            }),
+        };
+        assert_eq!(
+            e.transposed().to_string(),
+            "gt.npy: ground truth has value -1 at row 0, column 5; ground truth must be 0/1 or bool"
+        );
+        // Errors without a position are unchanged.
+        let e = Error::DatabaseMismatch {
+            calibration: 3,
+            deployment: 2,
+        };
+        assert_eq!(e.clone().transposed(), e);
+        assert_eq!(
+            e.to_string(),
+            "deployment similarity has 2 database images but calibration similarity has 3; \
+             both must be scored against the same database"
+        );
     }
 }

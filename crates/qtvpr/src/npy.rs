@@ -8,7 +8,10 @@
 //! truth (bool or integer 0/1) is read by npyz and turned into a [`GroundTruth`] at once;
 //! an `.npz` in the VPR_Tutorial convention (`GThard`, optional `GTsoft`) is accepted.
 //!
-//! Every error names the file and says what is wrong with it.
+//! Every error names the file and says what is wrong with it. A header is checked before
+//! npyz parses it (at most 10000 bytes, as NumPy's `max_header_size`, and brackets at
+//! most 6 deep), and a shape is checked against the largest possible array, so that a
+//! corrupt or hostile file can neither hang the parser nor make the reader panic.
 
 use std::fs::File;
 use std::io::{self, Cursor, Read};
@@ -143,18 +146,91 @@ fn open_file(path: &Path) -> Result<File> {
     }
 }
 
-fn parse<R: Read>(reader: R, path: &Path) -> Result<NpyFile<R>> {
-    NpyFile::new(reader).map_err(|e| {
+/// The longest header read: NumPy's own reader refuses more than 10000 bytes by default
+/// (`max_header_size`), and a plain matrix needs under 128.
+const MAX_HEADER: usize = 10_000;
+
+/// The deepest bracket nesting a header may have: a plain matrix has 2 (`{... (r, c)}`),
+/// a structured dtype a few more. npyz's header parser backtracks exponentially in the
+/// nesting depth, so a 100-byte header of `[[[[...` would never finish.
+const MAX_NESTING: usize = 6;
+
+/// Parse a `.npy` header. The header is read and checked here first (magic, length,
+/// nesting), then handed to npyz, followed by the rest of `reader`.
+fn parse<R: Read>(mut reader: R, path: &Path) -> Result<NpyFile<io::Chain<Cursor<Vec<u8>>, R>>> {
+    let invalid = |what: &str| file_error(path, format!("is not a valid .npy file: {what}"));
+    let mut header = vec![0u8; 8];
+    reader
+        .read_exact(&mut header)
+        .map_err(|_| invalid("it is shorter than the magic string"))?;
+    if &header[..6] != b"\x93NUMPY" {
+        return Err(invalid("it does not start with the magic string \\x93NUMPY"));
+    }
+    let len = match header[6] {
+        1 => {
+            let mut b = [0u8; 2];
+            reader
+                .read_exact(&mut b)
+                .map_err(|_| invalid("its header is cut short"))?;
+            header.extend(b);
+            usize::from(u16::from_le_bytes(b))
+        }
+        2 | 3 => {
+            let mut b = [0u8; 4];
+            reader
+                .read_exact(&mut b)
+                .map_err(|_| invalid("its header is cut short"))?;
+            header.extend(b);
+            u32::from_le_bytes(b) as usize
+        }
+        v => return Err(invalid(&format!("unknown format version {v}"))),
+    };
+    if len > MAX_HEADER {
+        return Err(invalid(&format!(
+            "its header of {len} bytes is longer than {MAX_HEADER}"
+        )));
+    }
+    let start = header.len();
+    header.resize(start + len, 0);
+    reader
+        .read_exact(&mut header[start..])
+        .map_err(|_| invalid("its header is cut short"))?;
+    let (mut depth, mut deepest) = (0usize, 0usize);
+    for &b in &header[start..] {
+        match b {
+            b'[' | b'(' | b'{' => {
+                depth += 1;
+                deepest = deepest.max(depth);
+            }
+            b']' | b')' | b'}' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    if deepest > MAX_NESTING {
+        return Err(invalid(&format!("its header nests brackets {deepest} deep")));
+    }
+    NpyFile::new(Cursor::new(header).chain(reader)).map_err(|e| {
         // Header parse errors span several lines; the first says what is wrong.
         let e = e.to_string();
-        file_error(
-            path,
-            format!(
-                "is not a valid .npy file: {}",
-                e.lines().next().unwrap_or_default().trim()
-            ),
-        )
+        invalid(e.lines().next().unwrap_or_default().trim())
     })
+}
+
+/// Array `name` of an `.npz` archive, if it has one, read through [`parse`].
+fn npz_array<'a, R: Read + io::Seek>(
+    npz: &'a mut NpzArchive<R>,
+    name: &str,
+    path: &Path,
+) -> Result<Option<NpyFile<impl Read + 'a>>> {
+    let zip = npz.zip_archive();
+    let member = format!("{name}.npy");
+    if !zip.file_names().any(|n| n == member) {
+        return Ok(None);
+    }
+    let file = zip
+        .by_name(&member)
+        .map_err(|e| file_error(path, format!("cannot read {name}: {e}")))?;
+    parse(file, path).map(Some)
 }
 
 /// The header's plain dtype as (kind, size in bytes, little-endian or byte order irrelevant).
@@ -182,7 +258,20 @@ fn dtype_name<R: Read>(npy: &NpyFile<R>) -> String {
 
 fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(usize, usize)> {
     match npy.shape() {
-        &[rows, cols] => Ok((rows as usize, cols as usize)),
+        &[rows, cols] => {
+            // A corrupt header may claim more bytes than an address space holds; its
+            // element count would wrap and pass a later length check.
+            let bytes = rows
+                .checked_mul(cols)
+                .and_then(|n| n.checked_mul(npy.dtype().num_bytes().unwrap_or(1) as u64));
+            if bytes.is_none_or(|b| b > isize::MAX as u64) {
+                return Err(file_error(
+                    path,
+                    format!("is corrupt: its shape {rows}x{cols} is larger than any file"),
+                ));
+            }
+            Ok((rows as usize, cols as usize))
+        }
         shape => Err(file_error(
             path,
             format!(
@@ -335,31 +424,63 @@ fn ground_truth_of<R: Read>(npy: NpyFile<R>, path: &Path, hard: Option<GroundTru
 ///
 /// `hard` may be an `.npy` file or an `.npz` archive in the VPR_Tutorial convention
 /// (`GThard`, optional `GTsoft`); an explicit `soft` file takes precedence over `GTsoft`.
+/// The result is in the files' orientation, as are the positions in its errors.
 ///
 /// # Errors
 /// As [`read_scores`] (with bool/integer in place of float), an `.npz` without
 /// `GThard`, and [`Error::InFile`] around [`Error::BadLabel`] / [`Error::ShapeMismatch`]
 /// for the labels.
 pub fn read_ground_truth(hard: &Path, soft: Option<&Path>) -> Result<GroundTruth> {
-    let is_npz = hard.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
-    let gt = if is_npz {
-        let mut npz = NpzArchive::new(io::BufReader::new(open_file(hard)?))
-            .map_err(|e| file_error(hard, format!("is not a valid .npz archive: {e}")))?;
-        let npy = npz
-            .by_name("GThard")
-            .map_err(|e| file_error(hard, format!("cannot read GThard: {e}")))?
-            .ok_or_else(|| file_error(hard, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
-        let gt = ground_truth_of(npy, hard, None)?;
-        match (soft, npz.by_name("GTsoft")) {
-            (None, Ok(Some(npy))) => return ground_truth_of(npy, hard, Some(gt)),
-            (None, Err(e)) => return Err(file_error(hard, format!("cannot read GTsoft: {e}"))),
-            _ => gt,
+    let gt = if is_npz(hard) {
+        let (gt, mut npz) = read_gthard(hard)?;
+        if soft.is_none()
+            && let Some(npy) = npz_array(&mut npz, "GTsoft", hard)?
+        {
+            return ground_truth_of(npy, hard, Some(gt));
         }
+        gt
     } else {
-        ground_truth_of(parse(io::BufReader::new(open_file(hard)?), hard)?, hard, None)?
+        read_hard_ground_truth(hard)?
     };
     match soft {
-        Some(path) => ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(gt)),
+        Some(path) => add_soft_ground_truth(gt, path),
         None => Ok(gt),
     }
+}
+
+/// Read hard ground truth only: an `.npy` file, or `GThard` of an `.npz` archive (its
+/// `GTsoft`, if any, is not read). For a caller that has the soft ground truth elsewhere.
+///
+/// # Errors
+/// As [`read_ground_truth`].
+pub fn read_hard_ground_truth(path: &Path) -> Result<GroundTruth> {
+    if is_npz(path) {
+        Ok(read_gthard(path)?.0)
+    } else {
+        ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, None)
+    }
+}
+
+/// Add the soft ground truth of `.npy` file `path` to `hard` (entries soft but not hard
+/// become ignored).
+///
+/// # Errors
+/// As [`read_ground_truth`]; a shape other than `hard`'s is an [`Error::InFile`] around
+/// [`Error::ShapeMismatch`].
+pub fn add_soft_ground_truth(hard: GroundTruth, path: &Path) -> Result<GroundTruth> {
+    ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(hard))
+}
+
+fn is_npz(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"))
+}
+
+/// `GThard` of an `.npz` archive, and the archive (for its `GTsoft`).
+fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<io::BufReader<File>>)> {
+    let mut npz = NpzArchive::new(io::BufReader::new(open_file(path)?))
+        .map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))?;
+    let npy = npz_array(&mut npz, "GThard", path)?
+        .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
+    let gt = ground_truth_of(npy, path, None)?;
+    Ok((gt, npz))
 }
