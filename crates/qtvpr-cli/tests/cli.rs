@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 use tempfile::TempDir;
 
 mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_raw};
+use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw};
 
 /// The `transfer.rs` unit-test example: |DB| = 3, two calibration, two deployment queries.
 struct Case {
@@ -472,16 +472,11 @@ fn deeply_nested_headers_fail_fast() {
     // 100-byte header of `[[[[...` never finished. Found by fuzz/npy_read (a hang).
     let case = Case::new();
     let nested = |depth: usize| {
-        let mut header = format!("{{'descr': '|b1', 'shape': {}", "[".repeat(depth));
-        header.push_str(&"('fortran'".repeat(3));
-        while (10 + header.len() + 1) % 64 != 0 {
-            header.push(' ');
-        }
-        header.push('\n');
-        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-        bytes.extend((header.len() as u16).to_le_bytes());
-        bytes.extend(header.as_bytes());
-        bytes
+        npy_header(&format!(
+            "{{'descr': '|b1', 'shape': {}{}",
+            "[".repeat(depth),
+            "('fortran'".repeat(3)
+        ))
     };
     std::fs::write(case.path("nested.npy"), nested(100)).unwrap();
     case.fails(

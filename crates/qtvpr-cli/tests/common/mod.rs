@@ -13,7 +13,17 @@ pub fn npy_raw(path: &Path, descr: &str, fortran: bool, shape: &[usize], payload
         s => format!("({})", s.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
     };
     let order = if fortran { "True" } else { "False" };
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': {order}, 'shape': {shape}, }}");
+    let mut bytes = npy_header(&format!(
+        "{{'descr': '{descr}', 'fortran_order': {order}, 'shape': {shape}, }}"
+    ));
+    bytes.extend(payload);
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// The magic, version, length and space-padded text of a version 1.0 `.npy` header,
+/// whatever `dict` says (so tests can also write malformed headers).
+pub fn npy_header(dict: &str) -> Vec<u8> {
+    let mut header = dict.to_string();
     while (10 + header.len() + 1) % 64 != 0 {
         header.push(' ');
     }
@@ -21,8 +31,7 @@ pub fn npy_raw(path: &Path, descr: &str, fortran: bool, shape: &[usize], payload
     let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
     bytes.extend((header.len() as u16).to_le_bytes());
     bytes.extend(header.as_bytes());
-    bytes.extend(payload);
-    std::fs::write(path, bytes).unwrap();
+    bytes
 }
 
 /// Little-endian bytes of f64 values.
