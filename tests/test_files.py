@@ -17,12 +17,7 @@ import numpy as np
 import pytest
 
 import qtvpr
-
-S_CAL = np.array([[0.9, 0.2, 0.4], [0.1, 0.8, 0.3], [0.3, 0.4, 0.7], [0.2, 0.1, 0.1]])
-GT_CAL = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 0]], dtype=bool)
-S_VAL = np.array(
-    [[0.7, 0.1, 0.2, 0.5, 0.3], [0.2, 0.6, 0.3, 0.1, 0.2], [0.1, 0.3, 0.5, 0.4, 0.9], [0.0, 0.2, 0.1, 0.3, 0.4]]
-)
+from test_errors import GT_CAL, S_CAL, S_VAL, int_gt, with_value  # the same small case
 
 
 def npy_raw(path: Path, descr: str, shape: tuple, payload: bytes, fortran: bool = False) -> Path:
@@ -37,18 +32,6 @@ def npy_raw(path: Path, descr: str, shape: tuple, payload: bytes, fortran: bool 
 def save(path: Path, a) -> Path:
     np.save(path, a, allow_pickle=True)
     return path
-
-
-def with_value(a: np.ndarray, value) -> np.ndarray:
-    b = a.astype(np.result_type(a, type(value))).copy()
-    b[1, 2] = value
-    return b
-
-
-def int_gt(value) -> np.ndarray:
-    g = GT_CAL.astype(np.int64)
-    g[2, 1] = value
-    return g
 
 
 @pytest.fixture
