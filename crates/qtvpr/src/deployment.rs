@@ -57,20 +57,75 @@ pub fn weighted_median(q: &[f64], w: &[f64]) -> f64 {
 /// interpolation between order statistics, and for `q >= 1` the next `f64` above the
 /// maximum (finite, accepts nothing).
 pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
-    let n = s.len();
+    interpolate(
+        s.len(),
+        q,
+        || s.iter().map(|v| v.to_f64()).fold(f64::NEG_INFINITY, f64::max),
+        |lo, need_hi| {
+            if s.len() <= COPY_LIMIT {
+                select_copied(s, lo)
+            } else {
+                select_in_place(s, lo, need_hi)
+            }
+        },
+    )
+}
+
+/// [`deployment_threshold`] of scores whose every column is already sorted ascending (in
+/// total order), as the transfer has them at hand: each order statistic is found by a
+/// bisection on order-preserving keys that counts by binary search in every column, so
+/// the scores are neither copied nor scanned.
+pub(crate) fn sorted_columns_threshold<T: Score>(sorted: ArrayView2<'_, T>, q: f64) -> f64 {
+    let columns: Vec<&[T]> = sorted
+        .columns()
+        .into_iter()
+        .map(|c| c.to_slice().expect("sorted columns are contiguous"))
+        .collect();
+    let key = |v: &T| to_key(v.to_f64());
+    // How many scores have a key at most `k`.
+    let at_most = |k: u64| -> usize { columns.iter().map(|c| c.partition_point(|v| key(v) <= k)).sum() };
+    interpolate(
+        sorted.len(),
+        q,
+        || {
+            columns
+                .iter()
+                .map(|c| c[c.len() - 1].to_f64())
+                .fold(f64::NEG_INFINITY, f64::max)
+        },
+        |lo, need_hi| {
+            // The smallest key with more than `lo` scores at or below it.
+            let (mut low, mut high) = (0u64, u64::MAX);
+            while low < high {
+                let mid = low + (high - low) / 2;
+                if at_most(mid) > lo { high = mid } else { low = mid + 1 }
+            }
+            let x_lo = from_key(low);
+            if !need_hi || at_most(low) > lo + 1 {
+                return (x_lo, x_lo);
+            }
+            let above = columns
+                .iter()
+                .filter_map(|c| c.get(c.partition_point(|v| key(v) <= low)))
+                .map(key)
+                .min();
+            (x_lo, above.map_or(x_lo, from_key))
+        },
+    )
+}
+
+/// The SPEC section 6.2 threshold for quantile `q` of `n` scores, given their maximum
+/// and a selection of the `lo`-th and `(lo + 1)`-th smallest (the second only needed
+/// when the flag says so).
+fn interpolate(n: usize, q: f64, max: impl FnOnce() -> f64, select: impl FnOnce(usize, bool) -> (f64, f64)) -> f64 {
     assert!(n > 0, "deployment_threshold needs scores");
     if q >= 1.0 {
-        let max = s.iter().map(|v| v.to_f64()).fold(f64::NEG_INFINITY, f64::max);
-        return max.next_up();
+        return max().next_up();
     }
     let h = (n - 1) as f64 * q.max(0.0);
     let lo = h.floor() as usize;
     let frac = h - lo as f64;
-    let (x_lo, x_hi) = if n <= COPY_LIMIT {
-        select_copied(s, lo)
-    } else {
-        select_in_place(s, lo, frac > 0.0)
-    };
+    let (x_lo, x_hi) = select(lo, frac > 0.0);
     if frac == 0.0 {
         return x_lo;
     }
@@ -183,7 +238,7 @@ fn next_value<T: Score>(s: ArrayView2<'_, T>, key: u64, rank: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ndarray::{Array2, array};
+    use ndarray::{Array2, ShapeBuilder, array};
 
     #[test]
     fn segments_keep_the_remainder() {
@@ -240,6 +295,31 @@ mod tests {
         assert_eq!(deployment_threshold(s.view(), 0.5), 0.0);
         // A single score: any q < 1 gives it back.
         assert_eq!(deployment_threshold(array![[0.3]].view(), 0.7), 0.3);
+    }
+
+    #[test]
+    fn sorted_columns_give_the_same_threshold() {
+        // Scores with repeats, both signs and both zeros; every column sorted ascending.
+        let mut x = 99u64;
+        let mut s = Array2::from_shape_fn((11, 5).f(), |_| {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            match (x >> 40) % 9 {
+                0 => -0.0,
+                1 => 0.0,
+                r => r as f64 / 3.0 - 1.5,
+            }
+        });
+        let unsorted = s.clone();
+        for mut c in s.columns_mut() {
+            c.as_slice_mut().unwrap().sort_by(f64::total_cmp);
+        }
+        for q in (0..=40).map(|i| i as f64 / 40.0).chain([0.123, 0.999, 1.5, -0.2]) {
+            let (a, b) = (
+                sorted_columns_threshold(s.view(), q),
+                deployment_threshold(unsorted.view(), q),
+            );
+            assert_eq!(a.to_bits(), b.to_bits(), "q = {q}: {a} vs {b}");
+        }
     }
 
     #[test]

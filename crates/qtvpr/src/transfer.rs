@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Matching};
-use crate::deployment::{deployment_threshold, segments, weighted_median};
+use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::ranked_correlation::{Ranked, Unit, top_k};
@@ -257,17 +257,21 @@ impl Calibration {
                 let sorted = ranked.view();
                 let here: Vec<&Range<usize>> = ranges.iter().filter(|r| r.start >= start && r.end <= end).collect();
                 let local = |r: &Range<usize>| sorted.slice(ndarray::s![.., r.start - start..r.end - start]);
-                segments.par_extend(
-                    here.into_par_iter()
-                        .map(|r| segment(local(r), r.clone(), &query_quantiles, &query_weights)),
-                );
+                segments.par_extend(here.into_par_iter().map(|r| {
+                    segment(r.clone(), &query_quantiles, &query_weights, |q| {
+                        sorted_columns_threshold(local(r), q)
+                    })
+                }));
             }
             progress(end, n_val);
         }
         if !in_chunks {
             segments = ranges
                 .into_par_iter()
-                .map(|r| segment(s.slice(ndarray::s![.., r.clone()]), r, &query_quantiles, &query_weights))
+                .map(|r| {
+                    let scores = s.slice(ndarray::s![.., r.clone()]);
+                    segment(r, &query_quantiles, &query_weights, |q| deployment_threshold(scores, q))
+                })
                 .collect();
         }
         Ok(Transfer {
@@ -283,14 +287,14 @@ impl Calibration {
 /// Deployment scores per chunk (32 MB of f64 working memory).
 const CHUNK_SCORES: usize = 1 << 22;
 
-/// The threshold of the segment `r` of deployment queries, whose scores are `scores`.
-fn segment<T: Score>(scores: ArrayView2<'_, T>, r: Range<usize>, q: &[f64], w: &[f64]) -> Segment {
+/// The segment `r` of deployment queries, given the threshold of a quantile of its scores.
+fn segment(r: Range<usize>, q: &[f64], w: &[f64], threshold: impl FnOnce(f64) -> f64) -> Segment {
     let quantile = weighted_median(&q[r.clone()], &w[r.clone()]);
     Segment {
         start: r.start,
         end: r.end,
         quantile,
-        threshold: deployment_threshold(scores, quantile),
+        threshold: threshold(quantile),
     }
 }
 
