@@ -32,7 +32,7 @@ impl Score for f32 {
     fn sort_ascending(v: &mut [Self]) {
         radsort::sort(v);
     }
-    #[inline]
+    #[inline(always)]
     fn to_f64(self) -> f64 {
         f64::from(self)
     }
@@ -43,7 +43,7 @@ impl Score for f64 {
     fn sort_ascending(v: &mut [Self]) {
         radsort::sort(v);
     }
-    #[inline]
+    #[inline(always)]
     fn to_f64(self) -> f64 {
         self
     }

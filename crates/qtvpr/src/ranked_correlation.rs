@@ -1,17 +1,22 @@
 //! SPEC section 4: calibration sampling by ranked correlation.
 //!
 //! Every query column is sorted into a *ranked profile*; the Pearson correlation of two
-//! profiles is the dot product of their centred, unit-norm forms, so the whole
-//! |Qval| x |Qcal| correlation matrix is one matrix product, done by faer in parallel.
-//! Each deployment query then keeps its `k` most correlated calibration queries
-//! ([`top_k`]).
+//! profiles is the dot product of their centred, unit-norm forms. Each deployment query
+//! keeps its `k` most correlated calibration queries ([`top_k`]).
+//!
+//! The |Qval| x |Qcal| correlations are found in two steps, with the same result as
+//! computing them all in `f64`:
+//! 1. a *screen*: one faer product of the profiles rounded to `f32` (twice the speed
+//!    and half the memory of `f64`), whose error has a proven bound ([`screen_error`]);
+//! 2. each deployment query computes in `f64` only the correlations that the bound says
+//!    could reach its top `k` ([`screened_top_k`]): about `k` of them on real data.
 //!
 //! Profiles are kept in *ascending* order: reversing both profiles of a pair changes
 //! neither their correlation nor any count of scores below a threshold, and ascending
 //! is what the radix sort gives. [`Ranked`] gathers a block of columns into a
 //! column-major buffer of the input's own type (tile by tile, so a C-order matrix is
 //! read row-wise rather than with one cache miss per score), checks every score is
-//! finite, and sorts each column in place.
+//! finite, and sorts and standardises each column while it is in cache.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
@@ -23,25 +28,28 @@ use crate::input::{Score, check_nonempty};
 
 /// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
 /// neighbours, so that correlations equal in exact arithmetic tie (and go to the lower
-/// calibration index) whatever the floating-point summation order of the product.
+/// calibration index) whatever the floating-point summation order.
 pub const CORRELATION_GRID: f64 = 1.0 / (1u64 << 40) as f64;
 
-/// A block of columns, each sorted ascending, column-major, in the input's type.
+/// A block of columns, each sorted ascending, column-major, in the input's type; with
+/// each column's standardisation and its standardised form in `f32` (the screen).
 pub(crate) struct Ranked<T> {
     n_db: usize,
     sorted: Vec<T>,
+    standard: Vec<Standard>,
+    screen: Vec<f32>,
 }
 
 impl<T: Score> Ranked<T> {
-    /// Gather, check and sort the columns of `s`. `first_col` is the column index of
-    /// `s`'s first column in the matrix `what` names, for error messages.
+    /// Gather, check, sort and standardise the columns of `s`. `first_col` is the column
+    /// index of `s`'s first column in the matrix `what` names, for error messages.
     ///
     /// # Errors
     /// [`Error::Empty`]; [`Error::NotFinite`] naming the first offending score in
     /// column-major order.
     pub(crate) fn new(what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<Self> {
         check_nonempty(what, s.dim())?;
-        let n_db = s.nrows();
+        let (n_db, n) = s.dim();
         let mut sorted = vec![T::default(); s.len()];
         const TILE: usize = 64;
         sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
@@ -55,24 +63,44 @@ impl<T: Score> Ranked<T> {
                 }
             }
         });
-        let bad = sorted.par_chunks(n_db).enumerate().find_map_first(|(col, column)| {
-            let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
-            Some(Error::NotFinite {
-                what,
-                row,
-                col: first_col + col,
-                value: v.to_f64(),
-            })
-        });
+        let mut standard = vec![Standard::CONSTANT; n];
+        let mut screen = vec![0.0f32; s.len()];
+        let bad = sorted
+            .par_chunks_mut(n_db)
+            .zip(screen.par_chunks_mut(n_db))
+            .zip(&mut standard)
+            .enumerate()
+            .find_map_first(|(col, ((column, screen), standard))| {
+                if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
+                    let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
+                    return Some(Error::NotFinite {
+                        what,
+                        row,
+                        col: first_col + col,
+                        value: v.to_f64(),
+                    });
+                }
+                T::sort_ascending(column);
+                *standard = Standard::of(column);
+                screen
+                    .iter_mut()
+                    .zip(column.iter())
+                    .for_each(|(z, &x)| *z = standard.apply(x) as f32);
+                None
+            });
         if let Some(err) = bad {
             return Err(err);
         }
-        sorted.par_chunks_mut(n_db).for_each(T::sort_ascending);
-        Ok(Self { n_db, sorted })
+        Ok(Self {
+            n_db,
+            sorted,
+            standard,
+            screen,
+        })
     }
 
     pub(crate) fn ncols(&self) -> usize {
-        self.sorted.len() / self.n_db
+        self.standard.len()
     }
 
     /// Column `j`, ascending.
@@ -85,57 +113,146 @@ impl<T: Score> Ranked<T> {
         ArrayView2::from_shape((self.n_db, self.ncols()).f(), &self.sorted).expect("length is n_db * ncols")
     }
 
-    /// The centred, unit-norm profiles.
-    pub(crate) fn unit(&self) -> Unit {
-        let mut unit = vec![0.0; self.sorted.len()];
-        unit.par_chunks_mut(self.n_db)
-            .zip(self.sorted.par_chunks(self.n_db))
-            .for_each(|(z, p)| standardise(p, z));
-        Unit { n_db: self.n_db, unit }
+    /// The standardised profile of column `j`, in `f64`, into `out`.
+    pub(crate) fn profile(&self, j: usize, out: &mut [f64]) {
+        let standard = self.standard[j];
+        out.iter_mut()
+            .zip(self.column(j))
+            .for_each(|(o, &x)| *o = standard.apply(x));
+    }
+
+    /// The correlation of column `j` with a standardised profile `u`, in `f64`.
+    pub(crate) fn correlation(&self, j: usize, u: &[f64]) -> f64 {
+        pulp::Arch::new().dispatch(Correlation {
+            u,
+            column: self.column(j),
+            standard: self.standard[j],
+        })
+    }
+
+    /// The standardised profiles rounded to `f32`, |DB| x n.
+    pub(crate) fn screen(&self) -> MatRef<'_, f32> {
+        MatRef::from_column_major_slice(&self.screen, self.n_db, self.ncols())
     }
 }
 
-/// Centred, unit-norm ranked profiles (zero for a constant column), column-major.
-pub(crate) struct Unit {
-    n_db: usize,
-    unit: Vec<f64>,
+/// The screened correlations of profiles `val` with `cal` (both from [`Ranked::screen`]),
+/// as a column-major |Qcal| x |Qval| matrix: column `j` holds row `j` of the spec's `R`
+/// to within [`screen_error`], contiguous.
+///
+/// The product runs over blocks of [`DEPTH`] database rows, summed into the result, so
+/// that its error bound does not grow with |DB|.
+pub(crate) fn screen_correlations(val: MatRef<'_, f32>, cal: MatRef<'_, f32>) -> Vec<f32> {
+    let mut r = vec![0.0; cal.ncols() * val.ncols()];
+    let mut dst = MatMut::from_column_major_slice_mut(&mut r, cal.ncols(), val.ncols());
+    for start in (0..val.nrows()).step_by(DEPTH) {
+        let rows = DEPTH.min(val.nrows() - start);
+        let accum = if start == 0 { Accum::Replace } else { Accum::Add };
+        let (lhs, rhs) = (cal.subrows(start, rows).transpose(), val.subrows(start, rows));
+        matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::rayon(0));
+    }
+    r
 }
 
-impl Unit {
-    fn mat(&self) -> MatRef<'_, f64> {
-        MatRef::from_column_major_slice(&self.unit, self.n_db, self.unit.len() / self.n_db)
+/// Database rows per block of the screening product.
+const DEPTH: usize = 1024;
+
+/// A bound on the difference between a screened correlation and the `f64` one, for
+/// profiles of `n_db` scores. With `u = 2^-24` and profiles of norm at most 1:
+/// - rounding both profiles to `f32` moves their dot product by at most `2u + u^2`;
+/// - each block's `f32` dot product of `d <= DEPTH` terms, in any summation order, is
+///   off by at most `gamma(d) = d u / (1 - d u)` times its sum of absolute products,
+///   and those sums add up to at most 1 (Cauchy-Schwarz);
+/// - adding a block's result into the total costs at most `u` times a sum below 2;
+/// - the `f64` correlation itself is within `gamma_64(n_db)` of the exact dot product.
+///
+/// The total is inflated by 1% for the norms' own rounding.
+pub(crate) fn screen_error(n_db: usize) -> f64 {
+    let gamma = |m: usize, u: f64| m as f64 * u / (1.0 - m as f64 * u);
+    let u = f64::from(f32::EPSILON) / 2.0;
+    let blocks = n_db.div_ceil(DEPTH) as f64;
+    1.01 * (3.0 * u + gamma(n_db.min(DEPTH), u) + 2.0 * u * blocks + gamma(n_db, f64::EPSILON / 2.0))
+}
+
+/// How a sorted profile is centred and scaled to unit norm: `(x * inv_scale - mean) *
+/// inv_norm`, where `inv_scale` is a power of two that keeps squares from overflowing
+/// or underflowing (so scaling is exact), and `inv_norm` is 0 for a constant profile.
+#[derive(Debug, Clone, Copy)]
+struct Standard {
+    inv_scale: f64,
+    mean: f64,
+    inv_norm: f64,
+}
+
+impl Standard {
+    const CONSTANT: Self = Self {
+        inv_scale: 1.0,
+        mean: 0.0,
+        inv_norm: 0.0,
+    };
+
+    /// The standardisation of a sorted, finite profile. Zero variance is tested exactly
+    /// (first == last), not as a small norm.
+    fn of<T: Score>(profile: &[T]) -> Self {
+        let (first, last) = (profile[0].to_f64(), profile[profile.len() - 1].to_f64());
+        if first == last {
+            return Self::CONSTANT;
+        }
+        // 2^-e for the exponent e of the largest magnitude, within range both ways.
+        let exponent = first.abs().max(last.abs()).log2().floor().clamp(-1000.0, 1000.0);
+        let inv_scale = (-exponent).exp2();
+        let mean = sum_lanes(profile, profile, |x, _| x.to_f64() * inv_scale) / profile.len() as f64;
+        let centred = Self {
+            inv_scale,
+            mean,
+            inv_norm: 1.0,
+        };
+        let norm = sum_lanes(profile, profile, |x, _| centred.apply(x).powi(2)).sqrt();
+        Self {
+            inv_norm: 1.0 / norm,
+            ..centred
+        }
     }
 
-    /// Correlations with `cal`, as a column-major |Qcal| x |self| matrix: column `j`
-    /// holds row `j` of the spec's `R`, contiguous.
-    pub(crate) fn correlate(&self, cal: &Unit) -> Vec<f64> {
-        let (lhs, rhs) = (cal.mat(), self.mat());
-        let mut r = vec![0.0; lhs.ncols() * rhs.ncols()];
-        let dst = MatMut::from_column_major_slice_mut(&mut r, lhs.ncols(), rhs.ncols());
-        matmul(dst, Accum::Replace, lhs.transpose(), rhs, 1.0, Par::rayon(0));
-        r
+    #[inline(always)]
+    fn apply<T: Score>(self, x: T) -> f64 {
+        (x.to_f64() * self.inv_scale - self.mean) * self.inv_norm
     }
 }
 
-/// Centre a sorted profile and scale it to unit norm, into `out`; all zeros when it is
-/// constant (zero variance is tested exactly, as first == last, not as a small norm).
-pub(crate) fn standardise<T: Score>(profile: &[T], out: &mut [f64]) {
-    let n = profile.len();
-    let (first, last) = (profile[0].to_f64(), profile[n - 1].to_f64());
-    if first == last {
-        out.fill(0.0);
-        return;
+/// The correlation of a standardised profile `u` with a sorted `column`, compiled for
+/// the widest vectors the CPU has (the lanes of [`sum_lanes`] fix the summation order,
+/// so every CPU gets the same bits).
+struct Correlation<'a, T> {
+    u: &'a [f64],
+    column: &'a [T],
+    standard: Standard,
+}
+
+impl<T: Score> pulp::WithSimd for Correlation<'_, T> {
+    type Output = f64;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> f64 {
+        let standard = self.standard;
+        sum_lanes(self.u, self.column, |a, x| a * standard.apply(x))
     }
-    // Scale by the largest magnitude first so that squares neither overflow nor underflow
-    // (a division: the reciprocal of a subnormal scale would overflow).
-    let scale = first.abs().max(last.abs());
-    for (o, x) in out.iter_mut().zip(profile) {
-        *o = x.to_f64() / scale;
+}
+
+/// The sum of `f(a_i, b_i)` over two equally long slices, in eight interleaved lanes:
+/// vectorisable, and the same order every time.
+#[inline(always)]
+fn sum_lanes<A: Copy, B: Copy>(a: &[A], b: &[B], f: impl Fn(A, B) -> f64) -> f64 {
+    const LANES: usize = 8;
+    let (a8, b8) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let tail: f64 = a8.remainder().iter().zip(b8.remainder()).map(|(&x, &y)| f(x, y)).sum();
+    let mut lanes = [0.0; LANES];
+    for (x, y) in a8.zip(b8) {
+        for l in 0..LANES {
+            lanes[l] += f(x[l], y[l]);
+        }
     }
-    let mean = out.iter().sum::<f64>() / n as f64;
-    out.iter_mut().for_each(|o| *o -= mean);
-    let inv_norm = 1.0 / out.iter().map(|o| o * o).sum::<f64>().sqrt();
-    out.iter_mut().for_each(|o| *o *= inv_norm);
+    lanes.iter().sum::<f64>() + tail
 }
 
 /// The `k` (clipped to the row length) calibration indices of highest correlation in
@@ -144,20 +261,44 @@ pub(crate) fn standardise<T: Score>(profile: &[T], out: &mut [f64]) {
 ///
 /// Correlations are compared on the [`CORRELATION_GRID`]; the weight uses raw values.
 pub fn top_k(row: &[f64], k: usize) -> (Vec<usize>, f64) {
-    let k = k.min(row.len());
-    let key = |i: usize| (row[i] / CORRELATION_GRID).round_ties_even();
-    let order = |a: &usize, b: &usize| key(*b).total_cmp(&key(*a)).then(a.cmp(b));
-    let mut idx: Vec<usize> = (0..row.len()).collect();
-    if k < idx.len() {
-        idx.select_nth_unstable_by(k - 1, order);
-        idx.truncate(k);
-    }
-    idx.sort_unstable_by(order);
-    let mean = idx.iter().map(|&i| row[i]).sum::<f64>() / k as f64;
-    (idx, mean.max(0.0))
+    top_k_of(row.iter().copied().enumerate().collect(), k)
 }
 
-/// The full |Qval| x |Qcal| ranked-correlation matrix `R` of SPEC section 4.
+/// [`top_k`] of (calibration index, correlation) pairs.
+fn top_k_of(mut pairs: Vec<(usize, f64)>, k: usize) -> (Vec<usize>, f64) {
+    let k = k.min(pairs.len());
+    let key = |r: f64| (r / CORRELATION_GRID).round_ties_even();
+    let order = |a: &(usize, f64), b: &(usize, f64)| key(b.1).total_cmp(&key(a.1)).then(a.0.cmp(&b.0));
+    if k < pairs.len() {
+        pairs.select_nth_unstable_by(k - 1, order);
+        pairs.truncate(k);
+    }
+    pairs.sort_unstable_by(order);
+    let mean = pairs.iter().map(|p| p.1).sum::<f64>() / k as f64;
+    (pairs.into_iter().map(|p| p.0).collect(), mean.max(0.0))
+}
+
+/// [`top_k`] from screened correlations `screen` (each within `error` of the `f64`
+/// one) and `exact(i)`, the `f64` correlation with calibration query `i`, which is only
+/// asked for the queries the bound cannot rule out.
+///
+/// If the k-th largest screened value is `a`, at least `k` correlations are at least
+/// `a - error`; any query screened below `a - 2 error - 2 grid` is more than a grid
+/// step below all of those, so it can neither enter the top `k` nor tie into it.
+pub(crate) fn screened_top_k(screen: &[f32], k: usize, error: f64, exact: impl Fn(usize) -> f64) -> (Vec<usize>, f64) {
+    let k = k.min(screen.len());
+    let mut values = screen.to_vec();
+    let (_, &mut kth, _) = values.select_nth_unstable_by(k - 1, |a, b| b.total_cmp(a));
+    let cut = f64::from(kth) - 2.0 * (error + CORRELATION_GRID);
+    let pairs = (screen.iter().enumerate())
+        .filter(|&(_, &a)| f64::from(a) >= cut)
+        .map(|(i, _)| (i, exact(i)))
+        .collect();
+    top_k_of(pairs, k)
+}
+
+/// The full |Qval| x |Qcal| ranked-correlation matrix `R` of SPEC section 4, in `f64`,
+/// the same values the transfer ranks neighbours by.
 ///
 /// # Errors
 /// Empty or non-finite scores, or a different number of database rows.
@@ -170,8 +311,14 @@ pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: Array
             deployment: val.n_db,
         });
     }
-    let r = val.unit().correlate(&cal.unit());
-    // Column-major |Qcal| x |Qval| is row-major |Qval| x |Qcal|.
+    let mut r = vec![0.0; val.ncols() * cal.ncols()];
+    r.par_chunks_mut(cal.ncols()).enumerate().for_each_init(
+        || vec![0.0; val.n_db],
+        |u, (j, row)| {
+            val.profile(j, u);
+            row.iter_mut().enumerate().for_each(|(i, r)| *r = cal.correlation(i, u));
+        },
+    );
     Ok(Array2::from_shape_vec((val.ncols(), cal.ncols()), r).expect("shape matches length"))
 }
 

@@ -13,6 +13,7 @@
 
 use std::ops::Range;
 
+use faer::MatRef;
 use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
@@ -21,7 +22,7 @@ use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, Truth, check_gt_shape, check_nonempty, check_precision};
-use crate::ranked_correlation::{Ranked, Unit, top_k};
+use crate::ranked_correlation::{Ranked, screen_correlations, screen_error, screened_top_k};
 use crate::subset_quantile::subset_quantile;
 
 /// The paper gives no value of `k`; 10 is this project's default.
@@ -92,23 +93,32 @@ pub struct Transfer {
 /// A calibration traverse with ground truth, ready to transfer thresholds.
 pub struct Calibration {
     matching: Matching,
-    /// The ranked profiles, ascending, in the input's own type (for the subset quantiles).
-    sorted: Box<dyn SortedColumns>,
-    /// Their centred unit-norm form (for the correlation product).
-    unit: Unit,
+    /// The ranked profiles, ascending, in the input's own type, with their standardised
+    /// form (for correlations) and screen.
+    profiles: Box<dyn Profiles>,
     candidates: Candidates,
     n_db: usize,
 }
 
-/// The quantile of a subset threshold among a set of sorted calibration columns,
-/// whatever their score type.
-trait SortedColumns: Send + Sync {
+/// What the transfer asks of the calibration profiles, whatever their score type.
+trait Profiles: Send + Sync {
+    /// The quantile of a subset threshold `t` among sorted calibration columns.
     fn quantile(&self, columns: &[usize], t: f64) -> f64;
+    /// The `f64` correlation of calibration query `i` with a standardised profile.
+    fn correlation(&self, i: usize, u: &[f64]) -> f64;
+    /// The `f32` screen of all calibration profiles.
+    fn screen(&self) -> MatRef<'_, f32>;
 }
 
-impl<T: Score> SortedColumns for Ranked<T> {
+impl<T: Score> Profiles for Ranked<T> {
     fn quantile(&self, columns: &[usize], t: f64) -> f64 {
         subset_quantile(columns.iter().map(|&i| self.column(i)), t)
+    }
+    fn correlation(&self, i: usize, u: &[f64]) -> f64 {
+        Ranked::correlation(self, i, u)
+    }
+    fn screen(&self) -> MatRef<'_, f32> {
+        Ranked::screen(self)
     }
 }
 
@@ -145,8 +155,7 @@ impl Calibration {
     ) -> Self {
         Self {
             matching,
-            unit: ranked.unit(),
-            sorted: Box::new(ranked),
+            profiles: Box::new(ranked),
             candidates: Candidates::new(s, gt, matching),
             n_db: s.nrows(),
         }
@@ -239,15 +248,21 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             let ranked = Ranked::new("deployment similarity", s.slice(ndarray::s![.., start..end]), start)?;
-            let r = ranked.unit().correlate(&self.unit);
-            let per_query: Vec<(Vec<usize>, f64, f64, f64)> = r
+            let screen = screen_correlations(ranked.screen(), self.profiles.screen());
+            let error = screen_error(self.n_db);
+            let per_query: Vec<(Vec<usize>, f64, f64, f64)> = screen
                 .par_chunks(self.len())
-                .map(|row| {
-                    let (nb, w) = top_k(row, k);
-                    let t = subset_threshold(&self.candidates, &nb, params.precision);
-                    let q = self.sorted.quantile(&nb, t);
-                    (nb, w, t, q)
-                })
+                .enumerate()
+                .map_init(
+                    || vec![0.0; self.n_db],
+                    |u, (j, row)| {
+                        ranked.profile(j, u);
+                        let (nb, w) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
+                        let t = subset_threshold(&self.candidates, &nb, params.precision);
+                        let q = self.profiles.quantile(&nb, t);
+                        (nb, w, t, q)
+                    },
+                )
                 .collect();
             for (j, (nb, w, t, q)) in (start..end).zip(per_query) {
                 neighbours.row_mut(j).iter_mut().zip(nb).for_each(|(d, i)| *d = i);
