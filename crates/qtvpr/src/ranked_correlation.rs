@@ -325,7 +325,7 @@ pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: Array
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ndarray::array;
+    use ndarray::{Array2, array};
 
     fn close(a: f64, b: f64) -> bool {
         (a - b).abs() < 1e-12
@@ -394,6 +394,72 @@ mod tests {
         assert_eq!(top_k(&[0.3, 0.3 + 1e-15], 1).0, vec![0]);
         // 1e-9 is far more than the grid: the larger one wins.
         assert_eq!(top_k(&[0.3, 0.3 + 1e-9], 1).0, vec![1]);
+    }
+
+    /// A fixed LCG in [0, 1).
+    fn lcg(seed: u64) -> impl FnMut() -> f64 {
+        let mut x = seed;
+        move || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn screen_stays_within_its_bound() {
+        // Profiles long enough for several product blocks, with an offset far from zero
+        // (the hard case for centring) and near-identical columns (correlations near 1).
+        let mut rand = lcg(3);
+        let n_db = 2 * DEPTH + 77;
+        let base: Vec<f64> = (0..n_db).map(|_| rand()).collect();
+        let cal = Array2::from_shape_fn((n_db, 7), |(i, j)| 100.0 + base[i] + 0.01 * j as f64 * rand());
+        let val = Array2::from_shape_fn((n_db, 5), |(i, _)| (100.0 + base[i] + 0.02 * rand()) as f32);
+        let (cal, val) = (
+            Ranked::new("c", cal.view(), 0).unwrap(),
+            Ranked::new("v", val.view(), 0).unwrap(),
+        );
+        let screen = screen_correlations(val.screen(), cal.screen());
+        let error = screen_error(n_db);
+        assert!(error < 1e-4, "{error}");
+        let mut u = vec![0.0; n_db];
+        let mut worst: f64 = 0.0;
+        for j in 0..val.ncols() {
+            val.profile(j, &mut u);
+            for i in 0..cal.ncols() {
+                let exact = cal.correlation(i, &u);
+                assert!(exact > 0.9, "{exact}");
+                worst = worst.max((f64::from(screen[j * cal.ncols() + i]) - exact).abs());
+            }
+        }
+        assert!(worst <= error, "screen off by {worst}, bound {error}");
+    }
+
+    #[test]
+    fn screening_picks_the_same_neighbours() {
+        // Rows of correlations with near-ties below, at and above the grid, and a screen
+        // that errs by up to the full bound in either direction.
+        let mut rand = lcg(11);
+        let error = 1e-4;
+        for case in 0..2000 {
+            let n = 1 + case % 40;
+            let k = 1 + case % 13;
+            let row: Vec<f64> = (0..n)
+                .map(|_| match (rand() * 4.0) as u32 {
+                    0 => 0.5,
+                    1 => 0.5 + 1e-15,
+                    2 => 0.5 + error * (rand() - 0.5),
+                    _ => rand(),
+                })
+                .collect();
+            let screen: Vec<f32> = row
+                .iter()
+                .map(|&r| (r + error * (2.0 * rand() - 1.0) * 0.999) as f32)
+                .collect();
+            let expected = top_k(&row, k);
+            let got = screened_top_k(&screen, k, error, |i| row[i]);
+            assert_eq!(got.0, expected.0, "case {case}: {row:?}");
+            assert_eq!(got.1.to_bits(), expected.1.to_bits(), "case {case}");
+        }
     }
 
     #[test]
