@@ -33,6 +33,7 @@ pub const CORRELATION_GRID: f64 = 1.0 / (1u64 << 40) as f64;
 
 /// A block of columns, each sorted ascending, column-major, in the input's type; with
 /// each column's standardisation and its standardised form in `f32` (the screen).
+#[derive(Default)]
 pub(crate) struct Ranked<T> {
     n_db: usize,
     sorted: Vec<T>,
@@ -48,9 +49,30 @@ impl<T: Score> Ranked<T> {
     /// [`Error::Empty`]; [`Error::NotFinite`] naming the first offending score in
     /// column-major order.
     pub(crate) fn new(what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<Self> {
+        let mut ranked = Self::default();
+        ranked.refill(what, s, first_col)?;
+        Ok(ranked)
+    }
+
+    /// [`Ranked::new`] in the buffers of `self`, for a stream of chunks (fresh buffers
+    /// for each would cost the kernel zeroing their pages again and again).
+    ///
+    /// # Errors
+    /// As [`Ranked::new`]; `self` is then left in an unspecified but valid state.
+    pub(crate) fn refill(&mut self, what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
         check_nonempty(what, s.dim())?;
         let (n_db, n) = s.dim();
-        let mut sorted = vec![T::default(); s.len()];
+        let Self {
+            sorted,
+            standard,
+            screen,
+            ..
+        } = self;
+        self.n_db = n_db;
+        sorted.resize(s.len(), T::default());
+        screen.resize(s.len(), 0.0);
+        standard.clear();
+        standard.resize(n, Standard::CONSTANT);
         const TILE: usize = 64;
         sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
             let cols = tile * TILE..(tile * TILE + out.len() / n_db);
@@ -63,12 +85,10 @@ impl<T: Score> Ranked<T> {
                 }
             }
         });
-        let mut standard = vec![Standard::CONSTANT; n];
-        let mut screen = vec![0.0f32; s.len()];
         let bad = sorted
             .par_chunks_mut(n_db)
             .zip(screen.par_chunks_mut(n_db))
-            .zip(&mut standard)
+            .zip(standard)
             .enumerate()
             .find_map_first(|(col, ((column, screen), standard))| {
                 if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
@@ -81,22 +101,10 @@ impl<T: Score> Ranked<T> {
                     });
                 }
                 T::sort_ascending(column);
-                *standard = Standard::of(column);
-                screen
-                    .iter_mut()
-                    .zip(column.iter())
-                    .for_each(|(z, &x)| *z = standard.apply(x) as f32);
+                *standard = pulp::Arch::new().dispatch(Screen { column, screen });
                 None
             });
-        if let Some(err) = bad {
-            return Err(err);
-        }
-        Ok(Self {
-            n_db,
-            sorted,
-            standard,
-            screen,
-        })
+        bad.map_or(Ok(()), Err)
     }
 
     pub(crate) fn ncols(&self) -> usize {
@@ -193,6 +201,7 @@ impl Standard {
 
     /// The standardisation of a sorted, finite profile. Zero variance is tested exactly
     /// (first == last), not as a small norm.
+    #[inline(always)]
     fn of<T: Score>(profile: &[T]) -> Self {
         let (first, last) = (profile[0].to_f64(), profile[profile.len() - 1].to_f64());
         if first == last {
@@ -236,6 +245,26 @@ impl<T: Score> pulp::WithSimd for Correlation<'_, T> {
     fn with_simd<S: pulp::Simd>(self, _: S) -> f64 {
         let standard = self.standard;
         sum_lanes(self.u, self.column, |a, x| a * standard.apply(x))
+    }
+}
+
+/// Standardise a sorted column and write its `f32` screen, compiled for the widest
+/// vectors the CPU has.
+struct Screen<'a, T> {
+    column: &'a [T],
+    screen: &'a mut [f32],
+}
+
+impl<T: Score> pulp::WithSimd for Screen<'_, T> {
+    type Output = Standard;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Standard {
+        let standard = Standard::of(self.column);
+        for (z, &x) in self.screen.iter_mut().zip(self.column) {
+            *z = standard.apply(x) as f32;
+        }
+        standard
     }
 }
 

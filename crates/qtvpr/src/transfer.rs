@@ -245,9 +245,10 @@ impl Calibration {
         } else {
             base
         };
+        let mut ranked = Ranked::default();
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            let ranked = Ranked::new("deployment similarity", s.slice(ndarray::s![.., start..end]), start)?;
+            ranked.refill("deployment similarity", s.slice(ndarray::s![.., start..end]), start)?;
             let screen = screen_correlations(ranked.screen(), self.profiles.screen());
             let error = screen_error(self.n_db);
             let per_query: Vec<(Vec<usize>, f64, f64, f64)> = screen
