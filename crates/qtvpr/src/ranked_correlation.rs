@@ -32,25 +32,80 @@ use crate::input::{Score, check_nonempty};
 pub const CORRELATION_GRID: f64 = 1.0 / (1u64 << 40) as f64;
 
 /// A block of columns, each sorted ascending, column-major, in the input's type; with
-/// each column's standardisation and its standardised form in `f32` (the screen).
+/// each column's standardisation and its [`Screen`].
 #[derive(Default)]
 pub(crate) struct Ranked<T> {
     n_db: usize,
     sorted: Vec<T>,
     standard: Vec<Standard>,
-    screen: Vec<f32>,
+    screen: Screen,
+}
+
+/// Standardised profiles `p` as offsets from a [`Reference`] profile `m`, for the
+/// screening product: per column, `p - m` rounded to `f32` (column-major), `p . m` and
+/// `|p - m|`. Then `p . q = p . m + (q . m - m . m) + (p - m) . (q - m)`, and only the
+/// last, small term is taken in `f32`, so its error shrinks with the offsets' norms.
+#[derive(Default)]
+pub(crate) struct Screen {
+    n_db: usize,
+    offsets: Vec<f32>,
+    along: Vec<f64>,
+    spread: Vec<f64>,
+}
+
+/// The profile screens are taken against: the mean standardised calibration profile
+/// (or zero), with its squared norm.
+pub(crate) struct Reference {
+    profile: Vec<f64>,
+    norm2: f64,
+}
+
+impl Reference {
+    /// The zero profile: screens of the profiles themselves.
+    pub(crate) fn zero(n_db: usize) -> Self {
+        Self {
+            profile: vec![0.0; n_db],
+            norm2: 0.0,
+        }
+    }
+
+    /// The mean standardised profile of `ranked`'s columns, summed row by row in column
+    /// order (the same bits on every run).
+    pub(crate) fn mean_of<T: Score>(ranked: &Ranked<T>) -> Self {
+        let mut profile = vec![0.0; ranked.n_db];
+        const ROWS: usize = 256;
+        profile.par_chunks_mut(ROWS).enumerate().for_each(|(block, out)| {
+            let rows = block * ROWS..block * ROWS + out.len();
+            for j in 0..ranked.ncols() {
+                let standard = ranked.standard[j];
+                for (o, &x) in out.iter_mut().zip(&ranked.column(j)[rows.clone()]) {
+                    *o += standard.apply(x);
+                }
+            }
+            let n = ranked.ncols() as f64;
+            out.iter_mut().for_each(|o| *o /= n);
+        });
+        let norm2 = sum_lanes(&profile, &profile, |a, b| a * b);
+        Self { profile, norm2 }
+    }
 }
 
 impl<T: Score> Ranked<T> {
-    /// Gather, check, sort and standardise the columns of `s`. `first_col` is the column
-    /// index of `s`'s first column in the matrix `what` names, for error messages.
+    /// Gather, check, sort and standardise the columns of `s`, and screen them against
+    /// `reference`. `first_col` is the column index of `s`'s first column in the matrix
+    /// `what` names, for error messages.
     ///
     /// # Errors
     /// [`Error::Empty`]; [`Error::NotFinite`] naming the first offending score in
     /// column-major order.
-    pub(crate) fn new(what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<Self> {
+    pub(crate) fn new(
+        what: &'static str,
+        s: ArrayView2<'_, T>,
+        first_col: usize,
+        reference: &Reference,
+    ) -> Result<Self> {
         let mut ranked = Self::default();
-        ranked.refill(what, s, first_col)?;
+        ranked.refill(what, s, first_col, reference)?;
         Ok(ranked)
     }
 
@@ -59,7 +114,13 @@ impl<T: Score> Ranked<T> {
     ///
     /// # Errors
     /// As [`Ranked::new`]; `self` is then left in an unspecified but valid state.
-    pub(crate) fn refill(&mut self, what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
+    pub(crate) fn refill(
+        &mut self,
+        what: &'static str,
+        s: ArrayView2<'_, T>,
+        first_col: usize,
+        reference: &Reference,
+    ) -> Result<()> {
         check_nonempty(what, s.dim())?;
         let (n_db, n) = s.dim();
         let Self {
@@ -70,9 +131,8 @@ impl<T: Score> Ranked<T> {
         } = self;
         self.n_db = n_db;
         sorted.resize(s.len(), T::default());
-        screen.resize(s.len(), 0.0);
-        standard.clear();
         standard.resize(n, Standard::CONSTANT);
+        screen.resize(n_db, n);
         const TILE: usize = 64;
         sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
             let cols = tile * TILE..(tile * TILE + out.len() / n_db);
@@ -87,10 +147,10 @@ impl<T: Score> Ranked<T> {
         });
         let bad = sorted
             .par_chunks_mut(n_db)
-            .zip(screen.par_chunks_mut(n_db))
             .zip(standard)
+            .zip(screen.columns_mut())
             .enumerate()
-            .find_map_first(|(col, ((column, screen), standard))| {
+            .find_map_first(|(col, ((column, standard), screen))| {
                 if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
                     let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
                     return Some(Error::NotFinite {
@@ -101,7 +161,7 @@ impl<T: Score> Ranked<T> {
                     });
                 }
                 T::sort_ascending(column);
-                *standard = pulp::Arch::new().dispatch(Screen { column, screen });
+                *standard = screen_column(column, reference, screen);
                 None
             });
         bad.map_or(Ok(()), Err)
@@ -138,49 +198,122 @@ impl<T: Score> Ranked<T> {
         })
     }
 
-    /// The standardised profiles rounded to `f32`, |DB| x n.
-    pub(crate) fn screen(&self) -> MatRef<'_, f32> {
-        MatRef::from_column_major_slice(&self.screen, self.n_db, self.ncols())
+    /// Screen every column against `reference` afresh.
+    pub(crate) fn rescreen(&mut self, reference: &Reference) {
+        let Self {
+            n_db,
+            sorted,
+            standard,
+            screen,
+        } = self;
+        sorted
+            .par_chunks(*n_db)
+            .zip(standard)
+            .zip(screen.columns_mut())
+            .for_each(|((column, standard), screen)| *standard = screen_column(column, reference, screen));
+    }
+
+    pub(crate) fn screen(&self) -> &Screen {
+        &self.screen
     }
 }
 
-/// The screened correlations of profiles `val` with `cal` (both from [`Ranked::screen`]),
-/// as a column-major |Qcal| x |Qval| matrix: column `j` holds row `j` of the spec's `R`
-/// to within [`screen_error`], contiguous.
-///
-/// The product runs over blocks of [`DEPTH`] database rows, summed into the result, so
-/// that its error bound does not grow with |DB|.
-pub(crate) fn screen_correlations(val: MatRef<'_, f32>, cal: MatRef<'_, f32>) -> Vec<f32> {
-    let mut r = vec![0.0; cal.ncols() * val.ncols()];
-    let mut dst = MatMut::from_column_major_slice_mut(&mut r, cal.ncols(), val.ncols());
-    for start in (0..val.nrows()).step_by(DEPTH) {
-        let rows = DEPTH.min(val.nrows() - start);
-        let accum = if start == 0 { Accum::Replace } else { Accum::Add };
-        let (lhs, rhs) = (cal.subrows(start, rows).transpose(), val.subrows(start, rows));
-        matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::rayon(0));
+/// Standardise a sorted column and screen it against `reference`, compiled for the
+/// widest vectors the CPU has.
+fn screen_column<T: Score>(
+    column: &[T],
+    reference: &Reference,
+    (offsets, along, spread): (&mut [f32], &mut f64, &mut f64),
+) -> Standard {
+    let standard;
+    (standard, *along, *spread) = pulp::Arch::new().dispatch(ScreenColumn {
+        column,
+        reference: &reference.profile,
+        offsets,
+    });
+    standard
+}
+
+impl Screen {
+    /// Room for `n` columns of `n_db` scores.
+    fn resize(&mut self, n_db: usize, n: usize) {
+        self.n_db = n_db;
+        self.offsets.resize(n_db * n, 0.0);
+        self.along.resize(n, 0.0);
+        self.spread.resize(n, 0.0);
     }
-    r
+
+    /// Per column: its offsets, `p . m` and `|p - m|`, to fill.
+    fn columns_mut(&mut self) -> impl IndexedParallelIterator<Item = (&mut [f32], &mut f64, &mut f64)> {
+        (self.offsets.par_chunks_mut(self.n_db))
+            .zip(&mut self.along)
+            .zip(&mut self.spread)
+            .map(|((o, a), s)| (o, a, s))
+    }
+
+    fn offsets(&self) -> MatRef<'_, f32> {
+        MatRef::from_column_major_slice(&self.offsets, self.n_db, self.along.len())
+    }
+
+    /// The largest `|p - m|`.
+    pub(crate) fn max_spread(&self) -> f64 {
+        self.spread.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// Screened correlations of `self`'s columns with `cal`'s (both against `reference`),
+    /// as a column-major |Qcal| x |self| matrix: column `j` holds row `j` of the spec's
+    /// `R`, each value within [`Screen::error`] of the `f64` one.
+    ///
+    /// The `f32` product runs over blocks of [`DEPTH`] database rows, summed into the
+    /// result, so that its error bound does not grow with |DB|.
+    pub(crate) fn correlations(&self, cal: &Screen, reference: &Reference) -> Vec<f64> {
+        let (val_offsets, cal_offsets) = (self.offsets(), cal.offsets());
+        let mut products = vec![0.0f32; cal.along.len() * self.along.len()];
+        let mut dst = MatMut::from_column_major_slice_mut(&mut products, cal.along.len(), self.along.len());
+        for start in (0..self.n_db).step_by(DEPTH) {
+            let rows = DEPTH.min(self.n_db - start);
+            let accum = if start == 0 { Accum::Replace } else { Accum::Add };
+            let (lhs, rhs) = (
+                cal_offsets.subrows(start, rows).transpose(),
+                val_offsets.subrows(start, rows),
+            );
+            matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::rayon(0));
+        }
+        let n_cal = cal.along.len();
+        (products.par_chunks(n_cal).zip(&self.along))
+            .flat_map_iter(|(row, &along)| {
+                let shift = along - reference.norm2;
+                row.iter().zip(&cal.along).map(move |(&d, &a)| a + shift + f64::from(d))
+            })
+            .collect()
+    }
+
+    /// A bound on the difference between the screened correlation of column `j` with any
+    /// calibration column (whose largest spread is `cal_spread`) and the `f64` one.
+    ///
+    /// With `u = 2^-24`, offsets `a` and `b` of norms `|a|` and `|b|`:
+    /// - rounding both to `f32` moves their dot product by at most `(2u + u^2) |a| |b|`;
+    /// - each block's `f32` dot product of `d <= DEPTH` terms, in any summation order,
+    ///   is off by at most `gamma(d) = d u / (1 - d u)` times its sum of absolute
+    ///   products, and those sums add up to at most `|a| |b|` (Cauchy-Schwarz);
+    /// - adding each block's result into the total, and rounding the last, costs at
+    ///   most `u` times a sum below `2 |a| |b|` each;
+    /// - the `f64` terms (`p . m`, `m . m`, the sums, the rounding of the offsets, and
+    ///   the `f64` correlation itself) are each within `gamma_64(n_db)` of exact, with
+    ///   norms at most 1 (`m` is a mean of unit vectors).
+    ///
+    /// The `f32` part is inflated by 1% for the norms' own rounding.
+    pub(crate) fn error(&self, j: usize, cal_spread: f64) -> f64 {
+        let gamma = |m: usize, u: f64| m as f64 * u / (1.0 - m as f64 * u);
+        let u = f64::from(f32::EPSILON) / 2.0;
+        let blocks = self.n_db.div_ceil(DEPTH) as f64;
+        let f32_part = 1.01 * (3.0 * u + gamma(self.n_db.min(DEPTH), u) + 2.0 * u * (blocks + 1.0));
+        f32_part * self.spread[j] * cal_spread + 8.0 * gamma(self.n_db + 2, f64::EPSILON / 2.0)
+    }
 }
 
 /// Database rows per block of the screening product.
 const DEPTH: usize = 1024;
-
-/// A bound on the difference between a screened correlation and the `f64` one, for
-/// profiles of `n_db` scores. With `u = 2^-24` and profiles of norm at most 1:
-/// - rounding both profiles to `f32` moves their dot product by at most `2u + u^2`;
-/// - each block's `f32` dot product of `d <= DEPTH` terms, in any summation order, is
-///   off by at most `gamma(d) = d u / (1 - d u)` times its sum of absolute products,
-///   and those sums add up to at most 1 (Cauchy-Schwarz);
-/// - adding a block's result into the total costs at most `u` times a sum below 2;
-/// - the `f64` correlation itself is within `gamma_64(n_db)` of the exact dot product.
-///
-/// The total is inflated by 1% for the norms' own rounding.
-pub(crate) fn screen_error(n_db: usize) -> f64 {
-    let gamma = |m: usize, u: f64| m as f64 * u / (1.0 - m as f64 * u);
-    let u = f64::from(f32::EPSILON) / 2.0;
-    let blocks = n_db.div_ceil(DEPTH) as f64;
-    1.01 * (3.0 * u + gamma(n_db.min(DEPTH), u) + 2.0 * u * blocks + gamma(n_db, f64::EPSILON / 2.0))
-}
 
 /// How a sorted profile is centred and scaled to unit norm: `(x * inv_scale - mean) *
 /// inv_norm`, where `inv_scale` is a power of two that keeps squares from overflowing
@@ -248,23 +381,42 @@ impl<T: Score> pulp::WithSimd for Correlation<'_, T> {
     }
 }
 
-/// Standardise a sorted column and write its `f32` screen, compiled for the widest
-/// vectors the CPU has.
-struct Screen<'a, T> {
+/// The kernel of [`screen_column`]: the standardisation of `column`, and its offsets
+/// from `reference` with `p . m` and `|p - m|`, in the lanes of [`sum_lanes`].
+struct ScreenColumn<'a, T> {
     column: &'a [T],
-    screen: &'a mut [f32],
+    reference: &'a [f64],
+    offsets: &'a mut [f32],
 }
 
-impl<T: Score> pulp::WithSimd for Screen<'_, T> {
-    type Output = Standard;
+impl<T: Score> pulp::WithSimd for ScreenColumn<'_, T> {
+    type Output = (Standard, f64, f64);
 
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> Standard {
+    fn with_simd<S: pulp::Simd>(self, _: S) -> (Standard, f64, f64) {
+        const LANES: usize = 8;
         let standard = Standard::of(self.column);
-        for (z, &x) in self.screen.iter_mut().zip(self.column) {
-            *z = standard.apply(x) as f32;
+        let (mut along, mut spread) = ([0.0; LANES], [0.0; LANES]);
+        let mut lane = |l: usize, x: T, m: f64, o: &mut f32| {
+            let p = standard.apply(x);
+            let d = p - m;
+            *o = d as f32;
+            along[l] += p * m;
+            spread[l] += d * d;
+        };
+        let (x8, m8) = (self.column.chunks_exact(LANES), self.reference.chunks_exact(LANES));
+        let (x_tail, m_tail) = (x8.remainder(), m8.remainder());
+        let mut o8 = self.offsets.chunks_exact_mut(LANES);
+        for ((x, m), o) in x8.zip(m8).zip(&mut o8) {
+            for l in 0..LANES {
+                lane(l, x[l], m[l], &mut o[l]);
+            }
         }
-        standard
+        for ((&x, &m), o) in x_tail.iter().zip(m_tail).zip(o8.into_remainder()) {
+            lane(0, x, m, o);
+        }
+        let sum = |lanes: [f64; LANES]| lanes.iter().sum::<f64>();
+        (standard, sum(along), sum(spread).sqrt())
     }
 }
 
@@ -314,13 +466,13 @@ fn top_k_of(mut pairs: Vec<(usize, f64)>, k: usize) -> (Vec<usize>, f64) {
 /// If the k-th largest screened value is `a`, at least `k` correlations are at least
 /// `a - error`; any query screened below `a - 2 error - 2 grid` is more than a grid
 /// step below all of those, so it can neither enter the top `k` nor tie into it.
-pub(crate) fn screened_top_k(screen: &[f32], k: usize, error: f64, exact: impl Fn(usize) -> f64) -> (Vec<usize>, f64) {
+pub(crate) fn screened_top_k(screen: &[f64], k: usize, error: f64, exact: impl Fn(usize) -> f64) -> (Vec<usize>, f64) {
     let k = k.min(screen.len());
     let mut values = screen.to_vec();
     let (_, &mut kth, _) = values.select_nth_unstable_by(k - 1, |a, b| b.total_cmp(a));
-    let cut = f64::from(kth) - 2.0 * (error + CORRELATION_GRID);
+    let cut = kth - 2.0 * (error + CORRELATION_GRID);
     let pairs = (screen.iter().enumerate())
-        .filter(|&(_, &a)| f64::from(a) >= cut)
+        .filter(|&(_, &a)| a >= cut)
         .map(|(i, _)| (i, exact(i)))
         .collect();
     top_k_of(pairs, k)
@@ -332,8 +484,9 @@ pub(crate) fn screened_top_k(screen: &[f32], k: usize, error: f64, exact: impl F
 /// # Errors
 /// Empty or non-finite scores, or a different number of database rows.
 pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
-    let cal = Ranked::new("calibration similarity", cal, 0)?;
-    let val = Ranked::new("deployment similarity", val, 0)?;
+    let zero = Reference::zero(cal.nrows());
+    let cal = Ranked::new("calibration similarity", cal, 0, &zero)?;
+    let val = Ranked::new("deployment similarity", val, 0, &zero)?;
     if val.n_db != cal.n_db {
         return Err(Error::DatabaseMismatch {
             calibration: cal.n_db,
@@ -437,30 +590,38 @@ mod tests {
     #[test]
     fn screen_stays_within_its_bound() {
         // Profiles long enough for several product blocks, with an offset far from zero
-        // (the hard case for centring) and near-identical columns (correlations near 1).
+        // (the hard case for centring) and near-identical columns (correlations near 1,
+        // where the reference profile must make the bound tight), against the mean
+        // calibration profile and against zero.
         let mut rand = lcg(3);
         let n_db = 2 * DEPTH + 77;
         let base: Vec<f64> = (0..n_db).map(|_| rand()).collect();
         let cal = Array2::from_shape_fn((n_db, 7), |(i, j)| 100.0 + base[i] + 0.01 * j as f64 * rand());
         let val = Array2::from_shape_fn((n_db, 5), |(i, _)| (100.0 + base[i] + 0.02 * rand()) as f32);
-        let (cal, val) = (
-            Ranked::new("c", cal.view(), 0).unwrap(),
-            Ranked::new("v", val.view(), 0).unwrap(),
-        );
-        let screen = screen_correlations(val.screen(), cal.screen());
-        let error = screen_error(n_db);
-        assert!(error < 1e-4, "{error}");
-        let mut u = vec![0.0; n_db];
-        let mut worst: f64 = 0.0;
-        for j in 0..val.ncols() {
-            val.profile(j, &mut u);
-            for i in 0..cal.ncols() {
-                let exact = cal.correlation(i, &u);
-                assert!(exact > 0.9, "{exact}");
-                worst = worst.max((f64::from(screen[j * cal.ncols() + i]) - exact).abs());
+        let zero = Reference::zero(n_db);
+        let mut cal = Ranked::new("c", cal.view(), 0, &zero).unwrap();
+        for mean in [false, true] {
+            let reference = if mean {
+                Reference::mean_of(&cal)
+            } else {
+                Reference::zero(n_db)
+            };
+            cal.rescreen(&reference);
+            let val = Ranked::new("v", val.view(), 0, &reference).unwrap();
+            let screen = val.screen().correlations(cal.screen(), &reference);
+            let mut u = vec![0.0; n_db];
+            for j in 0..val.ncols() {
+                let error = val.screen().error(j, cal.screen().max_spread());
+                assert!(error < if mean { 1e-6 } else { 1e-4 }, "{error}");
+                val.profile(j, &mut u);
+                for i in 0..cal.ncols() {
+                    let exact = cal.correlation(i, &u);
+                    assert!(exact > 0.9, "{exact}");
+                    let off = (screen[j * cal.ncols() + i] - exact).abs();
+                    assert!(off <= error, "screen off by {off}, bound {error}");
+                }
             }
         }
-        assert!(worst <= error, "screen off by {worst}, bound {error}");
     }
 
     #[test]
@@ -480,10 +641,7 @@ mod tests {
                     _ => rand(),
                 })
                 .collect();
-            let screen: Vec<f32> = row
-                .iter()
-                .map(|&r| (r + error * (2.0 * rand() - 1.0) * 0.999) as f32)
-                .collect();
+            let screen: Vec<f64> = row.iter().map(|&r| r + error * (2.0 * rand() - 1.0)).collect();
             let expected = top_k(&row, k);
             let got = screened_top_k(&screen, k, error, |i| row[i]);
             assert_eq!(got.0, expected.0, "case {case}: {row:?}");

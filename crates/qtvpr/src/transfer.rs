@@ -2,18 +2,18 @@
 //! transfer-many API.
 //!
 //! [`Calibration::new`] does all the work that depends only on the calibration traverse:
-//! ranked profiles, their standardised form, and the per-column candidates. Each
-//! [`Calibration::transfer`] then streams the deployment queries through in column
-//! chunks: gather, check and sort a chunk (in parallel), correlate it with the
-//! calibration profiles (one faer product), and for each query pick its neighbours,
-//! their subset threshold and its quantile (in parallel). When segments are small, each
+//! ranked profiles, their standardised form and screen, and the per-column candidates.
+//! Each [`Calibration::transfer`] then streams the deployment queries through in column
+//! chunks: gather, check, sort and screen a chunk (in parallel), screen its correlations
+//! with the calibration profiles (one faer `f32` product), and for each query pick its
+//! neighbours (re-scoring in `f64` those the screen leaves in doubt), their subset
+//! threshold and its quantile (in parallel). When segments are small, each
 //! chunk holds whole segments and their thresholds are read off the chunk's sorted
 //! copy, so the deployment scores are read once; a larger batch is read again where it
 //! lies. Memory beyond the inputs is the calibration profiles plus one chunk.
 
 use std::ops::Range;
 
-use faer::MatRef;
 use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
@@ -22,7 +22,7 @@ use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, Truth, check_gt_shape, check_nonempty, check_precision};
-use crate::ranked_correlation::{Ranked, screen_correlations, screen_error, screened_top_k};
+use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
 use crate::subset_quantile::subset_quantile;
 
 /// The paper gives no value of `k`; 10 is this project's default.
@@ -96,6 +96,8 @@ pub struct Calibration {
     /// The ranked profiles, ascending, in the input's own type, with their standardised
     /// form (for correlations) and screen.
     profiles: Box<dyn Profiles>,
+    /// The mean calibration profile, which screens are taken against.
+    reference: Reference,
     candidates: Candidates,
     n_db: usize,
 }
@@ -106,8 +108,8 @@ trait Profiles: Send + Sync {
     fn quantile(&self, columns: &[usize], t: f64) -> f64;
     /// The `f64` correlation of calibration query `i` with a standardised profile.
     fn correlation(&self, i: usize, u: &[f64]) -> f64;
-    /// The `f32` screen of all calibration profiles.
-    fn screen(&self) -> MatRef<'_, f32>;
+    /// The screen of all calibration profiles.
+    fn screen(&self) -> &Screen;
 }
 
 impl<T: Score> Profiles for Ranked<T> {
@@ -117,7 +119,7 @@ impl<T: Score> Profiles for Ranked<T> {
     fn correlation(&self, i: usize, u: &[f64]) -> f64 {
         Ranked::correlation(self, i, u)
     }
-    fn screen(&self) -> MatRef<'_, f32> {
+    fn screen(&self) -> &Screen {
         Ranked::screen(self)
     }
 }
@@ -128,7 +130,7 @@ impl Calibration {
     /// # Errors
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
-        let ranked = Ranked::new("calibration similarity", s, 0)?;
+        let ranked = Ranked::new("calibration similarity", s, 0, &Reference::zero(s.nrows()))?;
         check_gt_shape(gt, "calibration similarity", s.dim())?;
         Ok(Self::from_ranked(ranked, s, gt.view(), matching))
     }
@@ -140,22 +142,26 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         Ok(Self::from_ranked(
-            Ranked::new("calibration similarity", s, 0)?,
+            Ranked::new("calibration similarity", s, 0, &Reference::zero(s.nrows()))?,
             s,
             gt,
             matching,
         ))
     }
 
+    /// Screen `ranked` (screened against zero) against its own mean profile.
     fn from_ranked<T: Score>(
-        ranked: Ranked<T>,
+        mut ranked: Ranked<T>,
         s: ArrayView2<'_, T>,
         gt: ArrayView2<'_, Truth>,
         matching: Matching,
     ) -> Self {
+        let reference = Reference::mean_of(&ranked);
+        ranked.rescreen(&reference);
         Self {
             matching,
             profiles: Box::new(ranked),
+            reference,
             candidates: Candidates::new(s, gt, matching),
             n_db: s.nrows(),
         }
@@ -248,9 +254,11 @@ impl Calibration {
         let mut ranked = Ranked::default();
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            ranked.refill("deployment similarity", s.slice(ndarray::s![.., start..end]), start)?;
-            let screen = screen_correlations(ranked.screen(), self.profiles.screen());
-            let error = screen_error(self.n_db);
+            let chunk = s.slice(ndarray::s![.., start..end]);
+            ranked.refill("deployment similarity", chunk, start, &self.reference)?;
+            let cal = self.profiles.screen();
+            let screen = ranked.screen().correlations(cal, &self.reference);
+            let cal_spread = cal.max_spread();
             let per_query: Vec<(Vec<usize>, f64, f64, f64)> = screen
                 .par_chunks(self.len())
                 .enumerate()
@@ -258,6 +266,7 @@ impl Calibration {
                     || vec![0.0; self.n_db],
                     |u, (j, row)| {
                         ranked.profile(j, u);
+                        let error = ranked.screen().error(j, cal_spread);
                         let (nb, w) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
                         let t = subset_threshold(&self.candidates, &nb, params.precision);
                         let q = self.profiles.quantile(&nb, t);
