@@ -280,12 +280,15 @@ impl Screen {
             matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::rayon(0));
         }
         let n_cal = cal.along.len();
-        (products.par_chunks(n_cal).zip(&self.along))
-            .flat_map_iter(|(row, &along)| {
-                let shift = along - reference.norm2;
-                row.iter().zip(&cal.along).map(move |(&d, &a)| a + shift + f64::from(d))
-            })
-            .collect()
+        let mut r = vec![0.0; products.len()];
+        (r.par_chunks_mut(n_cal).zip(products.par_chunks(n_cal)).zip(&self.along)).for_each(|((r, d), along)| {
+            let shift = along - reference.norm2;
+            r.iter_mut()
+                .zip(d)
+                .zip(&cal.along)
+                .for_each(|((r, &d), a)| *r = a + shift + f64::from(d));
+        });
+        r
     }
 
     /// A bound on the difference between the screened correlation of column `j` with any
