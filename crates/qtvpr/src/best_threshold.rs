@@ -2,7 +2,7 @@
 //!
 //! An exact sweep over the candidates in descending score order, evaluated only at the
 //! end of each group of equal scores (equal scores are accepted together). Candidates
-//! arrive as per-column sorted lists ([`Candidates`]), so a subset of columns is swept
+//! arrive as per-column sorted lists (`Candidates`), so a subset of columns is swept
 //! by a lazy k-way merge rather than a sort, and the sweep stops as soon as no later
 //! group can be valid: validity needs `FP <= (TP (1 - tau) + 1e-12) / tau` and TP never
 //! exceeds the positives, so past that many false positives nothing can change. At

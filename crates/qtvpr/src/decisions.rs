@@ -195,7 +195,7 @@ impl Counts {
 /// Count the decisions of every query of `s` at threshold `t`.
 ///
 /// # Errors
-/// As [`crate::best_threshold`]: empty, non-finite or mismatched input.
+/// As [`crate::best_threshold()`]: empty, non-finite or mismatched input.
 pub fn counts<T: Score>(
     s: ArrayView2<'_, T>,
     gt: &crate::GroundTruth,

@@ -14,7 +14,7 @@ mod sealed {
     pub trait Sealed {}
 }
 
-/// A similarity score type: `f32` or `f64`. All arithmetic happens in `f64`.
+/// A similarity score type: `f32` or `f64`. Every result is computed in `f64`.
 pub trait Score: Copy + Default + Send + Sync + PartialOrd + sealed::Sealed + 'static {
     /// The NumPy name of the type, for messages.
     const DTYPE: &'static str;

@@ -6,17 +6,19 @@
 //!
 //! The |Qval| x |Qcal| correlations are found in two steps, with the same result as
 //! computing them all in `f64`:
-//! 1. a *screen*: one faer product of the profiles rounded to `f32` (twice the speed
-//!    and half the memory of `f64`), whose error has a proven bound ([`screen_error`]);
+//! 1. a *screen*: each profile's offset from the mean calibration profile is rounded to
+//!    `f32`, and one faer product of those offsets (twice the speed and half the memory
+//!    of `f64`) gives every correlation to within a proven bound, which shrinks with
+//!    the offsets' norms (`Screen::error`);
 //! 2. each deployment query computes in `f64` only the correlations that the bound says
-//!    could reach its top `k` ([`screened_top_k`]): about `k` of them on real data.
+//!    could reach its top `k` (`screened_top_k`): about `k` of them on real data.
 //!
 //! Profiles are kept in *ascending* order: reversing both profiles of a pair changes
 //! neither their correlation nor any count of scores below a threshold, and ascending
-//! is what the radix sort gives. [`Ranked`] gathers a block of columns into a
+//! is what the radix sort gives. `Ranked` gathers a block of columns into a
 //! column-major buffer of the input's own type (tile by tile, so a C-order matrix is
 //! read row-wise rather than with one cache miss per score), checks every score is
-//! finite, and sorts and standardises each column while it is in cache.
+//! finite, and sorts, standardises and screens each column while it is in cache.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
