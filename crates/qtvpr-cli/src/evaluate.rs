@@ -452,6 +452,21 @@ fn calibration_label(run: &Run) -> String {
     }
 }
 
+/// What an ablation holds fixed: "queries a..b (n segments of s); tau = t, m matching"
+/// (every run of an ablation shares its deployment set).
+pub fn ablation_setting(ctx: &RunContext, run: &Run) -> String {
+    let l = run.eval.layout;
+    format!(
+        "queries {}..{} ({} segments of {}); tau = {}, {} matching",
+        l.deployment_start,
+        l.queries,
+        l.segments,
+        l.segment_size,
+        fmt_num(ctx.precision),
+        ctx.matching.as_str()
+    )
+}
+
 fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
     let avg = ctx.avg_recall_name();
     let mut t = String::new();
@@ -479,18 +494,11 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
         }
         return t;
     }
-    let l = runs[0].eval.layout;
     writeln!(
         t,
-        "*{}: ablation; deployment set: queries {}..{} ({} segments of {}); tau = {}, {} matching. \
-         Cells: %Segs / {avg}.*\n",
+        "*{}: ablation; deployment set: {}. Cells: %Segs / {avg}.*\n",
         ctx.dataset,
-        l.deployment_start,
-        l.queries,
-        l.segments,
-        l.segment_size,
-        fmt_num(ctx.precision),
-        ctx.matching.as_str()
+        ablation_setting(ctx, &runs[0])
     )
     .unwrap();
     let methods: Vec<Method> = runs[0].eval.methods.iter().map(|m| m.method).collect();

@@ -21,7 +21,7 @@ use plotters::prelude::*;
 use qtvpr::Method;
 use qtvpr::evaluate::MethodResult;
 
-use crate::evaluate::{Run, RunContext, fmt_num};
+use crate::evaluate::{Run, RunContext, ablation_setting, fmt_num};
 use crate::output::emit;
 
 const FONT: &str = "sans-serif";
@@ -569,7 +569,6 @@ fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Axis) -> Resu
         }
     }
 
-    let l = runs[0].eval.layout;
     let (x_desc, what) = match axis {
         Axis::K => ("k: calibration queries sampled per deployment query", "k"),
         Axis::Calibration => (
@@ -581,13 +580,8 @@ fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Axis) -> Resu
     let (left, right) = charts
         .titled(
             &format!(
-                "Sensitivity to {what}: deployment set fixed to queries {}..{} ({} segments of {}), tau = {}, {} matching",
-                l.deployment_start,
-                l.queries,
-                l.segments,
-                l.segment_size,
-                fmt_num(ctx.precision),
-                ctx.matching.as_str()
+                "Sensitivity to {what}: deployment set fixed to {}",
+                ablation_setting(ctx, &runs[0])
             ),
             (FONT, 19),
         )
