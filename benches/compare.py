@@ -1,6 +1,6 @@
 """End-to-end benchmark of qtvpr: the wheel against qtvpr.reference in one process, the
 CLI as a whole process, and paper-scale synthetic matrices. Prints a Markdown report and
-writes it into README.md between the markers <!-- bench:start --> and <!-- bench:end -->.
+writes it into docs/performance.md between the markers <!-- bench:start --> and <!-- bench:end -->.
 
     python benches/compare.py [--cli PATH] [--work DIR] [--no-readme] [--skip-scale]
 
@@ -167,7 +167,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cli", type=Path, default=REPO / "target" / "release" / "qtvpr-cli")
     ap.add_argument("--work", type=Path, default=None, help="where to keep generated inputs")
-    ap.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    ap.add_argument("--no-readme", action="store_true", help="print only; leave docs/performance.md alone")
     ap.add_argument("--skip-scale", action="store_true", help="skip the paper-scale synthetic cases")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -187,12 +187,12 @@ def main() -> None:
     text = "\n".join(report)
     print(text)
     if not args.no_readme:
-        readme = REPO / "README.md"
+        readme = REPO / "docs" / "performance.md"
         body = readme.read_text()
         new, n = re.subn(r"(<!-- bench:start -->\n).*?(<!-- bench:end -->)", lambda m: m[1] + text + "\n" + m[2],
                          body, flags=re.S)
         if n != 1:
-            sys.exit("README.md has no <!-- bench:start --> ... <!-- bench:end --> block")
+            sys.exit("docs/performance.md has no <!-- bench:start --> ... <!-- bench:end --> block")
         readme.write_text(new)
 
 
