@@ -1,6 +1,6 @@
 //! A static k-d tree for the radius queries of [`crate::ground_truth::within_radius`].
 //!
-//! Why not a crate: `kiddo` 6 needs Rust 1.89 (this project supports 1.86) and a large
+//! Why not a crate: `kiddo` 6 needs Rust 1.89 (this project supports 1.88) and a large
 //! dependency tree; in `kiddo` 5 the mutable tree panics when more than a bucket's worth
 //! of points share a coordinate (the GPS fixes of a robot standing still) and its within
 //! queries test `distance < radius` (exclusive), and the immutable tree has an open
