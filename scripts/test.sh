@@ -1,11 +1,18 @@
 #!/usr/bin/env bash
 # Every check of the project, from a fresh clone: Rust format, lints and tests, then the
-# wheel built into a fresh virtualenv and the Python tests (wheel, reference and CLI).
+# wheel built into a virtualenv and the Python tests (wheel, reference and CLI).
 # Installs what it needs from crates.io and PyPI. Run from anywhere.
+#
+# One build of the workspace serves everything: `cargo test` builds the CLI binary
+# (dev profile: the project's crates at opt-level 1, dependencies at 2) that the Python
+# tests run, and the wheel is built with the same profile into the same target
+# directory, so it recompiles only what its pyo3 features change. CONTRIBUTING.md says
+# how long each step takes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 step() { printf '\n== %s\n' "$*"; }
+target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 
 step "cargo fmt --check"
 cargo fmt --all -- --check
@@ -13,17 +20,20 @@ step "cargo clippy"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 step "cargo test"
 cargo test --workspace --locked
-step "cargo build --release (qtvpr-cli)"
-cargo build --release --locked -p qtvpr-cli
 
-step "wheel into a fresh virtualenv"
-venv=target/test-venv
-rm -rf "$venv"
-python3 -m venv "$venv"
-"$venv/bin/python" -m pip install --quiet --upgrade pip
-"$venv/bin/python" -m pip install --quiet ".[test]"
+step "wheel into a virtualenv"
+venv="$target/test-venv"
+# A venv is kept between local runs (a fresh clone has none); the wheel is always rebuilt.
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check "maturin>=1.9,<2"
+rm -rf "$target/test-wheels"
+"$venv/bin/maturin" build --quiet --locked --profile dev --interpreter "$venv/bin/python" --out "$target/test-wheels"
+wheel=$(ls "$target"/test-wheels/qtvpr-*.whl)
+pip=("$venv/bin/python" -m pip install --quiet --disable-pip-version-check)
+"${pip[@]}" "$wheel[test]"                        # the test dependencies
+"${pip[@]}" --force-reinstall --no-deps "$wheel"   # this build, even if the version is unchanged
 
 step "pytest"
 # Run from tests/ so that the installed wheel, not the source tree, is imported.
 cd tests
-QTVPR_CLI="$PWD/../target/release/qtvpr-cli" "../$venv/bin/python" -m pytest -q -p no:cacheprovider .
+QTVPR_CLI="$target/debug/qtvpr-cli" "$venv/bin/python" -m pytest -q -p no:cacheprovider .
