@@ -404,3 +404,86 @@ def test_deeply_nested_headers_fail_fast(tmp_path):
     with pytest.raises(ValueError) as info:
         qtvpr.best_threshold(S_CAL, npz)
     check(info, ValueError, "gt", npz, "is not a valid .npy file: its header nests brackets 104 deep")
+
+
+def test_nested_headers_fail_fast_on_every_path_argument(tmp_path):
+    """Regression (the CLI hung on it): a 128-byte header nesting 20 brackets is refused
+    at once by every function that takes a path, through the core's checked reader."""
+    import time
+
+    header = "{'descr': '<f8', 'fortran_order': False, 'shape': " + "[" * 20 + "]" * 20 + "}"
+    header += " " * ((-(10 + len(header) + 1)) % 64) + "\n"
+    npy = tmp_path / "nested.npy"
+    npy.write_bytes(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode())
+    assert npy.stat().st_size == 128
+    p = np.zeros((2, 2))
+    calls = [
+        ("db", lambda: qtvpr.cosine_similarity(npy, p)),
+        ("queries", lambda: qtvpr.cosine_similarity(p, npy)),
+        ("db_positions", lambda: qtvpr.ground_truth_positions(npy, p, 1.0)),
+        ("query_positions", lambda: qtvpr.ground_truth_positions(p, npy, 1.0)),
+        ("s", lambda: qtvpr.sequence_match(npy, 3)),
+        ("s", lambda: qtvpr.evaluate(npy, GT_CAL)),
+        ("s_val", lambda: qtvpr.quantile_transfer(S_CAL, GT_CAL, npy)),
+        ("gt_soft", lambda: qtvpr.best_threshold(S_CAL, GT_CAL, gt_soft=npy)),
+    ]
+    for argument, call in calls:
+        start = time.perf_counter()
+        with pytest.raises(ValueError) as info:
+            call()
+        assert time.perf_counter() - start < 1.0, argument
+        assert str(info.value) == f"{argument}: {npy} is not a valid .npy file: its header nests brackets 21 deep"
+
+
+def test_descriptor_and_position_files_say_what_they_must_hold(tmp_path):
+    ints = save(tmp_path / "ints.npy", np.zeros((2, 2), dtype=np.int64))
+    one_d = save(tmp_path / "one_d.npy", np.zeros(2))
+    with pytest.raises(TypeError) as info:
+        qtvpr.cosine_similarity(ints, np.ones((2, 2)))
+    assert str(info.value) == f"db: {ints} has dtype <i8; descriptors must be float32 or float64"
+    with pytest.raises(TypeError) as info:
+        qtvpr.ground_truth_positions(np.zeros((2, 2)), ints, 1.0)
+    assert str(info.value) == f"query_positions: {ints} has dtype <i8; positions must be float32 or float64"
+    with pytest.raises(ValueError) as info:
+        qtvpr.ground_truth_positions(one_d, np.zeros((2, 2)), 1.0)
+    assert str(info.value) == (
+        f"db_positions: {one_d} holds a 1-D array of shape [2], expected an N x 2 (x, y) or N x 3 (x, y, z) "
+        "position matrix"
+    )
+
+
+def test_a_bad_label_file_is_reported_once(tmp_path):
+    path = save(tmp_path / "gt2.npy", int_gt(2))
+    with pytest.raises(ValueError) as info:
+        qtvpr.best_threshold(S_CAL, path)
+    assert str(info.value) == (
+        f"gt: {path}: ground truth has value 2 at row 2, column 1; ground truth must be 0/1 or bool"
+    )
+
+
+def test_a_database_mismatch_hints_at_query_major(files, tmp_path):
+    short = save(tmp_path / "short.npy", S_VAL[:3])
+    with pytest.raises(ValueError) as info:
+        qtvpr.quantile_transfer(files["s_cal"], files["gt_cal"], short)
+    assert str(info.value) == (
+        "s_val: deployment similarity has 3 database images but calibration similarity has 4; both must be "
+        "scored against the same database; if the arrays are query-major (|Q| x |DB|, as VPR-Bench stores "
+        "them), pass query_major=True"
+    )
+    # Query-major: |DB| is 3 (cal) against 4 (val); the hint would be wrong.
+    with pytest.raises(ValueError) as info:
+        qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL.T, query_major=True)
+    assert str(info.value) == (
+        "s_val: deployment similarity has 4 database images but calibration similarity has 3; both must be "
+        "scored against the same database"
+    )
+
+
+def test_evaluate_query_major_errors_use_the_files_orientation(tmp_path):
+    # |Q| x |DB| = 7 x 3 with NaN at the file's row 5, column 1.
+    s = np.full((7, 3), 0.5)
+    s[5, 1] = np.nan
+    path = save(tmp_path / "s_t.npy", s)
+    with pytest.raises(ValueError) as info:
+        qtvpr.evaluate(path, np.zeros((7, 3), dtype=bool), query_major=True, cal_queries=2, segment_size=2)
+    assert str(info.value) == "s: similarity contains NaN at row 5, column 1; scores must be finite"

@@ -8,8 +8,9 @@
 //! calibrate, which is exactly the split of the files.
 
 use anyhow::{Context, Result};
-use ndarray::{Array2, Axis, ShapeBuilder, concatenate};
-use npyz::{NpyFile, Order};
+use ndarray::{Array2, Axis, concatenate};
+use qtvpr::npy::{ground_truth_from_bytes, scores_from_bytes};
+use qtvpr::{GroundTruth, Score, with_scores};
 
 /// What the table and figures call the embedded data.
 pub const NAME: &str = "VPR-Bench Corridor, AMOSNet (embedded demo data)";
@@ -19,35 +20,31 @@ const CAL_GT: &[u8] = include_bytes!("../../../data/corridor/cal_GT.npy");
 const DEPLOY_S: &[u8] = include_bytes!("../../../data/corridor/deploy_S.npy");
 const DEPLOY_GT: &[u8] = include_bytes!("../../../data/corridor/deploy_GT.npy");
 
-fn matrix<T: npyz::Deserialize>(name: &str, bytes: &[u8]) -> Result<Array2<T>> {
-    let npy = NpyFile::new(bytes).with_context(|| format!("embedded {name}"))?;
-    let shape = npy.shape().to_vec();
-    let order = npy.order();
-    let data: Vec<T> = npy.into_vec().with_context(|| format!("embedded {name}"))?;
-    let (rows, cols) = (shape[0] as usize, shape[1] as usize);
-    let shape = match order {
-        Order::C => (rows, cols).into_shape_with_order(),
-        Order::Fortran => (rows, cols).f(),
-    };
-    Ok(Array2::from_shape_vec(shape, data)?)
+/// One embedded similarity matrix, read by the core's checked reader, in float64.
+fn scores(name: &str, bytes: &[u8]) -> Result<Array2<f64>> {
+    let s = scores_from_bytes(bytes, name).with_context(|| format!("embedded {name}"))?;
+    Ok(with_scores!(s.view(), |v| v.mapv(Score::to_f64)))
 }
 
-/// The 111 x 111 float64 similarity matrix (|DB| x |Q|) and its bool ground truth.
-pub fn corridor() -> Result<(Array2<f64>, Array2<bool>)> {
+/// One embedded ground truth, read by the core's checked reader.
+fn ground_truth(name: &str, bytes: &[u8]) -> Result<GroundTruth> {
+    ground_truth_from_bytes(bytes, name).with_context(|| format!("embedded {name}"))
+}
+
+/// The 111 x 111 float64 similarity matrix (|DB| x |Q|) and its ground truth.
+pub fn corridor() -> Result<(Array2<f64>, GroundTruth)> {
     let s = concatenate(
         Axis(1),
         &[
-            matrix::<f64>("cal_S.npy", CAL_S)?.view(),
-            matrix::<f64>("deploy_S.npy", DEPLOY_S)?.view(),
+            scores("cal_S.npy", CAL_S)?.view(),
+            scores("deploy_S.npy", DEPLOY_S)?.view(),
         ],
     )?;
-    let gt = concatenate(
-        Axis(1),
-        &[
-            matrix::<bool>("cal_GT.npy", CAL_GT)?.view(),
-            matrix::<bool>("deploy_GT.npy", DEPLOY_GT)?.view(),
-        ],
-    )?;
+    let (cal, deploy) = (
+        ground_truth("cal_GT.npy", CAL_GT)?,
+        ground_truth("deploy_GT.npy", DEPLOY_GT)?,
+    );
+    let gt = GroundTruth::from_truth(concatenate(Axis(1), &[cal.view(), deploy.view()])?);
     Ok((s, gt))
 }
 
@@ -58,7 +55,10 @@ mod tests {
         let (s, gt) = super::corridor().unwrap();
         assert_eq!((s.dim(), gt.dim()), ((111, 111), (111, 111)));
         // Query j matches database images j-2 ..= j+2 (clipped): 5 per inner column.
-        assert!(gt.column(50).iter().filter(|&&g| g).count() == 5 && gt[[48, 50]] && gt[[52, 50]]);
+        use qtvpr::Truth;
+        let gt = gt.view();
+        assert!(gt.column(50).iter().filter(|&&g| g == Truth::True).count() == 5);
+        assert!(gt[[48, 50]] == Truth::True && gt[[52, 50]] == Truth::True);
         assert!(s.iter().all(|v| v.is_finite()));
     }
 }

@@ -10,16 +10,16 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use ndarray::ArrayView2;
 use qtvpr::evaluate::{Evaluation, MethodResult};
-use qtvpr::{GroundTruth, Matching, Method, Protocol, Score, Split};
+use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
 use serde::Serialize;
 
 use crate::embedded;
+use crate::gt_source::EvalGtSource;
 use crate::output::emit;
 use crate::plot;
 use crate::threshold::MatchingArg;
-use qtvpr::npy::{ScoresView, read_ground_truth, read_scores};
+use qtvpr::npy::read_scores;
 
 /// Arguments of `evaluate`.
 #[derive(Debug, Args)]
@@ -27,16 +27,14 @@ pub struct EvaluateArgs {
     /// Similarity matrix (.npy, float32/float64), |DB| x |Q|, with ground truth for
     /// every query. Default: the embedded demo data (VPR-Bench Corridor, AMOSNet,
     /// 111 x 111), printed as a table.
-    #[arg(long, value_name = "S.npy", requires = "gt")]
+    #[arg(long, value_name = "S.npy", requires = "gt-source")]
     similarity: Option<PathBuf>,
-    /// Ground truth of --similarity: .npy (bool or 0/1 integers, same shape), or a
-    /// VPR_Tutorial .npz with GThard and optional GTsoft.
-    #[arg(long, value_name = "GT.npy|GT.npz", requires = "similarity")]
-    gt: Option<PathBuf>,
-    /// Soft ground truth (.npy): entries soft but not hard are ignored.
-    #[arg(long, value_name = "GTsoft.npy", requires = "similarity")]
-    gt_soft: Option<PathBuf>,
+    /// Ground truth of --similarity: --gt, --gt-tolerance or --gt-db-positions.
+    #[command(flatten)]
+    gt: EvalGtSource,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
+    /// VPR-Bench files are query-major; a square matrix cannot be detected, so pass
+    /// this flag for them.
     #[arg(long)]
     query_major: bool,
     /// Methods to evaluate, comma-separated, or `all`: quantile-transfer, schubert,
@@ -193,21 +191,18 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
 
     // The scores stay where they are read (memory-mapped) or embedded; `scores` views them.
     let (file, embedded_scores);
-    let (dataset, scores, gt, default_format) = match (&args.similarity, &args.gt) {
-        (Some(s_path), Some(gt_path)) => {
+    // Embedded data is |DB| x |Q| whatever --query-major says.
+    let query_major = args.query_major && args.similarity.is_some();
+    let (dataset, scores, gt, default_format) = match (&args.similarity, args.gt.source()) {
+        (Some(s_path), Some(source)) => {
             file = read_scores(s_path).context("--similarity")?;
-            let gt = read_ground_truth(gt_path, args.gt_soft.as_deref()).context("--gt")?;
-            let (s, gt) = if args.query_major {
-                (file.view().t(), gt.reversed_axes())
-            } else {
-                (file.view(), gt)
-            };
+            let s = file.view().oriented(query_major);
+            let gt = source.load(s.dim(), query_major)?;
             (s_path.display().to_string(), s, gt, EvalFormat::Json)
         }
         _ => {
             let (s, gt) = embedded::corridor()?;
             embedded_scores = s;
-            let gt = GroundTruth::new(gt.view())?;
             (
                 embedded::NAME.to_string(),
                 ScoresView::F64(embedded_scores.view()),
@@ -216,8 +211,8 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
             )
         }
     };
-    let input = || match (&args.similarity, &args.gt) {
-        (Some(s), Some(g)) => format!("--similarity {} / --gt {}", s.display(), g.display()),
+    let input = || match (&args.similarity, args.gt.source()) {
+        (Some(s), Some(g)) => format!("--similarity {} / {}", s.display(), g.describe()),
         _ => "embedded data".to_string(),
     };
 
@@ -225,7 +220,9 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
     for &calibration in &calibrations {
         for &k in &args.k {
             let p = protocol(k, calibration);
-            let eval = with_view!(scores, |v| evaluate_view(v, &gt, &p, &methods)).with_context(input)?;
+            let eval = with_scores!(scores, |v| qtvpr::evaluate(v, &gt, &p, &methods))
+                .map_err(|e| e.oriented(query_major))
+                .with_context(input)?;
             runs.push(Run { k, calibration, eval });
         }
     }
@@ -246,15 +243,6 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
         EvalFormat::Csv => csv(&runs),
     };
     emit(&text, args.output.as_deref())
-}
-
-fn evaluate_view<T: Score>(
-    s: ArrayView2<'_, T>,
-    gt: &GroundTruth,
-    p: &Protocol,
-    methods: &[Method],
-) -> qtvpr::Result<Evaluation> {
-    qtvpr::evaluate(s, gt, p, methods)
 }
 
 // ---------------------------------------------------------------------------------------

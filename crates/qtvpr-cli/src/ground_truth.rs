@@ -7,11 +7,11 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args};
-use ndarray::Array2;
-use qtvpr::ground_truth::{DB_POSITIONS, QUERY_POSITIONS, check_radius, within_tolerance};
+use qtvpr::ground_truth::HardSoft;
+use qtvpr::npy::matrix_shape;
 
-use crate::gt_source::{check_soft, frames, positions_within, read_positions};
-use crate::matrix_io::{shape, write_npy, write_npz};
+use crate::gt_source::{GtSource, Kind};
+use crate::matrix_io::{write_npy, write_npz};
 
 /// Arguments of `ground-truth`.
 #[derive(Debug, Args)]
@@ -70,10 +70,7 @@ pub fn run(args: &GroundTruthArgs) -> Result<()> {
         (false, false, Some(_)) => bail!("--soft-output needs --soft-tolerance or --soft-radius"),
         _ => {}
     }
-    let (hard, soft) = match args.tolerance {
-        Some(tolerance) => from_tolerance(args, tolerance)?,
-        None => from_positions(args)?,
-    };
+    let HardSoft { hard, soft } = source(args)?;
     if npz {
         let mut arrays = vec![("GThard", hard.view())];
         if let Some(soft) = &soft {
@@ -89,43 +86,35 @@ pub fn run(args: &GroundTruthArgs) -> Result<()> {
     }
 }
 
-type HardSoft = (Array2<bool>, Option<Array2<bool>>);
-
-fn from_tolerance(args: &GroundTruthArgs, tolerance: i64) -> Result<HardSoft> {
-    let hard = frames("--tolerance", tolerance)?;
-    let soft = args
-        .soft_tolerance
-        .map(|soft| {
-            check_soft("--tolerance", tolerance as f64, "--soft-tolerance", soft as f64)?;
-            frames("--soft-tolerance", soft)
-        })
-        .transpose()?;
-    let (n_db, n_q) = match (&args.like, args.db_count, args.query_count) {
-        (Some(like), _, _) => shape(like).with_context(|| format!("--like {}", like.display()))?,
-        (None, Some(n_db), Some(n_q)) => (n_db, n_q),
-        _ => bail!("--tolerance needs the shape |DB| x |Q|: --like S.npy, or --db-count N --query-count M"),
-    };
-    let gt = |t: usize| within_tolerance(n_db, n_q, t).context("--like / --db-count / --query-count");
-    Ok((gt(hard)?, soft.map(gt).transpose()?))
-}
-
-fn from_positions(args: &GroundTruthArgs) -> Result<HardSoft> {
+/// The tolerance or positions as a [`GtSource`] without a prefix, made into ground
+/// truth as `threshold` and `evaluate` make theirs.
+fn source(args: &GroundTruthArgs) -> Result<HardSoft> {
+    if let Some(hard) = args.tolerance {
+        let source = GtSource {
+            prefix: "",
+            kind: Kind::Tolerance {
+                hard,
+                soft: args.soft_tolerance,
+            },
+        };
+        let shape = match (&args.like, args.db_count, args.query_count) {
+            (Some(like), _, _) => matrix_shape(like).with_context(|| format!("--like {}", like.display()))?,
+            (None, Some(n_db), Some(n_q)) => (n_db, n_q),
+            _ => bail!("--tolerance needs the shape |DB| x |Q|: --like S.npy, or --db-count N --query-count M"),
+        };
+        return source.matrices(Some(shape));
+    }
     let (Some(db), Some(queries), Some(radius)) = (&args.db_positions, &args.query_positions, args.radius) else {
         bail!("--db-positions, --query-positions and --radius go together");
     };
-    check_radius("radius", radius).context("--radius")?;
-    if let Some(soft) = args.soft_radius {
-        check_radius("soft radius", soft).context("--soft-radius")?;
-        check_soft("--radius", radius, "--soft-radius", soft)?;
-    }
-    let db_flag = format!("--db-positions {}", db.display());
-    let q_flag = format!("--query-positions {}", queries.display());
-    let (db_pos, q_pos) = read_positions(db, queries, &db_flag, &q_flag)?;
-    let sources = [(DB_POSITIONS, db_flag), (QUERY_POSITIONS, q_flag)];
-    let hard = positions_within(&db_pos, &q_pos, radius, &sources)?;
-    let soft = args
-        .soft_radius
-        .map(|soft| positions_within(&db_pos, &q_pos, soft, &sources))
-        .transpose()?;
-    Ok((hard, soft))
+    let source = GtSource {
+        prefix: "",
+        kind: Kind::Positions {
+            db,
+            queries,
+            radius,
+            soft_radius: args.soft_radius,
+        },
+    };
+    source.matrices(None)
 }

@@ -10,47 +10,42 @@
 //! | positions, distance `<= R` | `--P-db-positions DB.npy --P-query-positions Q.npy --P-radius R [--P-soft-radius R2]` |
 //!
 //! The options are one flattenable clap `Args` struct per prefix, made by
-//! [`gt_source_args!`], so that `threshold` (`--cal-gt...`) and any other command
-//! (e.g. `evaluate`, `--gt...`) share names, checks and messages:
-//!
-//! ```ignore
-//! gt_source_args!(
-//!     /// Ground truth of the evaluated queries.
-//!     EvalGtSource, "gt", "--s"
-//! );
-//! #[derive(clap::Args)]
-//! struct EvaluateArgs {
-//!     #[command(flatten)]
-//!     gt: EvalGtSource,
-//!     // ...
-//! }
-//! // Then, with the similarity matrix read and oriented |DB| x |Q|:
-//! let gt = args.gt.source().load(s.dim(), args.query_major)?;
-//! ```
+//! [`gt_source_args!`] (a clap-derive struct cannot take its option names at run time),
+//! so that `threshold` (`--cal-gt...`) and `evaluate` (`--gt...`) share names, checks
+//! and messages. `ground-truth` has the same options without a prefix and no file
+//! source, plus the shape options of a tolerance; it builds a [`GtSource`] with the
+//! empty prefix. Every source becomes ground truth through the core's one function,
+//! [`qtvpr::ground_truth::GtSpec`]; this module only reads files and names options.
 
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use qtvpr::GroundTruth;
-use qtvpr::ground_truth::{DB_POSITIONS, QUERY_POSITIONS, check_radius, within_radius, within_tolerance};
+use qtvpr::ground_truth::{GtSpec, HardSoft, check_radius};
+use qtvpr::names::{DB_POSITIONS, QUERY_POSITIONS};
+use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
 
-use crate::matrix_io::{blame, read_rows};
-use qtvpr::npy::{Scores, read_ground_truth};
+use crate::inputs::blame;
 
 /// Declare a flattenable clap `Args` struct named `$name` with the ground-truth source
 /// options under the long-option prefix `$prefix` (see the [module docs](self)).
 /// `$matrix` names the option of the similarity matrix the ground truth labels, for
-/// help texts.
+/// help texts; `required` says whether one source must be given; `requires` names
+/// the option every source needs.
 macro_rules! gt_source_args {
-    ($(#[$doc:meta])* $name:ident, $prefix:literal, $matrix:literal) => {
+    (
+        $(#[$doc:meta])* $name:ident, $prefix:literal, $matrix:literal,
+        required = $required:literal $(, requires = $requires:literal)?
+    ) => {
         $(#[$doc])*
         #[derive(Debug, Clone, clap::Args)]
         #[group(skip)]
         #[command(group(
             clap::ArgGroup::new(concat!($prefix, "-source"))
-                .required(true)
+                .required($required)
                 .multiple(false)
                 .args(["gt", "gt_tolerance", "gt_db_positions"])
+                $(.requires($requires))?
         ))]
         pub struct $name {
             #[arg(
@@ -123,8 +118,8 @@ macro_rules! gt_source_args {
         }
 
         impl $name {
-            /// The source the options name.
-            pub fn source(&self) -> $crate::gt_source::GtSource<'_> {
+            /// The source the options name, if any.
+            pub fn source(&self) -> Option<$crate::gt_source::GtSource<'_>> {
                 use $crate::gt_source::{GtSource, Kind};
                 let kind = if let Some(hard) = &self.gt {
                     Kind::File {
@@ -137,28 +132,35 @@ macro_rules! gt_source_args {
                         soft: self.gt_soft_tolerance,
                     }
                 } else {
-                    // clap's ArgGroup requires one of the three, and the positions
-                    // require each other.
+                    // The positions require each other and the radius.
                     Kind::Positions {
-                        db: self.gt_db_positions.as_deref().expect("one source is required"),
-                        queries: self.gt_query_positions.as_deref().expect("required by db positions"),
-                        radius: self.gt_radius.expect("required by db positions"),
+                        db: self.gt_db_positions.as_deref()?,
+                        queries: self.gt_query_positions.as_deref()?,
+                        radius: self.gt_radius?,
                         soft_radius: self.gt_soft_radius,
                     }
                 };
-                GtSource { prefix: $prefix, kind }
+                Some(GtSource { prefix: $prefix, kind })
             }
         }
     };
 }
-#[allow(unused_imports)] // for the next command that takes ground truth (`evaluate`)
-pub(crate) use gt_source_args;
 
 gt_source_args!(
     /// The calibration ground truth of `threshold` (`--cal-gt...`).
     CalGtSource,
     "cal-gt",
-    "--cal"
+    "--cal",
+    required = true
+);
+
+gt_source_args!(
+    /// The ground truth of `evaluate` (`--gt...`); none for the embedded data.
+    EvalGtSource,
+    "gt",
+    "--similarity",
+    required = false,
+    requires = "similarity"
 );
 
 /// One ground-truth source, as given on the command line.
@@ -201,18 +203,30 @@ pub enum Kind<'a> {
 }
 
 impl GtSource<'_> {
+    /// The option `--PREFIX-name` (`--name` for the empty prefix; `--PREFIX` for an
+    /// empty `name`).
+    pub fn flag(&self, name: &str) -> String {
+        match (self.prefix, name) {
+            (p, "") => format!("--{p}"),
+            ("", n) => format!("--{n}"),
+            (p, n) => format!("--{p}-{n}"),
+        }
+    }
+
     /// The options as given, for error context: `--cal-gt GT.npy`, `--cal-gt-tolerance 1`, ...
     pub fn describe(&self) -> String {
-        let p = self.prefix;
         match self.kind {
-            Kind::File { hard, .. } => format!("--{p} {}", hard.display()),
-            Kind::Tolerance { hard, .. } => format!("--{p}-tolerance {hard}"),
+            Kind::File { hard, .. } => format!("{} {}", self.flag(""), hard.display()),
+            Kind::Tolerance { hard, .. } => format!("{} {hard}", self.flag("tolerance")),
             Kind::Positions {
                 db, queries, radius, ..
             } => format!(
-                "--{p}-db-positions {} / --{p}-query-positions {} / --{p}-radius {radius}",
+                "{} {} / {} {} / {} {radius}",
+                self.flag("db-positions"),
                 db.display(),
-                queries.display()
+                self.flag("query-positions"),
+                queries.display(),
+                self.flag("radius")
             ),
         }
     }
@@ -221,29 +235,35 @@ impl GtSource<'_> {
     /// sees it, after orientation). Files are read and, for `query_major`, transposed;
     /// tolerance and positions give |DB| x |Q| directly.
     pub fn load(&self, shape: (usize, usize), query_major: bool) -> Result<GroundTruth> {
-        let p = self.prefix;
         match self.kind {
             Kind::File { hard, soft } => {
-                let gt = read_ground_truth(hard, soft).with_context(|| format!("--{p}"))?;
-                Ok(if query_major { gt.reversed_axes() } else { gt })
+                let gt = read_ground_truth(hard, soft).with_context(|| self.flag(""))?;
+                Ok(gt.oriented(query_major))
             }
+            _ => Ok(self.matrices(Some(shape))?.into_ground_truth()?),
+        }
+    }
+
+    /// Hard and soft ground truth of a tolerance or positions source, of shape `shape`
+    /// (required for a tolerance, checked for positions), by the core's
+    /// [`GtSpec::matrices`]. The parameters are checked first, before any file is read,
+    /// so that their messages name the options.
+    ///
+    /// # Panics
+    /// For a file source (which holds its matrices already).
+    pub fn matrices(&self, shape: Option<(usize, usize)>) -> Result<HardSoft> {
+        match self.kind {
+            Kind::File { .. } => unreachable!("a file source is read, not made"),
             Kind::Tolerance { hard, soft } => {
-                let hard_n = frames(&format!("--{p}-tolerance"), hard)?;
-                let gt = within_tolerance(shape.0, shape.1, hard_n).with_context(|| self.describe())?;
-                let gt = GroundTruth::new(gt.view())?;
-                match soft {
-                    None => Ok(gt),
-                    Some(soft) => {
-                        let soft_n = frames(&format!("--{p}-soft-tolerance"), soft)?;
-                        check_soft(
-                            &format!("--{p}-tolerance"),
-                            hard as f64,
-                            &format!("--{p}-soft-tolerance"),
-                            soft as f64,
-                        )?;
-                        Ok(gt.with_soft(within_tolerance(shape.0, shape.1, soft_n)?.view())?)
-                    }
+                let (hard_flag, soft_flag) = (self.flag("tolerance"), self.flag("soft-tolerance"));
+                let spec = GtSpec::Tolerance {
+                    hard: frames(&hard_flag, hard)?,
+                    soft: soft.map(|s| frames(&soft_flag, s)).transpose()?,
+                };
+                if let Some(soft) = soft {
+                    check_soft(&hard_flag, hard as f64, &soft_flag, soft as f64)?;
                 }
+                Ok(spec.matrices(shape).with_context(|| self.describe())?)
             }
             Kind::Positions {
                 db,
@@ -251,33 +271,24 @@ impl GtSource<'_> {
                 radius,
                 soft_radius,
             } => {
-                check_radius("radius", radius).with_context(|| format!("--{p}-radius"))?;
+                let (hard_flag, soft_flag) = (self.flag("radius"), self.flag("soft-radius"));
+                check_radius("radius", radius).with_context(|| hard_flag.clone())?;
                 if let Some(soft) = soft_radius {
-                    check_radius("soft radius", soft).with_context(|| format!("--{p}-soft-radius"))?;
-                    check_soft(&format!("--{p}-radius"), radius, &format!("--{p}-soft-radius"), soft)?;
+                    check_radius("soft radius", soft).with_context(|| soft_flag.clone())?;
+                    check_soft(&hard_flag, radius, &soft_flag, soft)?;
                 }
-                let db_flag = format!("--{p}-db-positions {}", db.display());
-                let q_flag = format!("--{p}-query-positions {}", queries.display());
-                let (db_pos, q_pos) = read_positions(db, queries, &db_flag, &q_flag)?;
-                let (n_db, n_q) = (db_pos.view().dim().0, q_pos.view().dim().0);
-                if (n_db, n_q) != shape {
-                    bail!(
-                        "{db_flag} / {q_flag}: {n_db} database and {n_q} query positions, \
-                         but the similarity matrix has shape {}x{}",
-                        shape.0,
-                        shape.1
-                    );
-                }
+                let db_flag = format!("{} {}", self.flag("db-positions"), db.display());
+                let q_flag = format!("{} {}", self.flag("query-positions"), queries.display());
+                let db = read_float_matrix(db, FloatMatrix::Positions).with_context(|| db_flag.clone())?;
+                let queries = read_float_matrix(queries, FloatMatrix::Positions).with_context(|| q_flag.clone())?;
+                let spec = GtSpec::Positions {
+                    db: db.view(),
+                    queries: queries.view(),
+                    radius,
+                    soft_radius,
+                };
                 let sources = [(DB_POSITIONS, db_flag), (QUERY_POSITIONS, q_flag)];
-                let hard = positions_within(&db_pos, &q_pos, radius, &sources)?;
-                let gt = GroundTruth::new(hard.view())?;
-                match soft_radius {
-                    None => Ok(gt),
-                    Some(soft) => {
-                        let soft = positions_within(&db_pos, &q_pos, soft, &sources)?;
-                        Ok(gt.with_soft(soft.view())?)
-                    }
-                }
+                spec.matrices(shape).map_err(|e| blame(e, &sources))
             }
         }
     }
@@ -285,37 +296,15 @@ impl GtSource<'_> {
 
 /// A frame count from the command line: negative values are refused here, with the
 /// name of the option.
-pub fn frames(flag: &str, n: i64) -> Result<usize> {
+fn frames(flag: &str, n: i64) -> Result<usize> {
     usize::try_from(n).map_err(|_| anyhow::anyhow!("{flag} must be >= 0, got {n}"))
 }
 
-/// A soft tolerance or radius must include the hard one; the flags name them.
-pub fn check_soft(hard_flag: &str, hard: f64, soft_flag: &str, soft: f64) -> Result<()> {
+/// A soft tolerance or radius must include the hard one; the flags name them. (The
+/// core checks the same, naming its parameters; this names the options.)
+fn check_soft(hard_flag: &str, hard: f64, soft_flag: &str, soft: f64) -> Result<()> {
     if soft < hard {
         bail!("{soft_flag} {soft} is smaller than {hard_flag} {hard}; soft ground truth must include the hard");
     }
     Ok(())
-}
-
-/// Read database and query position files (N x 2 or N x 3, float32/float64); the flags
-/// name them in errors.
-pub fn read_positions(db: &Path, queries: &Path, db_flag: &str, q_flag: &str) -> Result<(Scores, Scores)> {
-    const LAYOUT: &str = "an N x 2 (x, y) or N x 3 (x, y, z) position matrix";
-    let db = read_rows(db, "positions", LAYOUT).with_context(|| db_flag.to_string())?;
-    let q = read_rows(queries, "positions", LAYOUT).with_context(|| q_flag.to_string())?;
-    Ok((db, q))
-}
-
-/// [`within_radius`] on positions as read; `sources` name the files for [`blame`].
-/// Check the radius first ([`check_radius`]), to name its option.
-pub fn positions_within(
-    db: &Scores,
-    queries: &Scores,
-    radius: f64,
-    sources: &[(&str, String)],
-) -> Result<ndarray::Array2<bool>> {
-    with_view!(db.view(), |d| with_view!(queries.view(), |q| within_radius(
-        d, q, radius
-    )))
-    .map_err(|e| blame(e, sources))
 }

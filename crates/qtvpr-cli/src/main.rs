@@ -8,20 +8,11 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-/// Call `$body` with `$v` bound to the typed `ArrayView2` inside a `qtvpr::npy::ScoresView`.
-macro_rules! with_view {
-    ($scores:expr, |$v:ident| $body:expr) => {
-        match $scores {
-            qtvpr::npy::ScoresView::F32($v) => $body,
-            qtvpr::npy::ScoresView::F64($v) => $body,
-        }
-    };
-}
-
 mod embedded;
 mod evaluate;
 mod ground_truth;
 mod gt_source;
+mod inputs;
 mod matrix_io;
 mod output;
 mod plot;

@@ -6,10 +6,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::Sequence;
-use qtvpr::similarity::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::npy::{FloatMatrix, read_float_matrix};
+use qtvpr::{Sequence, with_scores};
 
-use crate::matrix_io::{blame, read_rows, write_npy};
+use crate::inputs::blame;
+use crate::matrix_io::write_npy;
 
 /// Arguments of `similarity`.
 #[derive(Debug, Args)]
@@ -54,16 +56,15 @@ pub fn run(args: &SimilarityArgs) -> Result<()> {
         })
         .transpose()
         .context("--sequence")?;
-    const LAYOUT: &str = "an N x D descriptor matrix (one row per image)";
-    let db = read_rows(&args.db, "descriptors", LAYOUT).context("--db")?;
-    let queries = read_rows(&args.queries, "descriptors", LAYOUT).context("--queries")?;
+    let db = read_float_matrix(&args.db, FloatMatrix::Descriptors).context("--db")?;
+    let queries = read_float_matrix(&args.queries, FloatMatrix::Descriptors).context("--queries")?;
     let sources = [
         (DB_DESCRIPTORS, format!("--db {}", args.db.display())),
         (QUERY_DESCRIPTORS, format!("--queries {}", args.queries.display())),
     ];
-    let s = with_view!(db.view(), |d| with_view!(queries.view(), |q| qtvpr::cosine_similarity(
-        d, q
-    )))
+    let s = with_scores!(db.view(), |d| with_scores!(queries.view(), |q| {
+        qtvpr::cosine_similarity(d, q)
+    }))
     .map_err(|e| blame(e, &sources))?;
     drop((db, queries));
     let s = match sequence {

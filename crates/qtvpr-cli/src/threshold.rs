@@ -11,7 +11,8 @@ use serde::Serialize;
 use crate::gt_source::CalGtSource;
 use crate::output::{Format, emit};
 use crate::{Global, progress};
-use qtvpr::npy::{ScoresView, read_scores};
+use qtvpr::npy::read_scores;
+use qtvpr::with_scores;
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
@@ -40,6 +41,8 @@ pub struct ThresholdArgs {
     #[arg(long, value_name = "M")]
     segment_size: Option<usize>,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
+    /// VPR-Bench files are query-major; a square matrix cannot be detected, so pass
+    /// this flag for them.
     #[arg(long)]
     query_major: bool,
     /// Output format.
@@ -104,25 +107,24 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     };
     params.validate()?;
     // Errors about a file's content name the file; the flag says which input it was.
-    // The core reports positions and shapes in its |DB| x |Q| views; give them back in
-    // the files' orientation.
-    let oriented = |e: qtvpr::Error| if args.query_major { e.transposed() } else { e };
+    // The core reports positions and shapes in its |DB| x |Q| views; `oriented` gives
+    // them back in the files' orientation.
     let s_val = read_scores(&args.val).context("--val")?;
-    let s_val = orient(s_val.view(), args.query_major);
+    let s_val = s_val.view().oriented(args.query_major);
     // The calibration inputs are dropped (and unmapped) once the calibration is built.
     let cal = {
         let s_cal = read_scores(&args.cal).context("--cal")?;
-        let s_cal = orient(s_cal.view(), args.query_major);
-        let gt_source = args.cal_gt.source();
+        let s_cal = s_cal.view().oriented(args.query_major);
+        let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
         let gt = gt_source.load(s_cal.dim(), args.query_major)?;
-        with_view!(s_cal, |v| Calibration::new(v, &gt, matching))
-            .map_err(oriented)
+        with_scores!(s_cal, |v| Calibration::new(v, &gt, matching))
+            .map_err(|e| e.oriented(args.query_major))
             .with_context(|| format!("--cal {} / {}", args.cal.display(), gt_source.describe()))?
     };
     let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
-    let transfer = with_view!(s_val, |v| cal
+    let transfer = with_scores!(s_val, |v| cal
         .transfer_with_progress(v, &params, |done, _| bar.set_position(done as u64)))
-    .map_err(oriented)
+    .map_err(|e| query_major_hint(e.oriented(args.query_major), args.query_major))
     .with_context(|| format!("--val {}", args.val.display()))?;
     bar.finish_and_clear();
 
@@ -162,7 +164,13 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     emit(&text, args.output.as_deref())
 }
 
-/// |DB| x |Q| whatever the stored orientation.
-pub fn orient(s: ScoresView<'_>, query_major: bool) -> ScoresView<'_> {
-    if query_major { s.t() } else { s }
+/// A database mismatch of files not declared query-major is often a pair of query-major
+/// files (|Q| x |DB|) whose query counts differ: say so.
+fn query_major_hint(err: qtvpr::Error, query_major: bool) -> anyhow::Error {
+    match err {
+        qtvpr::Error::DatabaseMismatch { .. } if !query_major => anyhow::anyhow!(
+            "{err}; if the files are query-major (|Q| x |DB|, as VPR-Bench stores them), pass --query-major"
+        ),
+        err => err.into(),
+    }
 }

@@ -239,7 +239,7 @@ fn similarity_bad_descriptors() {
         "text.npy",
         &["--queries", "text.npy is not a valid .npy file"],
     );
-    fails("missing.npy", "q.npy", &["--db", "cannot open missing.npy"]);
+    fails("missing.npy", "q.npy", &["--db", "cannot read missing.npy"]);
     let good = std::fs::read(dir.path("db.npy")).unwrap();
     std::fs::write(dir.path("short.npy"), &good[..good.len() - 3]).unwrap();
     fails("short.npy", "q.npy", &["--db", "short.npy is truncated"]);
@@ -498,7 +498,7 @@ fn ground_truth_bad_input() {
     tol(
         &["1", "--like", "missing.npy", "-o", "gt.npy"],
         &["gt.npy"],
-        &["--like missing.npy", "cannot open"],
+        &["--like missing.npy", "cannot read missing.npy"],
     );
     npy_raw(&dir.path("s3.npy"), "<f4", false, &[1, 1, 1], &[0u8; 4]);
     tol(

@@ -4,8 +4,9 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use qtvpr::{Matching, Params};
 
-use crate::convert::{GroundTruthArgs, Scores, count, with_scores};
+use crate::convert::{GroundTruthArgs, Scores, count};
 use crate::error::Args;
+use qtvpr::with_scores;
 
 /// The Python `k` default (`10`) is written as a literal so that `help()` shows it.
 const _: () = assert!(qtvpr::DEFAULT_K == 10);
@@ -62,7 +63,7 @@ impl PyCalibration {
         let (s, gt) = (s.view(query_major), gt.view(query_major));
         let gt = py.detach(|| gt.build())?;
         let inner = py
-            .detach(|| with_scores!(s, s => qtvpr::Calibration::new(s, &gt, matching)))
+            .detach(|| with_scores!(s, |s| qtvpr::Calibration::new(s, &gt, matching)))
             .map_err(|e| args.error(e))?;
         Ok(Self { inner })
     }
@@ -106,7 +107,7 @@ impl PyCalibration {
         let s = Scores::extract("s_val", s_val)?;
         let s = s.view(query_major);
         let out = py
-            .detach(|| with_scores!(s, s => self.inner.transfer(s, &params)))
+            .detach(|| with_scores!(s, |s| self.inner.transfer(s, &params)))
             .map_err(|e| args.error(e))?;
         Ok(TransferResult::new(py, out))
     }

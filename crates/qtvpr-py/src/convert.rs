@@ -15,6 +15,15 @@
 //! be float32 or float64, ground truth bool or an integer type, anything else is a
 //! `TypeError` naming the argument (the reader does the same for files). Values
 //! (finiteness, 0/1 labels, shapes) are the core's to check.
+//!
+//! Why not rust-numpy's `PyArrayLike2` or a derived `FromPyObject` enum over
+//! `PyReadonlyArray2<f32>` / `<f64>`: the derived enum tries its variants in turn, so
+//! its failure is one generic message for all of them instead of `s must be a float32
+//! or float64 array, got int64` or `s must be a 2-D matrix, got a 1-D array`; a
+//! `PyArrayLike2<f32>` force-casts a list (or, with `AllowTypeChange`, an array) to
+//! the first variant's type, which would silently round float64 data to float32; and
+//! neither takes a byte-swapped or misaligned array, which `borrow` converts. The
+//! dispatch below is on the dtype NumPy reports, once.
 
 use std::path::{Path, PathBuf};
 
@@ -27,6 +36,8 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::PyString;
+use qtvpr::ScoresView;
+use qtvpr::npy::FloatMatrix;
 
 use crate::error::input_error;
 
@@ -79,11 +90,6 @@ fn borrow<'py, T: Element>(name: &str, array: Bound<'py, PyUntypedArray>) -> PyR
         .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
 }
 
-/// Transpose for query-major input (a view, no copy).
-fn oriented<T>(view: ArrayView2<'_, T>, query_major: bool) -> ArrayView2<'_, T> {
-    if query_major { view.reversed_axes() } else { view }
-}
-
 /// A similarity-matrix argument.
 pub(crate) enum Scores<'py> {
     /// float32 scores.
@@ -94,36 +100,22 @@ pub(crate) enum Scores<'py> {
     File(qtvpr::npy::Scores),
 }
 
-/// A similarity matrix as the core reads it, |DB| x |Q|.
-#[derive(Clone, Copy)]
-pub(crate) enum ScoreView<'a> {
-    /// float32 scores.
-    F32(ArrayView2<'a, f32>),
-    /// float64 scores.
-    F64(ArrayView2<'a, f64>),
-}
-
-/// Run `$body` with `$v` bound to the [`ScoreView`]'s typed `ArrayView2`.
-macro_rules! with_scores {
-    ($view:expr, $v:ident => $body:expr) => {
-        match $view {
-            $crate::convert::ScoreView::F32($v) => $body,
-            $crate::convert::ScoreView::F64($v) => $body,
-        }
-    };
-}
-pub(crate) use with_scores;
-
 impl<'py> Scores<'py> {
-    /// Borrow argument `name` as a float32 or float64 matrix.
+    /// Borrow similarity-matrix argument `name` as a float32 or float64 matrix.
     /// A `str` or `os.PathLike` is read as a `.npy` file.
     ///
     /// # Errors
     /// `TypeError` for any other dtype, `ValueError` if it is not 2-D; for a file, the
     /// reader's errors as [`input_error`]s (`OSError`s for a file that cannot be read).
     pub(crate) fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        Self::extract_as(name, obj, FloatMatrix::Similarity)
+    }
+
+    /// [`Scores::extract`] of a matrix holding `what` (descriptors, positions), for the
+    /// messages about a file.
+    pub(crate) fn extract_as(name: &str, obj: &Bound<'py, PyAny>, what: FloatMatrix) -> PyResult<Self> {
         if let Some(path) = path_of(obj)? {
-            let scores = obj.py().detach(|| qtvpr::npy::read_scores(&path));
+            let scores = obj.py().detach(|| qtvpr::npy::read_float_matrix(&path, what));
             return scores.map(Self::File).map_err(|e| input_error(name, e));
         }
         let array = ndarray(obj)?;
@@ -137,16 +129,15 @@ impl<'py> Scores<'py> {
         }
     }
 
-    /// The |DB| x |Q| view the core takes.
-    pub(crate) fn view(&self, query_major: bool) -> ScoreView<'_> {
-        match self {
-            Self::F32(a) => ScoreView::F32(oriented(a.as_array(), query_major)),
-            Self::F64(a) => ScoreView::F64(oriented(a.as_array(), query_major)),
-            Self::File(scores) => match scores.view() {
-                qtvpr::npy::ScoresView::F32(v) => ScoreView::F32(oriented(v, query_major)),
-                qtvpr::npy::ScoresView::F64(v) => ScoreView::F64(oriented(v, query_major)),
-            },
-        }
+    /// The view the core takes: |DB| x |Q| for a similarity matrix stored query-major
+    /// when `query_major` ([`ScoresView::oriented`]).
+    pub(crate) fn view(&self, query_major: bool) -> ScoresView<'_> {
+        let view = match self {
+            Self::F32(a) => ScoresView::F32(a.as_array()),
+            Self::F64(a) => ScoresView::F64(a.as_array()),
+            Self::File(scores) => scores.view(),
+        };
+        view.oriented(query_major)
     }
 }
 
@@ -327,7 +318,7 @@ impl GroundTruthView<'_> {
             Some(LabelSource::File(path)) => add_soft_ground_truth(gt, path),
         }
         .map_err(|e| input_error("gt_soft", e))?;
-        Ok(if self.query_major { gt.reversed_axes() } else { gt })
+        Ok(gt.oriented(self.query_major))
     }
 }
 

@@ -4,7 +4,9 @@
 //! expects ([`exception`]): a file that cannot be opened is the `OSError` subclass of its
 //! kind (`FileNotFoundError`, `IsADirectoryError`, `PermissionError`), a wrong dtype is a
 //! `TypeError`, anything else a `ValueError`. The message is the core's, prefixed by the
-//! Python argument it is about.
+//! Python argument it is about: the core says which matrices an error is about
+//! ([`qtvpr::Error::inputs`]), and each call maps those names to its arguments
+//! ([`named_error`]).
 //!
 //! Positions and shapes are given in the caller's orientation: the core computes on
 //! |DB| x |Q| views, so for query-major input its errors are transposed back
@@ -16,6 +18,7 @@ use pyo3::exceptions::{
     PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyTypeError, PyValueError,
 };
 use qtvpr::Error;
+use qtvpr::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY, GROUND_TRUTH, SIMILARITY, SOFT_GROUND_TRUTH};
 
 /// How a call names its arguments, and whether its matrices were transposed.
 #[derive(Debug, Clone, Copy)]
@@ -27,34 +30,42 @@ pub(crate) struct Args {
 }
 
 impl Args {
-    /// The Python argument the core's matrix name `what` refers to.
-    fn argument(self, what: &'static str) -> &'static str {
-        match what {
-            "calibration similarity" => "s_cal",
-            "deployment similarity" => "s_val",
-            "similarity" => "s",
-            "ground truth" => self.gt,
-            "soft ground truth" => "gt_soft",
-            other => other,
-        }
-    }
-
-    /// The exception for an error of the core's computation on the oriented views.
+    /// The exception for an error of the core's computation on the oriented views:
+    /// positions and shapes in the caller's orientation, prefixed by the argument.
     pub(crate) fn error(self, err: Error) -> PyErr {
-        let err = if self.query_major { err.transposed() } else { err };
+        let err = err.oriented(self.query_major);
         match &err {
-            Error::Empty { what, .. }
-            | Error::NotFinite { what, .. }
-            | Error::BadLabel { what, .. }
-            | Error::ShapeMismatch { what, .. } => input_error(self.argument(what), err),
-            Error::DatabaseMismatch { .. } => input_error("s_val", err),
             // The core names parameters as a user spells them; Python spells them with
             // underscores.
             Error::InvalidParameter { name, message } => {
                 PyValueError::new_err(format!("{} {message}", name.replace(' ', "_")))
             }
-            _ => exception(&err, err.to_string()),
+            Error::DatabaseMismatch { .. } if !self.query_major => PyValueError::new_err(format!(
+                "s_val: {err}; if the arrays are query-major (|Q| x |DB|, as VPR-Bench stores them), \
+                 pass query_major=True"
+            )),
+            _ => named_error(
+                err,
+                &[
+                    (CAL_SIMILARITY, "s_cal"),
+                    (DEPLOYMENT_SIMILARITY, "s_val"),
+                    (SIMILARITY, "s"),
+                    (GROUND_TRUTH, self.gt),
+                    (SOFT_GROUND_TRUTH, "gt_soft"),
+                ],
+            ),
         }
+    }
+}
+
+/// The exception for a core error, prefixed by the arguments it is about: `arguments`
+/// maps [`qtvpr::names`] constants to the Python arguments they came from. Errors
+/// about no matrix (a parameter, which the core names itself) are not prefixed.
+pub(crate) fn named_error(err: Error, arguments: &[(&'static str, &str)]) -> PyErr {
+    let names: Vec<&str> = err.inputs(arguments).into_iter().copied().collect();
+    match names.as_slice() {
+        [] => exception(&err, err.to_string()),
+        names => exception(&err, format!("{}: {err}", names.join(", "))),
     }
 }
 
@@ -74,7 +85,7 @@ fn exception(err: &Error, message: String) -> PyErr {
             _ => PyOSError::new_err(message),
         },
         Error::Dtype { .. } => PyTypeError::new_err(message),
-        Error::InFile { source, .. } => exception(source, message),
+        Error::InFile { error, .. } => exception(error, message),
         _ => PyValueError::new_err(message),
     }
 }

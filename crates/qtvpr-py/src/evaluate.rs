@@ -5,8 +5,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use qtvpr::{Matching, Method, Protocol, Split};
 
-use crate::convert::{GroundTruthArgs, Scores, count, with_scores};
+use crate::convert::{GroundTruthArgs, Scores, count};
 use crate::error::Args;
+use qtvpr::with_scores;
 
 /// Run the evaluation protocol of the paper's Table I on one similarity matrix.
 ///
@@ -84,7 +85,7 @@ pub(crate) fn evaluate<'py>(
     let (s, gt) = (s.view(query_major), gt.view(query_major));
     let gt = py.detach(|| gt.build())?;
     let out = py
-        .detach(|| with_scores!(s, s => qtvpr::evaluate(s, &gt, &protocol, &methods)))
+        .detach(|| with_scores!(s, |s| qtvpr::evaluate(s, &gt, &protocol, &methods)))
         .map_err(|e| args.error(e))?;
 
     let report = PyDict::new(py);

@@ -3,10 +3,12 @@
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use qtvpr::ground_truth::{DB_POSITIONS, QUERY_POSITIONS};
+use qtvpr::names::{DB_POSITIONS, GROUND_TRUTH, QUERY_POSITIONS};
+use qtvpr::npy::FloatMatrix;
+use qtvpr::with_scores;
 
-use crate::blame::value_error;
-use crate::convert::{Scores, with_scores};
+use crate::convert::Scores;
+use crate::error::named_error;
 
 /// A non-negative integer argument.
 fn non_negative(name: &str, value: i64) -> PyResult<usize> {
@@ -37,7 +39,7 @@ pub(crate) fn ground_truth_tolerance<'py>(
     let tolerance = non_negative("tolerance", tolerance)?;
     let gt = py
         .detach(|| qtvpr::ground_truth::within_tolerance(n_db, n_queries, tolerance))
-        .map_err(|e| value_error(e, &[("ground truth", "n_db, n_queries")]))?;
+        .map_err(|e| named_error(e, &[(GROUND_TRUTH, "n_db, n_queries")]))?;
     Ok(gt.into_pyarray(py))
 }
 
@@ -63,13 +65,17 @@ pub(crate) fn ground_truth_positions<'py>(
     query_positions: &Bound<'py, PyAny>,
     radius: f64,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
-    qtvpr::ground_truth::check_radius("radius", radius).map_err(|e| value_error(e, &[]))?;
-    let db = Scores::extract("db_positions", db_positions)?;
-    let q = Scores::extract("query_positions", query_positions)?;
+    qtvpr::ground_truth::check_radius("radius", radius).map_err(|e| named_error(e, &[]))?;
+    let db = Scores::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
+    let q = Scores::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
     let (d, q) = (db.view(false), q.view(false));
     let names = [(DB_POSITIONS, "db_positions"), (QUERY_POSITIONS, "query_positions")];
     let gt = py
-        .detach(|| with_scores!(d, d => with_scores!(q, q => qtvpr::ground_truth::within_radius(d, q, radius))))
-        .map_err(|e| value_error(e, &names))?;
+        .detach(|| {
+            with_scores!(d, |d| with_scores!(q, |q| qtvpr::ground_truth::within_radius(
+                d, q, radius
+            )))
+        })
+        .map_err(|e| named_error(e, &names))?;
     Ok(gt.into_pyarray(py))
 }

@@ -10,7 +10,6 @@
 //! `#[pyo3(signature = ...)]` so that `help()` shows the real signature; the types live
 //! in `py/qtvpr/_native.pyi`.
 
-mod blame;
 mod calibration;
 mod convert;
 mod error;
@@ -23,8 +22,9 @@ use pyo3::types::PyDict;
 use qtvpr::Matching;
 
 use crate::calibration::{PyCalibration, TransferResult};
-use crate::convert::{GroundTruthArgs, Scores, with_scores};
+use crate::convert::{GroundTruthArgs, Scores};
 use crate::error::Args;
+use qtvpr::with_scores;
 
 /// Quantile transfer from calibration to deployment queries.
 ///
@@ -112,7 +112,7 @@ fn best_threshold(
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
     let gt = py.detach(|| gt.build())?;
-    py.detach(|| with_scores!(s, s => qtvpr::best_threshold(s, &gt, matching, precision)))
+    py.detach(|| with_scores!(s, |s| qtvpr::best_threshold(s, &gt, matching, precision)))
         .map_err(|e| args.error(e))
 }
 
@@ -148,7 +148,7 @@ fn counts<'py>(
     let (s, gt) = (s.view(query_major), gt.view(query_major));
     let gt = py.detach(|| gt.build())?;
     let c = py
-        .detach(|| with_scores!(s, s => qtvpr::counts(s, &gt, matching, threshold)))
+        .detach(|| with_scores!(s, |s| qtvpr::counts(s, &gt, matching, threshold)))
         .map_err(|e| args.error(e))?;
     let out = PyDict::new(py);
     out.set_item("tp", c.tp)?;
@@ -179,7 +179,7 @@ fn ranked_correlation<'py>(
     let cal = Scores::extract("s_cal", s_cal)?;
     let (val, cal) = (val.view(query_major), cal.view(query_major));
     let r = py
-        .detach(|| with_scores!(val, val => with_scores!(cal, cal => qtvpr::ranked_correlation(val, cal))))
+        .detach(|| with_scores!(val, |val| with_scores!(cal, |cal| qtvpr::ranked_correlation(val, cal))))
         .map_err(|e| args.error(e))?;
     Ok(numpy::IntoPyArray::into_pyarray(r, py))
 }
@@ -199,7 +199,7 @@ fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
     };
     let s = Scores::extract("s", s)?;
     let s = s.view(false);
-    py.detach(|| with_scores!(s, s => qtvpr::schubert_threshold(s)))
+    py.detach(|| with_scores!(s, |s| qtvpr::schubert_threshold(s)))
         .map_err(|e| args.error(e))
 }
 

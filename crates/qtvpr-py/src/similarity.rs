@@ -3,18 +3,19 @@
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use qtvpr::Sequence;
-use qtvpr::similarity::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS, SIMILARITY};
+use qtvpr::npy::FloatMatrix;
+use qtvpr::{Sequence, with_scores};
 
-use crate::blame::value_error;
-use crate::convert::{ScoreView, Scores, with_scores};
+use crate::convert::Scores;
+use crate::error::named_error;
 
 /// A sequence window from Python arguments: a negative length gets the core's message.
 fn sequence(length: i64, causal: bool) -> PyResult<Sequence> {
     let length = usize::try_from(length)
         .map_err(|_| PyValueError::new_err(format!("sequence length must be odd and >= 1, got {length}")))?;
     let sequence = Sequence { length, causal };
-    sequence.validate().map_err(|e| value_error(e, &[]))?;
+    sequence.validate().map_err(|e| named_error(e, &[]))?;
     Ok(sequence)
 }
 
@@ -48,19 +49,19 @@ pub(crate) fn cosine_similarity<'py>(
         None if causal => return Err(PyValueError::new_err("causal=True needs a sequence length")),
         None => None,
     };
-    let db = Scores::extract("db", db)?;
-    let queries = Scores::extract("queries", queries)?;
+    let db = Scores::extract_as("db", db, FloatMatrix::Descriptors)?;
+    let queries = Scores::extract_as("queries", queries, FloatMatrix::Descriptors)?;
     let (d, q) = (db.view(false), queries.view(false));
     let names = [(DB_DESCRIPTORS, "db"), (QUERY_DESCRIPTORS, "queries")];
     let s = py
         .detach(|| {
-            let s = with_scores!(d, d => with_scores!(q, q => qtvpr::cosine_similarity(d, q)))?;
+            let s = with_scores!(d, |d| with_scores!(q, |q| qtvpr::cosine_similarity(d, q)))?;
             match window {
                 Some(window) => qtvpr::sequence_match(s.view(), window),
                 None => Ok(s),
             }
         })
-        .map_err(|e| value_error(e, &names))?;
+        .map_err(|e| named_error(e, &names))?;
     Ok(s.into_pyarray(py))
 }
 
@@ -88,17 +89,10 @@ pub(crate) fn sequence_match<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let window = sequence(length, causal)?;
     let s = Scores::extract("s", s)?;
-    let names = [("similarity", "s")];
-    Ok(match s.view(false) {
-        ScoreView::F32(v) => py
-            .detach(|| qtvpr::sequence_match(v, window))
-            .map_err(|e| value_error(e, &names))?
-            .into_pyarray(py)
-            .into_any(),
-        ScoreView::F64(v) => py
-            .detach(|| qtvpr::sequence_match(v, window))
-            .map_err(|e| value_error(e, &names))?
-            .into_pyarray(py)
-            .into_any(),
-    })
+    let names = [(SIMILARITY, "s")];
+    Ok(with_scores!(s.view(false), |v| py
+        .detach(|| qtvpr::sequence_match(v, window))
+        .map_err(|e| named_error(e, &names))?
+        .into_pyarray(py)
+        .into_any()))
 }

@@ -15,6 +15,7 @@ use ndarray::ArrayView2;
 use crate::decisions::{Candidates, Matching};
 use crate::error::Result;
 use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate_scores};
+use crate::names::SIMILARITY;
 
 /// The best threshold of a whole matrix (SPEC section 3), `f64::INFINITY` for reject-all.
 ///
@@ -25,8 +26,8 @@ use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate
 /// outside (0, 1].
 pub fn best_threshold<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching, tau: f64) -> Result<f64> {
     check_precision(tau)?;
-    validate_scores("similarity", s)?;
-    check_gt_shape(gt, "similarity", s.dim())?;
+    validate_scores(SIMILARITY, s)?;
+    check_gt_shape(gt, SIMILARITY, s.dim())?;
     let cands = Candidates::new(s, gt.view(), matching);
     let all: Vec<usize> = (0..cands.ncols()).collect();
     Ok(subset_threshold(&cands, &all, tau))

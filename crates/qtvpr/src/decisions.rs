@@ -202,8 +202,8 @@ pub fn counts<T: Score>(
     matching: Matching,
     t: f64,
 ) -> crate::Result<Counts> {
-    crate::input::validate_scores("similarity", s)?;
-    crate::input::check_gt_shape(gt, "similarity", s.dim())?;
+    crate::input::validate_scores(crate::names::SIMILARITY, s)?;
+    crate::input::check_gt_shape(gt, crate::names::SIMILARITY, s.dim())?;
     let cands = Candidates::new(s, gt.view(), matching);
     Ok(cands.counts(0..cands.ncols(), t))
 }

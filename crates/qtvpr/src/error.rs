@@ -9,8 +9,8 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Everything that can be wrong with the input of the core.
 ///
-/// `what` fields name the matrix the problem is in, e.g. `"calibration similarity"`
-/// or `"ground truth"`.
+/// `what` and `other` fields name the matrix the problem is in, always one of the
+/// constants of [`names`](crate::names); [`Error::about`] lists them.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
@@ -95,22 +95,27 @@ pub enum Error {
         message: String,
     },
     /// A file holds an array of a dtype this input does not take.
-    #[error("{path} has dtype {dtype}; expected {expected}")]
+    #[error("{path} has dtype {dtype}; {expected}")]
     Dtype {
         /// The file.
         path: String,
         /// The dtype as NumPy spells it, e.g. `<c16`.
         dtype: String,
-        /// What the input takes.
+        /// What the input takes, e.g. `expected bool or integer 0/1 ground truth` or
+        /// `positions must be float32 or float64`.
         expected: &'static str,
     },
     /// A problem with the content of a file that was read (e.g. a bad label).
-    #[error("{path}: {source}")]
+    ///
+    /// The message includes the problem's, so the problem is deliberately not the
+    /// error's `source()`: a front end printing the whole chain (anyhow's `{:#}`) would
+    /// print it twice.
+    #[error("{path}: {error}")]
     InFile {
         /// The file.
         path: String,
         /// The problem.
-        source: Box<Error>,
+        error: Box<Error>,
     },
     /// A method name the evaluation protocol does not know.
     #[error(
@@ -137,7 +142,7 @@ pub enum Error {
     /// A descriptor or position matrix holds a NaN or infinite value.
     #[error("{what} contains {value} at row {row}, column {col}; every value must be finite")]
     NotFiniteValue {
-        /// Which matrix, e.g. `"database descriptor matrix"`.
+        /// Which matrix, e.g. [`DB_DESCRIPTORS`](crate::names::DB_DESCRIPTORS).
         what: &'static str,
         /// Row of the first offending entry.
         row: usize,
@@ -166,6 +171,20 @@ pub enum Error {
         other: &'static str,
         /// That matrix's number of columns.
         other_cols: usize,
+    },
+    /// Ground truth from positions does not have the shape of the similarity matrix it
+    /// labels.
+    #[error(
+        "{db} database and {queries} query positions, but the similarity matrix has shape {}x{}",
+        shape.0, shape.1
+    )]
+    PositionCount {
+        /// Rows of the database position matrix.
+        db: usize,
+        /// Rows of the query position matrix.
+        queries: usize,
+        /// The similarity matrix's shape, |DB| x |Q|.
+        shape: (usize, usize),
     },
     /// A position matrix has neither 2 nor 3 columns.
     #[error("{what} has {cols} columns; positions must be x, y (2 columns) or x, y, z (3 columns)")]
@@ -218,12 +237,59 @@ impl Error {
                 other,
                 other_shape: (other_shape.1, other_shape.0),
             },
-            Error::InFile { path, source } => Error::InFile {
+            Error::InFile { path, error } => Error::InFile {
                 path,
-                source: Box::new(source.transposed()),
+                error: Box::new(error.transposed()),
+            },
+            Error::PositionCount { db, queries, shape } => Error::PositionCount {
+                db,
+                queries,
+                shape: (shape.1, shape.0),
             },
             other => other,
         }
+    }
+
+    /// The error of a computation on views made by
+    /// [`ScoresView::oriented`](crate::ScoresView::oriented) with the same
+    /// `query_major`, in the caller's orientation: [`Error::transposed`] when
+    /// `query_major`, else unchanged.
+    #[must_use]
+    pub fn oriented(self, query_major: bool) -> Self {
+        if query_major { self.transposed() } else { self }
+    }
+
+    /// The matrices the error is about, as [`names`](crate::names) constants. A shape
+    /// mismatch is about the matrix whose shape is wrong (ground truth must take the
+    /// shape of the similarity it labels); a column mismatch about both matrices,
+    /// neither of which is the reference. Empty for errors about a parameter or about
+    /// a file (which name the file themselves).
+    pub fn about(&self) -> Vec<&'static str> {
+        use crate::names::{DB_POSITIONS, DEPLOYMENT_SIMILARITY, QUERY_POSITIONS};
+        match self {
+            Error::Empty { what, .. }
+            | Error::NotFinite { what, .. }
+            | Error::BadLabel { what, .. }
+            | Error::ShapeMismatch { what, .. }
+            | Error::NotFiniteValue { what, .. }
+            | Error::ZeroNorm { what, .. }
+            | Error::PositionColumns { what, .. } => vec![what],
+            Error::ColumnMismatch { what, other, .. } => vec![what, other],
+            Error::DatabaseMismatch { .. } => vec![DEPLOYMENT_SIMILARITY],
+            Error::PositionCount { .. } => vec![DB_POSITIONS, QUERY_POSITIONS],
+            _ => vec![],
+        }
+    }
+
+    /// The inputs the error is about: the entries of [`Error::about`] looked up in
+    /// `table`, which maps [`names`](crate::names) constants to whatever a front end
+    /// calls the input (an option and its file, a Python argument), in that order.
+    /// This is the one way a front end attaches its names to a core error.
+    pub fn inputs<'t, T>(&self, table: &'t [(&'static str, T)]) -> Vec<&'t T> {
+        self.about()
+            .into_iter()
+            .filter_map(|name| table.iter().find(|(n, _)| *n == name).map(|(_, t)| t))
+            .collect()
     }
 
     pub(crate) fn param(name: &'static str, message: impl Into<String>) -> Self {
@@ -269,7 +335,7 @@ mod tests {
         assert_eq!(e.transposed().to_string(), "similarity is empty (shape 7x0)");
         let e = Error::InFile {
             path: "gt.npy".into(),
-            source: Box::new(Error::BadLabel {
+            error: Box::new(Error::BadLabel {
                 what: "ground truth",
                 row: 5,
                 col: 0,

@@ -28,6 +28,7 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
+use crate::names::SIMILARITY;
 use crate::transfer::{Calibration, DEFAULT_K, Params};
 
 /// Tolerance of the "meets the target" test (SPEC section 8.3).
@@ -394,8 +395,8 @@ pub fn evaluate<T: Score>(
     methods: &[Method],
 ) -> Result<Evaluation> {
     protocol.validate()?;
-    validate_scores("similarity", s)?;
-    check_gt_shape(gt, "similarity", s.dim())?;
+    validate_scores(SIMILARITY, s)?;
+    check_gt_shape(gt, SIMILARITY, s.dim())?;
     let layout = protocol.layout(s.ncols())?;
     let mut unique: Vec<Method> = Vec::with_capacity(methods.len());
     for &m in methods {

@@ -6,6 +6,9 @@
 //! the |DB| x |Q| bool matrix of SPEC section 1 from either. A soft ground truth
 //! (VPR_Tutorial's `GTsoft`) is the same function with a larger tolerance or radius.
 //!
+//! [`GtSpec::matrices`] is the one place that turns "a tolerance or positions" (hard and
+//! optional soft) into ground truth of a given shape; every front end goes through it.
+//!
 //! - [`within_tolerance`]: `GT[i, j] = |i - j| <= tolerance`.
 //! - [`within_radius`]: `GT[i, j] = |db[i] - q[j]|² <= radius²`, inclusive, with the
 //!   squared distance computed exactly as NumPy's brute force
@@ -18,13 +21,141 @@ use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::input::{Score, check_nonempty};
+use crate::input::{GroundTruth, Score, ScoresView, check_nonempty};
 use crate::kd_tree::KdTree;
+use crate::names::{DB_POSITIONS, GROUND_TRUTH, QUERY_POSITIONS};
 
-/// What [`within_radius`] calls its first argument in errors.
-pub const DB_POSITIONS: &str = "database position matrix";
-/// What [`within_radius`] calls its second argument in errors.
-pub const QUERY_POSITIONS: &str = "query position matrix";
+/// Ground truth without a matrix of it: a frame tolerance or positions, each with an
+/// optional soft counterpart (VPR_Tutorial's `GTsoft`) that must include the hard.
+#[derive(Debug, Clone, Copy)]
+pub enum GtSpec<'a> {
+    /// Frame-aligned traverses: `|i - j| <= hard` (soft: `<= soft`), see [`within_tolerance`].
+    Tolerance {
+        /// Hard tolerance, in frames.
+        hard: usize,
+        /// Soft tolerance, `>= hard`.
+        soft: Option<usize>,
+    },
+    /// Positions within a radius, see [`within_radius`].
+    Positions {
+        /// Database positions, |DB| x 2 or x 3.
+        db: ScoresView<'a>,
+        /// Query positions, |Q| x the same.
+        queries: ScoresView<'a>,
+        /// Hard radius.
+        radius: f64,
+        /// Soft radius, `>= radius`.
+        soft_radius: Option<f64>,
+    },
+}
+
+/// Hard ground truth and, if asked for, soft ground truth, as bool matrices
+/// (what [`GtSpec::matrices`] makes, and what a `.npz` in the VPR_Tutorial convention
+/// holds as `GThard` and `GTsoft`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HardSoft {
+    /// Hard ground truth, |DB| x |Q|.
+    pub hard: Array2<bool>,
+    /// Soft ground truth (a superset of `hard`), if asked for.
+    pub soft: Option<Array2<bool>>,
+}
+
+impl HardSoft {
+    /// The core's [`GroundTruth`] of these labels.
+    ///
+    /// # Errors
+    /// [`Error::Empty`] for empty matrices (which [`GtSpec::matrices`] never makes).
+    pub fn into_ground_truth(self) -> Result<GroundTruth> {
+        let gt = GroundTruth::new(self.hard.view())?;
+        match &self.soft {
+            Some(soft) => gt.with_soft(soft.view()),
+            None => Ok(gt),
+        }
+    }
+}
+
+impl GtSpec<'_> {
+    /// The hard and soft ground truth of the spec, |DB| x |Q|.
+    ///
+    /// `shape` is the shape the ground truth must have (that of the similarity matrix it
+    /// labels, |DB| x |Q|): required for a tolerance, and checked against the number
+    /// of positions when given.
+    ///
+    /// # Errors
+    /// - [`Error::InvalidParameter`] for a soft tolerance or radius below the hard one
+    ///   (`soft tolerance` / `soft radius`), a bad radius ([`check_radius`]), or a
+    ///   tolerance without a `shape`;
+    /// - [`Error::PositionCount`] when the positions do not make `shape`;
+    /// - the errors of [`within_tolerance`] and [`within_radius`].
+    pub fn matrices(&self, shape: Option<(usize, usize)>) -> Result<HardSoft> {
+        match *self {
+            GtSpec::Tolerance { hard, soft } => {
+                let Some((n_db, n_q)) = shape else {
+                    return Err(Error::param(
+                        "tolerance",
+                        "needs the shape |DB| x |Q| of the ground truth",
+                    ));
+                };
+                if let Some(soft) = soft
+                    && soft < hard
+                {
+                    return Err(Error::param(
+                        "soft tolerance",
+                        format!("{soft} is smaller than the tolerance {hard}; soft ground truth must include the hard"),
+                    ));
+                }
+                Ok(HardSoft {
+                    hard: within_tolerance(n_db, n_q, hard)?,
+                    soft: soft.map(|t| within_tolerance(n_db, n_q, t)).transpose()?,
+                })
+            }
+            GtSpec::Positions {
+                db,
+                queries,
+                radius,
+                soft_radius,
+            } => {
+                check_radius("radius", radius)?;
+                if let Some(soft) = soft_radius {
+                    check_radius("soft radius", soft)?;
+                    if soft < radius {
+                        return Err(Error::param(
+                            "soft radius",
+                            format!(
+                                "{soft} is smaller than the radius {radius}; soft ground truth must include the hard"
+                            ),
+                        ));
+                    }
+                }
+                let counts = (db.dim().0, queries.dim().0);
+                if let Some(shape) = shape
+                    && counts != shape
+                {
+                    return Err(Error::PositionCount {
+                        db: counts.0,
+                        queries: counts.1,
+                        shape,
+                    });
+                }
+                let within =
+                    |r: f64| crate::with_scores!(db, |d| crate::with_scores!(queries, |q| within_radius(d, q, r)));
+                Ok(HardSoft {
+                    hard: within(radius)?,
+                    soft: soft_radius.map(within).transpose()?,
+                })
+            }
+        }
+    }
+
+    /// [`GtSpec::matrices`] of a similarity matrix of shape `shape`, as the core's
+    /// [`GroundTruth`].
+    ///
+    /// # Errors
+    /// As [`GtSpec::matrices`].
+    pub fn ground_truth(&self, shape: (usize, usize)) -> Result<GroundTruth> {
+        self.matrices(Some(shape))?.into_ground_truth()
+    }
+}
 
 /// Ground truth of frame-aligned traverses: `GT[i, j] = |i - j| <= tolerance`, shape
 /// `n_db` x `n_queries`.
@@ -32,7 +163,7 @@ pub const QUERY_POSITIONS: &str = "query position matrix";
 /// # Errors
 /// [`Error::Empty`] when either count is 0.
 pub fn within_tolerance(n_db: usize, n_queries: usize, tolerance: usize) -> Result<Array2<bool>> {
-    check_nonempty("ground truth", (n_db, n_queries))?;
+    check_nonempty(GROUND_TRUTH, (n_db, n_queries))?;
     let mut gt = vec![false; n_db * n_queries];
     gt.par_chunks_mut(n_queries).enumerate().for_each(|(i, row)| {
         let first = i.saturating_sub(tolerance);
@@ -179,6 +310,71 @@ mod tests {
     }
 
     #[test]
+    fn specs_make_hard_and_soft_ground_truth() {
+        // Tolerance 0 (hard) and 1 (soft) on 2 x 3: hard is the padded identity, soft
+        // adds |i - j| = 1: (0, 1), (1, 0), (1, 2).
+        let spec = GtSpec::Tolerance { hard: 0, soft: Some(1) };
+        let m = spec.matrices(Some((2, 3))).unwrap();
+        assert_eq!(m.hard, array![[true, false, false], [false, true, false]]);
+        assert_eq!(m.soft, Some(array![[true, true, false], [true, true, true]]));
+        let gt = spec.ground_truth((2, 3)).unwrap();
+        use crate::Truth::{False as F, Ignored as I, True as T};
+        assert_eq!(gt.view(), array![[T, I, F], [I, T, I]]);
+        // Positions on a line 10 apart, queries at the first two: radius 0 is the
+        // identity, soft radius 10 adds the neighbours at distance exactly 10.
+        let db = array![[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]];
+        let q = array![[0.0f32, 0.0], [10.0, 0.0]];
+        let spec = GtSpec::Positions {
+            db: db.view().into(),
+            queries: q.view().into(),
+            radius: 0.0,
+            soft_radius: Some(10.0),
+        };
+        let m = spec.matrices(None).unwrap();
+        assert_eq!(m.hard, array![[true, false], [false, true], [false, false]]);
+        assert_eq!(m.soft, Some(array![[true, true], [true, true], [false, true]]));
+        assert_eq!(
+            spec.matrices(Some((3, 3))).unwrap_err().to_string(),
+            "3 database and 2 query positions, but the similarity matrix has shape 3x3"
+        );
+    }
+
+    #[test]
+    fn specs_check_soft_against_hard() {
+        let spec = GtSpec::Tolerance { hard: 2, soft: Some(1) };
+        assert_eq!(
+            spec.matrices(Some((2, 2))).unwrap_err().to_string(),
+            "soft tolerance 1 is smaller than the tolerance 2; soft ground truth must include the hard"
+        );
+        assert_eq!(
+            GtSpec::Tolerance { hard: 0, soft: None }
+                .matrices(None)
+                .unwrap_err()
+                .to_string(),
+            "tolerance needs the shape |DB| x |Q| of the ground truth"
+        );
+        let p = array![[0.0, 0.0]];
+        let spec = |radius, soft_radius| GtSpec::Positions {
+            db: p.view().into(),
+            queries: p.view().into(),
+            radius,
+            soft_radius,
+        };
+        assert_eq!(
+            spec(1.0, Some(0.5)).matrices(None).unwrap_err().to_string(),
+            "soft radius 0.5 is smaller than the radius 1; soft ground truth must include the hard"
+        );
+        assert_eq!(
+            spec(1.0, Some(-1.0)).matrices(None).unwrap_err().to_string(),
+            "soft radius must be a finite number >= 0, got -1"
+        );
+        assert_eq!(
+            spec(f64::NAN, None).matrices(None).unwrap_err().to_string(),
+            "radius must be a finite number >= 0, got NaN"
+        );
+    }
+
+    #[test]
     fn many_identical_positions() {
         // A robot standing still: 1000 queries at one position (more than any leaf holds).
         let q = Array2::from_elem((1000, 2), 2.5);
@@ -217,7 +413,10 @@ mod tests {
         );
         assert!(matches!(
             within_radius(Array2::<f64>::zeros((0, 2)).view(), p.view(), 1.0),
-            Err(Error::Empty { what: DB_POSITIONS, .. })
+            Err(Error::Empty {
+                what: crate::names::DB_POSITIONS,
+                ..
+            })
         ));
     }
 }

@@ -9,6 +9,7 @@ use ndarray::{Array2, ArrayView2, Zip};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::names::{GROUND_TRUTH, SOFT_GROUND_TRUTH};
 
 mod sealed {
     pub trait Sealed {}
@@ -46,6 +47,57 @@ impl Score for f64 {
     #[inline(always)]
     fn to_f64(self) -> f64 {
         self
+    }
+}
+
+/// A borrowed similarity (or descriptor, position) matrix of either score type: what a
+/// front end holds when the dtype is known only at run time (a file, a NumPy array).
+/// [`with_scores!`](crate::with_scores) calls generic code on the typed view inside.
+#[derive(Debug, Clone, Copy)]
+pub enum ScoresView<'a> {
+    /// float32 values.
+    F32(ArrayView2<'a, f32>),
+    /// float64 values.
+    F64(ArrayView2<'a, f64>),
+}
+
+impl<'a> ScoresView<'a> {
+    /// The transpose (no copy): a query-major matrix becomes |DB| x |Q|.
+    #[must_use]
+    pub fn t(self) -> Self {
+        match self {
+            ScoresView::F32(v) => ScoresView::F32(v.reversed_axes()),
+            ScoresView::F64(v) => ScoresView::F64(v.reversed_axes()),
+        }
+    }
+
+    /// The |DB| x |Q| view the core computes on, of a matrix stored query-major
+    /// (|Q| x |DB|, as VPR-Bench stores them) when `query_major`: the one orientation
+    /// rule of every front end. Errors of the computation are turned back into the
+    /// caller's orientation by [`Error::oriented`] with the same flag.
+    #[must_use]
+    pub fn oriented(self, query_major: bool) -> Self {
+        if query_major { self.t() } else { self }
+    }
+
+    /// Shape (rows, columns).
+    pub fn dim(&self) -> (usize, usize) {
+        match self {
+            ScoresView::F32(v) => v.dim(),
+            ScoresView::F64(v) => v.dim(),
+        }
+    }
+}
+
+impl<'a> From<ArrayView2<'a, f32>> for ScoresView<'a> {
+    fn from(v: ArrayView2<'a, f32>) -> Self {
+        ScoresView::F32(v)
+    }
+}
+
+impl<'a> From<ArrayView2<'a, f64>> for ScoresView<'a> {
+    fn from(v: ArrayView2<'a, f64>) -> Self {
+        ScoresView::F64(v)
     }
 }
 
@@ -98,8 +150,8 @@ impl GroundTruth {
     /// # Errors
     /// [`Error::Empty`] for an empty matrix, [`Error::BadLabel`] for a value other than 0/1.
     pub fn new<L: Label>(hard: ArrayView2<'_, L>) -> Result<Self> {
-        check_nonempty("ground truth", hard.dim())?;
-        let labels = labels_of("ground truth", hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
+        check_nonempty(GROUND_TRUTH, hard.dim())?;
+        let labels = labels_of(GROUND_TRUTH, hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
         Ok(Self { labels })
     }
 
@@ -110,13 +162,13 @@ impl GroundTruth {
     pub fn with_soft<L: Label>(mut self, soft: ArrayView2<'_, L>) -> Result<Self> {
         if soft.dim() != self.labels.dim() {
             return Err(Error::ShapeMismatch {
-                what: "soft ground truth",
+                what: SOFT_GROUND_TRUTH,
                 shape: soft.dim(),
-                other: "ground truth",
+                other: GROUND_TRUTH,
                 other_shape: self.labels.dim(),
             });
         }
-        let soft = labels_of("soft ground truth", soft)?;
+        let soft = labels_of(SOFT_GROUND_TRUTH, soft)?;
         Zip::from(&mut self.labels).and(&soft).for_each(|t, &s| {
             if s && *t == Truth::False {
                 *t = Truth::Ignored;
@@ -145,6 +197,13 @@ impl GroundTruth {
         Self {
             labels: self.labels.reversed_axes(),
         }
+    }
+
+    /// The |DB| x |Q| ground truth of labels stored query-major when `query_major`, as
+    /// [`ScoresView::oriented`].
+    #[must_use]
+    pub fn oriented(self, query_major: bool) -> Self {
+        if query_major { self.reversed_axes() } else { self }
     }
 }
 
@@ -194,7 +253,7 @@ pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Re
 pub fn check_gt_shape(gt: &GroundTruth, similarity: &'static str, shape: (usize, usize)) -> Result<()> {
     if gt.dim() != shape {
         return Err(Error::ShapeMismatch {
-            what: "ground truth",
+            what: GROUND_TRUTH,
             shape: gt.dim(),
             other: similarity,
             other_shape: shape,

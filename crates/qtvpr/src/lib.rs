@@ -25,6 +25,7 @@
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
 //! | file input (feature `npy`) | `npy` |
+//! | the names of the matrices errors are about | [`names`] |
 //!
 //! The extensions are beyond the paper and are not SPEC sections: they make the
 //! similarity and ground-truth matrices the method takes from what users have
@@ -61,6 +62,7 @@ pub mod evaluate;
 pub mod ground_truth;
 pub mod input;
 mod kd_tree;
+pub mod names;
 #[cfg(feature = "npy")]
 pub mod npy;
 pub mod ranked_correlation;
@@ -74,8 +76,31 @@ pub use best_threshold::best_threshold;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Evaluation, Method, Protocol, Split, evaluate};
-pub use input::{GroundTruth, Label, Score, Truth};
+pub use input::{GroundTruth, Label, Score, ScoresView, Truth};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::cosine_similarity;
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
+
+/// Call generic code on the typed view inside a [`ScoresView`]: `$body` is compiled
+/// once with `$v` an `ArrayView2<'_, f32>` and once with an `ArrayView2<'_, f64>`, the
+/// only f32/f64 dispatch a front end needs.
+///
+/// ```
+/// use ndarray::array;
+/// use qtvpr::{ScoresView, with_scores};
+///
+/// let s = array![[0.5f32, 0.25]];
+/// let view = ScoresView::from(s.view());
+/// let sum = with_scores!(view, |v| v.iter().map(|x| f64::from(*x)).sum::<f64>());
+/// assert_eq!(sum, 0.75);
+/// ```
+#[macro_export]
+macro_rules! with_scores {
+    ($view:expr, |$v:ident| $body:expr) => {
+        match $view {
+            $crate::ScoresView::F32($v) => $body,
+            $crate::ScoresView::F64($v) => $body,
+        }
+    };
+}

@@ -23,7 +23,7 @@ use npyz::npz::NpzArchive;
 use npyz::{DType, NpyFile, Order, TypeChar};
 
 use crate::error::{Error, Result};
-use crate::input::GroundTruth;
+use crate::input::{GroundTruth, ScoresView};
 
 /// A similarity matrix as read from a file: float32 or float64.
 pub enum Scores {
@@ -31,15 +31,6 @@ pub enum Scores {
     F32(Matrix<f32>),
     /// float64 scores.
     F64(Matrix<f64>),
-}
-
-/// A borrowed view of [`Scores`].
-#[derive(Clone, Copy)]
-pub enum ScoresView<'a> {
-    /// float32 scores.
-    F32(ArrayView2<'a, f32>),
-    /// float64 scores.
-    F64(ArrayView2<'a, f64>),
 }
 
 impl Scores {
@@ -60,22 +51,103 @@ impl Scores {
     }
 }
 
-impl<'a> ScoresView<'a> {
-    /// The transpose (no copy): a query-major matrix becomes |DB| x |Q|.
-    pub fn t(self) -> Self {
+/// What a float matrix read by [`read_float_matrix`] holds, for its messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FloatMatrix {
+    /// A similarity matrix (any 2-D shape).
+    Similarity,
+    /// Descriptors, one image per row.
+    Descriptors,
+    /// Positions, one per row: x, y or x, y, z.
+    Positions,
+}
+
+impl FloatMatrix {
+    /// What a file of another dtype is told, after `has dtype ...; `.
+    fn dtype_rule(self) -> &'static str {
         match self {
-            ScoresView::F32(v) => ScoresView::F32(v.reversed_axes()),
-            ScoresView::F64(v) => ScoresView::F64(v.reversed_axes()),
+            FloatMatrix::Similarity => "expected float32 or float64 similarity scores",
+            FloatMatrix::Descriptors => "descriptors must be float32 or float64",
+            FloatMatrix::Positions => "positions must be float32 or float64",
         }
     }
 
-    /// Shape (rows, columns).
-    pub fn dim(&self) -> (usize, usize) {
+    /// What a file of another dimension is told, after `expected `.
+    fn layout(self) -> &'static str {
         match self {
-            ScoresView::F32(v) => v.dim(),
-            ScoresView::F64(v) => v.dim(),
+            FloatMatrix::Similarity => MATRIX,
+            FloatMatrix::Descriptors => "an N x D descriptor matrix (one row per image)",
+            FloatMatrix::Positions => "an N x 2 (x, y) or N x 3 (x, y, z) position matrix",
         }
     }
+}
+
+/// The layout every 2-D input but descriptors and positions is told it must have.
+const MATRIX: &str = "a 2-D matrix";
+
+/// What the header of a `.npy` file says, checked ([`inspect`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Header {
+    /// The dtype as NumPy spells it, e.g. `<f8` or `|b1`.
+    pub dtype: String,
+    /// The shape; every dimension fits a `usize` and their product, in bytes, an
+    /// address space.
+    pub shape: Vec<usize>,
+    /// Whether the data is in Fortran (column-major) order.
+    pub fortran: bool,
+}
+
+/// The checked header of the `.npy` file at `path`, without reading its data: the
+/// header goes through the same checks as every file this module reads (length,
+/// bracket nesting, a shape no larger than an address space).
+///
+/// # Errors
+/// [`Error::Io`] (missing file, a directory, ...) and [`Error::File`] (not `.npy`, a
+/// hostile or corrupt header).
+pub fn inspect(path: &Path) -> Result<Header> {
+    let npy = parse(io::BufReader::new(open_file(path)?), path)?;
+    let bytes = npy.dtype().num_bytes().unwrap_or(1) as u64;
+    let mut total = Some(bytes);
+    let mut shape = Vec::with_capacity(npy.shape().len());
+    for &d in npy.shape() {
+        total = total.and_then(|t| t.checked_mul(d));
+        shape.push(usize::try_from(d).ok());
+    }
+    let shape: Option<Vec<usize>> = shape.into_iter().collect();
+    match shape {
+        Some(shape) if total.is_some_and(|t| t <= isize::MAX as u64) => Ok(Header {
+            dtype: dtype_name(&npy),
+            shape,
+            fortran: npy.order() == Order::Fortran,
+        }),
+        _ => Err(too_large(path, npy.shape())),
+    }
+}
+
+/// The 2-D shape of the `.npy` file at `path`, from its header alone.
+///
+/// # Errors
+/// As [`inspect`], and [`Error::File`] for an array that is not 2-D.
+pub fn matrix_shape(path: &Path) -> Result<(usize, usize)> {
+    match inspect(path)?.shape[..] {
+        [rows, cols] => Ok((rows, cols)),
+        ref shape => Err(not_2d(path, shape, MATRIX)),
+    }
+}
+
+fn too_large(path: &Path, shape: &[u64]) -> Error {
+    let shape: Vec<String> = shape.iter().map(u64::to_string).collect();
+    file_error(
+        path,
+        format!("is corrupt: its shape {} is larger than any file", shape.join("x")),
+    )
+}
+
+fn not_2d<D: std::fmt::Debug>(path: &Path, shape: &[D], layout: &str) -> Error {
+    file_error(
+        path,
+        format!("holds a {}-D array of shape {shape:?}, expected {layout}", shape.len()),
+    )
 }
 
 /// A 2-D matrix of `T`, owned or memory-mapped.
@@ -233,8 +305,9 @@ fn npz_array<'a, R: Read + io::Seek>(
     parse(file, path).map(Some)
 }
 
-/// The header's plain dtype as (kind, size in bytes, little-endian or byte order irrelevant).
-fn plain_dtype<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(TypeChar, u64, bool)> {
+/// The header's plain dtype as (kind, size in bytes, little-endian or byte order
+/// irrelevant); any other dtype is refused with `expected`.
+fn plain_dtype<R: Read>(npy: &NpyFile<R>, path: &Path, expected: &'static str) -> Result<(TypeChar, u64, bool)> {
     match npy.dtype() {
         DType::Plain(ts) => {
             let little = !matches!(ts.endianness(), npyz::Endianness::Big);
@@ -243,7 +316,7 @@ fn plain_dtype<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(TypeChar, u64,
         other => Err(Error::Dtype {
             path: path.display().to_string(),
             dtype: other.descr(),
-            expected: "a plain numeric matrix",
+            expected,
         }),
     }
 }
@@ -256,7 +329,8 @@ fn dtype_name<R: Read>(npy: &NpyFile<R>) -> String {
     }
 }
 
-fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(usize, usize)> {
+/// The shape of a 2-D array; any other is refused with `layout` (what it must be).
+fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path, layout: &str) -> Result<(usize, usize)> {
     match npy.shape() {
         &[rows, cols] => {
             // A corrupt header may claim more bytes than an address space holds; its
@@ -264,27 +338,18 @@ fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path) -> Result<(usize, usize)> {
             let bytes = rows
                 .checked_mul(cols)
                 .and_then(|n| n.checked_mul(npy.dtype().num_bytes().unwrap_or(1) as u64));
-            if bytes.is_none_or(|b| b > isize::MAX as u64) {
-                return Err(file_error(
-                    path,
-                    format!("is corrupt: its shape {rows}x{cols} is larger than any file"),
-                ));
+            match (usize::try_from(rows), usize::try_from(cols)) {
+                (Ok(r), Ok(c)) if bytes.is_some_and(|b| b <= isize::MAX as u64) => Ok((r, c)),
+                _ => Err(too_large(path, &[rows, cols])),
             }
-            Ok((rows as usize, cols as usize))
         }
-        shape => Err(file_error(
-            path,
-            format!(
-                "holds a {}-D array of shape {shape:?}, expected a 2-D matrix",
-                shape.len()
-            ),
-        )),
+        shape => Err(not_2d(path, shape, layout)),
     }
 }
 
-/// Read a whole matrix into memory.
-fn read_matrix<T: npyz::Deserialize, R: Read>(npy: NpyFile<R>, path: &Path) -> Result<Matrix<T>> {
-    let dim = shape_2d(&npy, path)?;
+/// Read a whole matrix into memory; a shape other than 2-D is refused with `layout`.
+fn read_matrix<T: npyz::Deserialize, R: Read>(npy: NpyFile<R>, path: &Path, layout: &str) -> Result<Matrix<T>> {
+    let dim = shape_2d(&npy, path, layout)?;
     let fortran = npy.order() == Order::Fortran;
     let data: Vec<T> = npy
         .into_vec()
@@ -313,29 +378,39 @@ impl<T> Matrix<T> {
     }
 }
 
-/// Read a float32/float64 similarity matrix, memory-mapped where possible.
+/// Read a float32/float64 similarity matrix, memory-mapped where possible:
+/// [`read_float_matrix`] of a [`FloatMatrix::Similarity`].
+///
+/// # Errors
+/// As [`read_float_matrix`].
+pub fn read_scores(path: &Path) -> Result<Scores> {
+    read_float_matrix(path, FloatMatrix::Similarity)
+}
+
+/// Read a float32/float64 matrix of `what` (similarity scores, descriptors,
+/// positions), memory-mapped where possible; the errors say what it must be.
 ///
 /// # Errors
 /// [`Error::Io`] (missing file, a directory, ...), [`Error::File`] (not `.npy`,
 /// truncated, not 2-D), [`Error::Dtype`] (not float32/float64).
-pub fn read_scores(path: &Path) -> Result<Scores> {
+pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<Scores> {
     let file = open_file(path)?;
     // SAFETY: the map is read-only; like NumPy's mmap_mode="r", it assumes no other
     // process truncates the file while it is in use.
     let Ok(map) = (unsafe { Mmap::map(&file) }) else {
-        return read_scores_unmapped(file, path);
+        return read_unmapped(io::BufReader::new(file), path, what);
     };
     let mut cursor = Cursor::new(&map[..]);
     let npy = parse(&mut cursor, path)?;
-    let (kind, size, little) = plain_dtype(&npy, path)?;
+    let (kind, size, little) = plain_dtype(&npy, path, what.dtype_rule())?;
     if kind != TypeChar::Float || !(size == 4 || size == 8) {
         return Err(Error::Dtype {
             path: path.display().to_string(),
             dtype: dtype_name(&npy),
-            expected: "float32 or float64 similarity scores",
+            expected: what.dtype_rule(),
         });
     }
-    let dim = shape_2d(&npy, path)?;
+    let dim = shape_2d(&npy, path, what.layout())?;
     let fortran = npy.order() == Order::Fortran;
     let offset = cursor.position() as usize;
     let available = map.len() - offset;
@@ -355,7 +430,7 @@ pub fn read_scores(path: &Path) -> Result<Scores> {
     }
     let aligned = (map.as_ptr() as usize + offset) % size as usize == 0;
     if !(little && cfg!(target_endian = "little") && aligned) {
-        return read_scores_unmapped(open_file(path)?, path);
+        return read_unmapped(io::BufReader::new(open_file(path)?), path, what);
     }
     Ok(if size == 4 {
         Scores::F32(Matrix {
@@ -372,31 +447,52 @@ pub fn read_scores(path: &Path) -> Result<Scores> {
     })
 }
 
-fn read_scores_unmapped(file: File, path: &Path) -> Result<Scores> {
-    let npy = parse(io::BufReader::new(file), path)?;
-    match plain_dtype(&npy, path)? {
-        (TypeChar::Float, 4, _) => Ok(Scores::F32(read_matrix(npy, path)?)),
-        (TypeChar::Float, 8, _) => Ok(Scores::F64(read_matrix(npy, path)?)),
+fn read_unmapped<R: Read>(reader: R, path: &Path, what: FloatMatrix) -> Result<Scores> {
+    let npy = parse(reader, path)?;
+    let rule = what.dtype_rule();
+    match plain_dtype(&npy, path, rule)? {
+        (TypeChar::Float, 4, _) => Ok(Scores::F32(read_matrix(npy, path, what.layout())?)),
+        (TypeChar::Float, 8, _) => Ok(Scores::F64(read_matrix(npy, path, what.layout())?)),
         _ => Err(Error::Dtype {
             path: path.display().to_string(),
             dtype: dtype_name(&npy),
-            expected: "float32 or float64 similarity scores",
+            expected: rule,
         }),
     }
+}
+
+/// Read a float32/float64 similarity matrix from the bytes of a `.npy` file (e.g. data
+/// compiled into a program), through the same checks as a file; `name` stands for
+/// the file name in errors.
+///
+/// # Errors
+/// As [`read_scores`].
+pub fn scores_from_bytes(bytes: &[u8], name: &str) -> Result<Scores> {
+    read_unmapped(bytes, Path::new(name), FloatMatrix::Similarity)
+}
+
+/// Read hard ground truth from the bytes of a `.npy` file, as [`scores_from_bytes`].
+///
+/// # Errors
+/// As [`read_hard_ground_truth`].
+pub fn ground_truth_from_bytes(bytes: &[u8], name: &str) -> Result<GroundTruth> {
+    let path = Path::new(name);
+    ground_truth_of(parse(bytes, path)?, path, None)
 }
 
 /// Labels of one ground-truth array, added to `hard` as soft ground truth if given.
 fn ground_truth_of<R: Read>(npy: NpyFile<R>, path: &Path, hard: Option<GroundTruth>) -> Result<GroundTruth> {
     macro_rules! labels {
         ($t:ty) => {{
-            let m = read_matrix::<$t, R>(npy, path)?.into_array();
+            let m = read_matrix::<$t, R>(npy, path, MATRIX)?.into_array();
             match hard {
                 None => GroundTruth::new(m.view()),
                 Some(hard) => hard.with_soft(m.view()),
             }
         }};
     }
-    let gt = match plain_dtype(&npy, path)? {
+    const RULE: &str = "expected bool or integer 0/1 ground truth";
+    let gt = match plain_dtype(&npy, path, RULE)? {
         (TypeChar::Bool, _, _) => labels!(bool),
         (TypeChar::Uint, 1, _) => labels!(u8),
         (TypeChar::Uint, 2, _) => labels!(u16),
@@ -410,13 +506,13 @@ fn ground_truth_of<R: Read>(npy: NpyFile<R>, path: &Path, hard: Option<GroundTru
             return Err(Error::Dtype {
                 path: path.display().to_string(),
                 dtype: dtype_name(&npy),
-                expected: "bool or integer 0/1 ground truth",
+                expected: RULE,
             });
         }
     };
     gt.map_err(|e| Error::InFile {
         path: path.display().to_string(),
-        source: Box::new(e),
+        error: Box::new(e),
     })
 }
 

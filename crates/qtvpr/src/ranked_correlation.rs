@@ -27,6 +27,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, check_nonempty};
+use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
 
 /// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
 /// neighbours, so that correlations equal in exact arithmetic tie (and go to the lower
@@ -490,8 +491,8 @@ pub(crate) fn screened_top_k(screen: &[f64], k: usize, error: f64, exact: impl F
 /// Empty or non-finite scores, or a different number of database rows.
 pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
     let zero = Reference::zero(cal.nrows());
-    let cal = Ranked::new("calibration similarity", cal, 0, &zero)?;
-    let val = Ranked::new("deployment similarity", val, 0, &zero)?;
+    let cal = Ranked::new(CAL_SIMILARITY, cal, 0, &zero)?;
+    let val = Ranked::new(DEPLOYMENT_SIMILARITY, val, 0, &zero)?;
     if val.n_db != cal.n_db {
         return Err(Error::DatabaseMismatch {
             calibration: cal.n_db,

@@ -27,6 +27,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, validate_scores};
+use crate::names::SIMILARITY;
 
 /// A score type [`sequence_match`] can return: `f32` or `f64`.
 pub trait FromF64: Score {
@@ -109,7 +110,7 @@ impl Sequence {
 /// [`Error::NotFinite`] for an empty or non-finite `s`.
 pub fn sequence_match<T: FromF64>(s: ArrayView2<'_, T>, sequence: Sequence) -> Result<Array2<T>> {
     sequence.validate()?;
-    validate_scores("similarity", s)?;
+    validate_scores(SIMILARITY, s)?;
     let (n, m) = s.dim();
     let (lo, hi) = sequence.offsets();
     // Rows per block: at least the window length, so that the O(L |Q|) start of each

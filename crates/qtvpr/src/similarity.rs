@@ -31,11 +31,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, check_nonempty};
-
-/// What [`cosine_similarity`] calls its two arguments in errors.
-pub const DB_DESCRIPTORS: &str = "database descriptor matrix";
-/// What [`cosine_similarity`] calls its two arguments in errors.
-pub const QUERY_DESCRIPTORS: &str = "query descriptor matrix";
+use crate::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
 
 /// `f64` elements of the scratch block of the product (32 MB).
 const BLOCK_ELEMENTS: usize = 1 << 22;

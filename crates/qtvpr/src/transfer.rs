@@ -22,6 +22,7 @@ use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, Truth, check_gt_shape, check_nonempty, check_precision};
+use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
 use crate::subset_quantile::subset_quantile;
 
@@ -130,8 +131,8 @@ impl Calibration {
     /// # Errors
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
-        let ranked = Ranked::new("calibration similarity", s, 0, &Reference::zero(s.nrows()))?;
-        check_gt_shape(gt, "calibration similarity", s.dim())?;
+        let ranked = Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?;
+        check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
         Ok(Self::from_ranked(ranked, s, gt.view(), matching))
     }
 
@@ -142,7 +143,7 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         Ok(Self::from_ranked(
-            Ranked::new("calibration similarity", s, 0, &Reference::zero(s.nrows()))?,
+            Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?,
             s,
             gt,
             matching,
@@ -225,7 +226,7 @@ impl Calibration {
         chunk_scores: usize,
     ) -> Result<Transfer> {
         params.validate()?;
-        check_nonempty("deployment similarity", s.dim())?;
+        check_nonempty(DEPLOYMENT_SIMILARITY, s.dim())?;
         if s.nrows() != self.n_db {
             return Err(Error::DatabaseMismatch {
                 calibration: self.n_db,
@@ -255,7 +256,7 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             let chunk = s.slice(ndarray::s![.., start..end]);
-            ranked.refill("deployment similarity", chunk, start, &self.reference)?;
+            ranked.refill(DEPLOYMENT_SIMILARITY, chunk, start, &self.reference)?;
             let cal = self.profiles.screen();
             let screen = ranked.screen().correlations(cal, &self.reference);
             let cal_spread = cal.max_spread();
