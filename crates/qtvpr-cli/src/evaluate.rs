@@ -102,7 +102,8 @@ pub struct EvaluateArgs {
 /// Output formats of `evaluate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum EvalFormat {
-    /// One JSON object (SPEC section 9); a reject-all threshold is `null`.
+    /// One JSON object (every key: the `qtvpr::report` docs); a reject-all threshold is
+    /// `null`.
     Json,
     /// A Markdown table.
     Table,
