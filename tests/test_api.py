@@ -20,7 +20,7 @@ S_VAL = np.array(
 
 def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
-        ["Calibration", "TransferResult", "__version__", "best_threshold", "counts", "evaluate",
+        ["Calibration", "TransferResult", "__version__", "ablation", "best_threshold", "counts", "evaluate",
          "quantile_transfer", "ranked_correlation", "schubert_threshold"]
         + ["cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "sequence_match"]  # extensions
     )
@@ -29,7 +29,7 @@ def test_public_names():
     assert isinstance(qtvpr.__version__, str) and qtvpr.__version__
 
 
-@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts", "evaluate"])
+@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts", "evaluate", "ablation"])
 def test_signatures_match_reference(name):
     assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
         return_annotation=inspect.Signature.empty

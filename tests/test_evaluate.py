@@ -29,7 +29,11 @@ TECHNIQUES = [
     "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
 ]
 SEGMENT_KEYS = ["start", "end", "threshold", "oracle_threshold", "tp", "fp", "positives",
-                "precision", "recall", "meets"]
+                "precision", "recall", "precision_lower95", "meets"]
+METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped", "threshold_mse",
+               "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
+               "pooled_precision_lower95", "segments"]
+RUN_KEYS = ["params", "recall_at_1", "methods"]
 
 
 @functools.cache
@@ -52,15 +56,30 @@ def same_figure(a, b) -> bool:
     return abs(a - b) <= 1e-9
 
 
-def assert_same_evaluation(got: dict, want: dict) -> None:
-    """Equal to 1e-9 (thresholds, figures), exactly for every count and flag."""
-    assert list(got) == ["methods"]
+def key_tree(value):
+    """The keys of ``value``, recursively and in order (a list by its elements)."""
+    if isinstance(value, dict):
+        return [(k, key_tree(v)) for k, v in value.items()]
+    if isinstance(value, list):
+        return [key_tree(v) for v in value]
+    return None
+
+
+def assert_same_run(got: dict, want: dict) -> None:
+    """One run: the same keys in the same order; parameters and counts exactly,
+    thresholds and figures to 1e-9."""
+    assert list(got) == RUN_KEYS
+    assert key_tree(got) == key_tree(want)
+    assert got["params"] == want["params"]
+    assert same_figure(got["recall_at_1"], want["recall_at_1"])
     assert list(got["methods"]) == list(want["methods"])
     for name, w in want["methods"].items():
         g = got["methods"][name]
-        assert (g["segments_counted"], g["segments_skipped"]) == (
-            w["segments_counted"], w["segments_skipped"]), name
-        for key in ("pct_segs", "avg_recall", "threshold_mse"):
+        assert list(g) == METHOD_KEYS, name
+        for key in ("segments_counted", "segments_skipped", "pooled_tp", "pooled_fp", "pooled_positives"):
+            assert g[key] == w[key], (name, key, g[key], w[key])
+        for key in ("pct_segs", "avg_recall", "threshold_mse", "pooled_precision", "pooled_recall",
+                    "pooled_precision_lower95"):
             assert same_figure(g[key], w[key]), (name, key, g[key], w[key])
         assert len(g["segments"]) == len(w["segments"]), name
         for gs, ws in zip(g["segments"], w["segments"]):
@@ -70,6 +89,20 @@ def assert_same_evaluation(got: dict, want: dict) -> None:
             for key in ("threshold", "oracle_threshold", "precision", "recall"):
                 a, b = gs[key], ws[key]
                 assert (math.isinf(a) and a == b) or abs(a - b) <= 1e-9, (name, key, gs, ws)
+            assert same_figure(gs["precision_lower95"], ws["precision_lower95"]), (name, gs, ws)
+
+
+def assert_same_evaluation(got: dict, want: dict) -> None:
+    """``evaluate``'s dicts: ``dataset`` (whatever its value) and one run."""
+    assert list(got) == ["dataset", *RUN_KEYS]
+    assert_same_run({k: got[k] for k in RUN_KEYS}, {k: want[k] for k in RUN_KEYS})
+
+
+def assert_same_ablation(got: dict, want: dict) -> None:
+    assert list(got) == ["dataset", "ablation"]
+    assert len(got["ablation"]) == len(want["ablation"])
+    for g, w in zip(got["ablation"], want["ablation"]):
+        assert_same_run(g, w)
 
 
 @functools.cache
@@ -155,20 +188,21 @@ def test_schubert_threshold(shared_data):
 
 
 def from_json(out: dict) -> dict:
-    """The CLI's JSON in the reference's form: null thresholds are reject-all."""
+    """The CLI's JSON (an evaluation, an ablation or one run of it) in Python's form:
+    null thresholds are reject-all, inf. Every key is kept."""
+    if "ablation" in out:
+        return {**out, "ablation": [from_json(run) for run in out["ablation"]]}
     methods = {}
     for name, m in out["methods"].items():
         segments = []
         for seg in m["segments"]:
-            seg = {k: seg[k] for k in SEGMENT_KEYS}
+            seg = dict(seg)
             for key in ("threshold", "oracle_threshold"):
                 if seg[key] is None:
                     seg[key] = math.inf
             segments.append(seg)
-        methods[name] = {k: m[k] for k in ("pct_segs", "avg_recall", "segments_counted",
-                                           "segments_skipped", "threshold_mse")}
-        methods[name]["segments"] = segments
-    return {"methods": methods}
+        methods[name] = {**m, "segments": segments}
+    return {**out, "methods": methods}
 
 
 @pytest.mark.parametrize(
@@ -220,7 +254,94 @@ def test_cli_ablation_rows_equal_reference(cli, shared_data):
         assert run["params"]["deployment_start"] == 111 - 55
         want = ref.evaluate(s, gt, cal_fraction=f, deploy_fraction=0.5,
                             methods=["quantile-transfer", "calibration-threshold"])
-        assert_same_evaluation(from_json(run), want)
+        assert_same_run(from_json(run), {k: want[k] for k in RUN_KEYS})
+
+
+# ---------------------------------------------------------------------------------------
+# One schema: the CLI's JSON and the wheel's dicts have the same keys
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("flags", "kwargs"),
+    [
+        ([], {}),
+        (["--matching", "multi", "--precision", "0.9", "--method", "oracle,schubert"],
+         dict(matching="multi", precision=0.9, methods=["oracle", "schubert"])),
+    ],
+)
+def test_cli_json_and_python_dict_have_the_same_keys(cli, shared_data, flags, kwargs):
+    d = shared_data / "vprbench-corridor"
+    s, gt = d / "S_CoHOG.npy", d / "GT.npy"
+    res = run_cli(cli, "evaluate", "--similarity", s, "--gt", gt, *flags)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    # Paths in, so that even `dataset` is the same.
+    got = qtvpr.evaluate(str(s), str(gt), **kwargs)
+    assert key_tree(out) == key_tree(got)
+    assert out["dataset"] == got["dataset"] == str(s)
+    assert from_json(out) == got
+    # The reference has the same keys too; from arrays, dataset is None.
+    want = ref.evaluate(*load(shared_data, "vprbench-corridor", "CoHOG"), **kwargs)
+    assert key_tree(want) == key_tree(got)
+    assert qtvpr.evaluate(*load(shared_data, "vprbench-corridor", "CoHOG"), **kwargs)["dataset"] is None
+
+
+def test_cli_ablation_json_and_python_dict_have_the_same_keys(cli, shared_data):
+    d = shared_data / "vprbench-corridor"
+    s, gt = d / "S_NetVLAD.npy", d / "GT.npy"
+    res = run_cli(cli, "evaluate", "--similarity", s, "--gt", gt, "--k", "1,3", "--cal-fraction", "0.05,0.2")
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    got = qtvpr.ablation(str(s), str(gt), k=[1, 3], cal_fraction=[0.05, 0.2])
+    assert list(got) == ["dataset", "ablation"]
+    assert key_tree(out) == key_tree(got)
+    assert from_json(out) == got
+    want = ref.ablation(*load(shared_data, "vprbench-corridor", "NetVLAD"), k=[1, 3], cal_fraction=[0.05, 0.2])
+    assert key_tree(want) == key_tree(got)
+
+
+# ---------------------------------------------------------------------------------------
+# Ablations (the paper's Fig. 5)
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("technique", ["NetVLAD", "CoHOG"])
+def test_ablation_over_k_and_calibration_size_equals_reference(shared_data, technique):
+    s, gt = load(shared_data, "vprbench-spedtest", technique)
+    ks, fractions = [1, 10, 40], [0.01, 0.3]
+    kwargs = dict(k=ks, cal_fraction=fractions, methods=["quantile-transfer", "calibration-threshold", "oracle"])
+    got = qtvpr.ablation(s, gt, **kwargs)
+    assert_same_ablation(got, ref.ablation(s, gt, **kwargs))
+    # Calibration sizes outer, k inner; 607 queries: floor(f x 607) calibrate and the
+    # last floor(303.5) = 303 deploy in every run.
+    runs = got["ablation"]
+    assert [(r["params"]["calibration"]["fraction"], r["params"]["k"]) for r in runs] == [
+        (f, k) for f in fractions for k in ks]
+    assert [r["params"]["calibration_queries"] for r in runs[::3]] == [6, 182]
+    assert {(r["params"]["deployment_start"], r["params"]["deploy_fraction"]) for r in runs} == {(304, 0.5)}
+    # Each run is evaluate() with that setting on the last half.
+    one = qtvpr.evaluate(s, gt, k=10, cal_fraction=0.3, deploy_fraction=0.5, methods=kwargs["methods"])
+    assert {k: one[k] for k in RUN_KEYS} == runs[4]
+    # The oracle depends on the deployment set only.
+    assert all(r["methods"]["oracle"] == runs[0]["methods"]["oracle"] for r in runs)
+
+
+def test_fig5_series_from_python(shared_data):
+    """What a user plots for Fig. 5: %Segs and AvgR of each method against k."""
+    s, gt = load(shared_data, "vprbench-corridor", "AMOSNet")
+    ks = [1, 3, 5, 10, 20, 40]
+    runs = qtvpr.ablation(s, gt, k=ks)["ablation"]
+    series = {(r["params"]["k"], name): (m["pct_segs"], m["avg_recall"])
+              for r in runs for name, m in r["methods"].items()}
+    assert sorted({k for k, _ in series}) == ks
+    # Only quantile transfer depends on k.
+    for name in ("schubert", "schubert-calibrated", "calibration-threshold", "oracle"):
+        assert len({series[(k, name)] for k in ks}) == 1, name
+    # The default deployment set is the last half: floor(55.5) = 55 of 111 queries.
+    assert runs[0]["params"]["deployment_start"] == 56
+    # A given deploy fraction is kept.
+    assert qtvpr.ablation(s, gt, k=[1, 2], deploy_fraction=0.6)["ablation"][1]["params"]["deployment_start"] == 45
 
 
 def test_cli_embedded_data_matches_the_reference(cli):
@@ -283,11 +404,12 @@ def test_random_matrices_equal_reference(case):
 
 
 def test_signature_matches_reference():
-    for name in ("evaluate", "schubert_threshold"):
+    for name in ("evaluate", "ablation", "schubert_threshold"):
         assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
             return_annotation=inspect.Signature.empty
         )
     assert qtvpr.evaluate.__doc__ and "pct_segs" in qtvpr.evaluate.__doc__
+    assert qtvpr.ablation.__doc__ and "Fig. 5" in qtvpr.ablation.__doc__
 
 
 S7 = np.array([
@@ -327,3 +449,40 @@ def test_bad_input(impl, kwargs, exc, match):
     kwargs = dict(s=S7, gt=G7) | kwargs
     with pytest.raises(exc, match=match):
         impl.evaluate(kwargs.pop("s"), kwargs.pop("gt"), **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "match"),
+    [
+        (dict(k=[]), ValueError, "k must have at least one value"),
+        (dict(cal_queries=[]), ValueError, "cal_queries must have at least one value"),
+        (dict(k=[1, 0], cal_queries=1), ValueError, "k must be >= 1"),
+        (dict(cal_queries=[1, 0]), ValueError, "cal_queries must be >= 1"),
+        # The last floor(3.5) = 3 deploy: 1 + 3 fits, 5 + 3 overlaps; checked before any run.
+        (dict(cal_queries=[1, 5]), ValueError, "overlap"),
+        (dict(cal_fraction=[0.2, 1.5]), ValueError, "cal_fraction must be in"),
+        (dict(cal_queries=1, deploy_fraction=1.0), ValueError, "deploy_fraction must be in"),
+        (dict(cal_queries=1, methods=["magic"]), ValueError, "unknown method 'magic'"),
+    ],
+)
+@pytest.mark.parametrize("impl", [qtvpr, ref], ids=["wheel", "reference"])
+def test_bad_ablation_input(impl, kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        impl.ablation(S7, G7, segment_size=1, **kwargs)
+
+
+def test_ablation_of_the_tiny_case_by_hand():
+    # |Q| = 7, calibration c0 (1 query), the last floor(3.5) = 3 deploy (d2, d3, d4 in
+    # segments of 1). Best matches: d2 0.5 (db0, no match), d3 0.9 (db1), d4 0.3 (db0,
+    # first maximum): no deployment query has a hard match -> every segment skipped,
+    # figures None, R@1 None.
+    for impl in (qtvpr, ref):
+        out = impl.ablation(S7, G7, cal_queries=1, k=[1, 2], segment_size=1, methods=["oracle"])
+        assert [r["params"]["k"] for r in out["ablation"]] == [1, 2]
+        for r in out["ablation"]:
+            assert (r["params"]["deployment_start"], r["params"]["segments"]) == (4, 3)
+            assert r["recall_at_1"] is None
+            o = r["methods"]["oracle"]
+            assert (o["segments_counted"], o["segments_skipped"], o["pct_segs"]) == (0, 3, None)
+            # Reject-all everywhere: nothing accepted, no precision bound.
+            assert (o["pooled_tp"], o["pooled_fp"], o["pooled_precision_lower95"]) == (0, 0, None)

@@ -359,8 +359,43 @@ def test_schubert_even_count():
 def test_schubert_odd_count_and_zero_sigma():
     # (1, 2, 7): mu = 2, |S - mu| = (1, 0, 5) -> median 1 -> t = 2 + Z / 0.675
     assert schubert_threshold(np.array([[1.0, 2.0, 7.0]])) == pytest.approx(2 + Z / 0.675, rel=1e-15)
-    # (1, 1, 1, 5): mu = 1, |S - mu| = (0, 0, 0, 4) -> median 0 -> sigma 0 -> t = mu = 1
-    assert schubert_threshold(np.array([[1.0, 1.0], [1.0, 5.0]])) == 1.0
+    # (1, 1, 1, 2): mu = (1 + 1) / 2 = 1, |S - mu| = (0, 0, 0, 1) -> median (0 + 0) / 2 = 0
+    # -> sigma 0: a degenerate fit, reject-all
+    assert schubert_threshold(np.array([[1.0, 1.0], [1.0, 2.0]])) == math.inf
+    # one score: mu = 0.3, MAD 0 -> reject-all; (-1, -1, 2): mu = -1, MAD median(0, 0, 3) = 0
+    assert schubert_threshold(np.array([[0.3]], dtype=np.float32)) == math.inf
+    assert schubert_threshold(np.array([[-1.0, -1.0, 2.0]])) == math.inf
+    # (1, 1, 2, 3): mu = 1.5, |S - mu| = (0.5, 0.5, 0.5, 1.5) -> median 0.5: not degenerate
+    assert schubert_threshold(np.array([[1.0, 1.0], [2.0, 3.0]])) == pytest.approx(1.5 + Z * 0.5 / 0.675, rel=1e-15)
+
+
+def test_schubert_zero_sigma_in_the_protocol():
+    # Every score of segment 1 (columns 4, 5: d2, d3) equal: per-segment Schubert is
+    # reject-all there, so it accepts nothing and has no MSE; it is inf, not the median.
+    s = TINY_S.copy()
+    s[:, 4:6] = 0.5
+    res = evaluate(s, TINY_GT, precision=0.5, cal_queries=2, segment_size=2, methods=["schubert"])
+    seg = res["methods"]["schubert"]["segments"][1]
+    assert (seg["threshold"], seg["tp"], seg["fp"], seg["precision_lower95"]) == (math.inf, 0, 0, None)
+
+
+def test_clopper_pearson_lower_bound():
+    # No false positive in n: P(Beta(n, 1) <= x) = x^n, so the bound is 0.05^(1/n);
+    # n = 10: exp(ln(0.05) / 10) = exp(-0.2995732) = 0.7411344491
+    assert ref.precision_lower95(10, 0) == pytest.approx(0.7411344491, abs=1e-10)
+    for n in (1, 2, 28, 1000):
+        assert ref.precision_lower95(n, 0) == pytest.approx(0.05 ** (1 / n), abs=1e-12)
+    # TP 8, FP 2: the x with P(Binomial(10, x) >= 8) = 0.05, i.e.
+    # 45 x^8 (1 - x)^2 + 10 x^9 (1 - x) + x^10 = 0.05 -> x = 0.4930986989
+    x = ref.precision_lower95(8, 2)
+    assert x == pytest.approx(0.4930986989, abs=1e-10)
+    assert 45 * x**8 * (1 - x) ** 2 + 10 * x**9 * (1 - x) + x**10 == pytest.approx(0.05, abs=1e-13)
+    # Nothing correct: 0; nothing accepted: None.
+    assert ref.precision_lower95(0, 5) == 0.0
+    assert ref.precision_lower95(0, 0) is None
+    # Many false positives (multi matching pools thousands): 1 correct in 20001 accepted.
+    # P(Beta(1, b) <= x) = 1 - (1 - x)^b, so x = 1 - 0.95^(1/b) with b = 20001.
+    assert ref.precision_lower95(1, 20000) == pytest.approx(1 - 0.95 ** (1 / 20001), rel=1e-9)
 
 
 # ---------------------------------------------------------------------------------------
@@ -396,7 +431,17 @@ def test_evaluate_tiny_matrix_with_skipped_segment():
     #   oracle: 0.7 (1,0) valid, 0.6 (1,1) valid, TP* = 1 first at 0.7
     # segment 1: no GT at all -> positives 0 -> skipped; oracle inf
     #   candidates d2 0.5 wrong, d3 0.9 wrong
-    res = evaluate(TINY_S, TINY_GT, precision=0.5, cal_queries=2, segment_size=2)["methods"]
+    out = evaluate(TINY_S, TINY_GT, precision=0.5, cal_queries=2, segment_size=2)
+    assert out["params"] == {
+        "calibration": {"count": 2}, "deploy_fraction": None, "segment": {"count": 2}, "k": 10,
+        "precision": 0.5, "matching": "single", "database_size": 3, "queries": 7,
+        "calibration_queries": 2, "deployment_start": 2, "deployment_queries": 5, "segment_size": 2,
+        "segments": 2,
+    }
+    # full segments d0..d3: d0's best match is a hard match, d1's is not; d2, d3 have no
+    # hard match -> R@1 = 1/2
+    assert out["recall_at_1"] == 0.5
+    res = out["methods"]
     assert list(res) == list(ref.METHODS)
     for m in res.values():
         assert [(r["start"], r["end"]) for r in m["segments"]] == [(0, 2), (2, 4)]
@@ -407,6 +452,11 @@ def test_evaluate_tiny_matrix_with_skipped_segment():
     # oracle at 0.7: TP 1, FP 0, recall 1/2 -> %Segs 100, AvgR 0.5, MSE 0 over segment 0
     o = res["oracle"]
     assert (o["pct_segs"], o["avg_recall"], o["threshold_mse"]) == (100.0, 0.5, 0.0)
+    # Pooled over both segments: TP 1, FP 0 (segment 1 accepts nothing at inf), 2
+    # positives; one correct decision bounds the precision by 0.05^(1/1) = 0.05.
+    assert (o["pooled_tp"], o["pooled_fp"], o["pooled_positives"], o["pooled_recall"]) == (1, 0, 2, 0.5)
+    assert o["pooled_precision_lower95"] == pytest.approx(0.05, abs=1e-12)
+    assert o["segments"][1]["precision_lower95"] is None
     seg0 = o["segments"][0]
     assert (seg0["threshold"], seg0["tp"], seg0["fp"], seg0["precision"], seg0["recall"], seg0["meets"]) == (
         0.7, 1, 0, 1.0, 0.5, True
@@ -420,6 +470,8 @@ def test_evaluate_tiny_matrix_with_skipped_segment():
     assert [(r["tp"], r["fp"], r["meets"]) for r in c["segments"]] == [(0, 0, True), (0, 1, False)]
     assert (c["pct_segs"], c["avg_recall"]) == (100.0, 0.0)
     assert c["threshold_mse"] == pytest.approx(0.04, abs=1e-15)
+    # pooled: TP 0, FP 1 -> precision 0, bound 0
+    assert (c["pooled_precision"], c["pooled_precision_lower95"]) == (0.0, 0.0)
 
     # quantile-transfer: k clips to 2, so every deployment query uses subset {c0, c1}:
     #   t = 0.9; sample (0.1, 0.2, 0.3, 0.4, 0.9, 0.95): c = 5 -> q = 4/5 for everyone

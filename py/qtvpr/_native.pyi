@@ -1,7 +1,7 @@
 """Type stubs of the compiled module; the docstrings are on the compiled objects."""
 
 from typing import Literal, TypedDict, TypeVar, final
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 import os
 from typing import Literal, TypedDict, final
 
@@ -35,6 +35,7 @@ class _Segment(TypedDict):
     positives: int
     precision: float
     recall: float
+    precision_lower95: float | None
     meets: bool
 
 class _MethodResult(TypedDict):
@@ -43,10 +44,43 @@ class _MethodResult(TypedDict):
     segments_counted: int
     segments_skipped: int
     threshold_mse: float | None
+    pooled_tp: int
+    pooled_fp: int
+    pooled_positives: int
+    pooled_precision: float
+    pooled_recall: float
+    pooled_precision_lower95: float | None
     segments: list[_Segment]
 
-class _Evaluation(TypedDict):
+# A size as asked for: {"fraction": f} of all |Q| queries, or {"count": n}.
+_Split = dict[Literal["fraction", "count"], float]
+
+class _Params(TypedDict):
+    calibration: _Split
+    deploy_fraction: float | None
+    segment: _Split
+    k: int
+    precision: float
+    matching: _Matching
+    database_size: int
+    queries: int
+    calibration_queries: int
+    deployment_start: int
+    deployment_queries: int
+    segment_size: int
+    segments: int
+
+class _Run(TypedDict):
+    params: _Params
+    recall_at_1: float | None
     methods: dict[_Method, _MethodResult]
+
+class _Evaluation(_Run):
+    dataset: str | None
+
+class _Ablation(TypedDict):
+    dataset: str | None
+    ablation: list[_Run]
 
 @final
 class TransferResult:
@@ -161,3 +195,19 @@ def evaluate(
     deploy_fraction: float | None = None,
     query_major: bool = False,
 ) -> _Evaluation: ...
+def ablation(
+    s: ArrayLike,
+    gt: ArrayLike,
+    *,
+    gt_soft: ArrayLike | None = None,
+    methods: Iterable[_Method] | None = None,
+    k: int | Sequence[int] = 10,
+    precision: float = 1.0,
+    matching: _Matching = "single",
+    cal_fraction: float | Sequence[float] = 0.1,
+    cal_queries: int | Sequence[int] | None = None,
+    segment_fraction: float = 0.01,
+    segment_size: int | None = None,
+    deploy_fraction: float | None = None,
+    query_major: bool = False,
+) -> _Ablation: ...

@@ -25,6 +25,7 @@ summation order. See ``_calibration_neighbours``.
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 import operator
@@ -35,9 +36,11 @@ import numpy as np
 __all__ = [
     "METHODS",
     "TransferResult",
+    "ablation",
     "best_threshold",
     "counts",
     "evaluate",
+    "precision_lower95",
     "quantile_transfer",
     "schubert_threshold",
 ]
@@ -202,6 +205,42 @@ def _count_at(scores: np.ndarray, correct: np.ndarray, positives: int, threshold
     precision = tp / (tp + fp) if tp + fp > 0 else 1.0
     recall = tp / positives if positives > 0 else 0.0
     return {"tp": tp, "fp": fp, "positives": positives, "precision": precision, "recall": recall}
+
+
+def _binomial_upper_tail(n: int, a: int, x: float, log_comb: np.ndarray) -> float:
+    """P(Binomial(n, x) >= a) = sum over i = a..n of C(n, i) x^i (1 - x)^(n - i), summed
+    in log space; ``log_comb[i - a]`` is log C(n, i)."""
+    i = np.arange(a, n + 1)
+    log_terms = log_comb + i * math.log(x) + (n - i) * math.log1p(-x)
+    top = log_terms.max()
+    return float(math.exp(top) * np.exp(log_terms - top).sum())
+
+
+@functools.lru_cache(maxsize=4096)
+def precision_lower95(tp: int, fp: int) -> float | None:
+    """The one-sided 95% Clopper-Pearson lower bound on a precision of TP / (TP + FP).
+
+    It is the 0.05 quantile of Beta(TP, FP + 1). For integer shapes a and b,
+    P(Beta(a, b) <= x) = P(Binomial(a + b - 1, x) >= a), so the quantile is the x at
+    which that binomial tail (increasing in x) reaches 0.05, found here by bisection.
+    0 when TP = 0; None when nothing is accepted (TP + FP = 0).
+    """
+    if tp + fp == 0:
+        return None
+    if tp == 0:
+        return 0.0
+    a, n = tp, tp + fp  # Beta(a, b) with b = fp + 1: n = a + b - 1
+    log_comb = np.array(
+        [math.lgamma(n + 1) - math.lgamma(i + 1) - math.lgamma(n - i + 1) for i in range(a, n + 1)]
+    )
+    lo, hi = 0.0, 1.0
+    for _ in range(60):  # 2**-60: below the spacing of doubles near the answer
+        mid = (lo + hi) / 2
+        if _binomial_upper_tail(n, a, mid, log_comb) < 0.05:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
 
 
 def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
@@ -512,7 +551,7 @@ def _schubert(s: np.ndarray) -> float:
     mu = _median(s)
     sigma = _median(np.abs(s - mu)) / 0.675
     if sigma == 0.0:
-        return mu
+        return math.inf  # a degenerate fit: VPR_Tutorial's NaN threshold accepts nothing
     return mu + sigma * SCHUBERT_Z
 
 
@@ -520,7 +559,8 @@ def schubert_threshold(s) -> float:
     """Schubert et al.'s automatic threshold over all raw scores of ``s`` (SPEC section 7).
 
     mu = median, sigma = median(|S - mu|) / 0.675, t = mu + sigma * 4.753424308817087;
-    t = mu when sigma = 0. The orientation of ``s`` does not matter.
+    when sigma = 0 (half or more of the scores equal) the threshold is reject-all,
+    ``math.inf``. The orientation of ``s`` does not matter.
     """
     return _schubert(_scores("s", s, False))
 
@@ -539,57 +579,15 @@ def _check_fraction(name: str, value) -> float:
     return v
 
 
-def evaluate(
-    s,
-    gt,
-    *,
-    gt_soft=None,
-    methods=None,
-    k=10,
-    precision=1.0,
-    matching="single",
-    cal_fraction=0.1,
-    cal_queries=None,
-    segment_fraction=0.01,
-    segment_size=None,
-    deploy_fraction=None,
-    query_major=False,
-) -> dict:
-    """The evaluation protocol of the paper's Table I (SPEC sections 7 and 8).
-
-    The first ``cal_queries`` (default ``floor(cal_fraction * |Q|)``) columns calibrate;
-    the deployment set is every later column, or with ``deploy_fraction`` the last
-    ``floor(deploy_fraction * |Q|)`` columns (the paper's Fig. 5 protocol: the
-    deployment set stays fixed while the calibration size varies; columns between the
-    two sets are unused, and the two may not overlap). The deployment set is cut into
-    ``floor(|Qdeploy| / size)`` full segments of ``segment_size`` (default
-    ``ceil(segment_fraction * |Q|)``) queries, the remainder dropped. Every method gives
-    each segment a threshold, and the segment's decisions are counted against its own
-    ground truth. For quantile-transfer each segment is its own batch.
-
-    Returns ``{"methods": {name: {"pct_segs", "avg_recall", "segments_counted",
-    "segments_skipped", "threshold_mse", "segments": [...]}}}``; each segment reports
-    ``start``, ``end`` (indices into the deployment set, end exclusive: deployment
-    query i is column ``|Q| - |Qdeploy| + i`` of ``s``), ``threshold``,
-    ``oracle_threshold``, ``tp``, ``fp``, ``positives``, ``precision``, ``recall`` and
-    ``meets``. Segments without positives are skipped in the summary figures, which
-    are None when no segment is counted; ``threshold_mse`` is None when no counted
-    segment has both thresholds finite.
-    """
-    methods = list(METHODS) if methods is None else list(methods)
-    for name in methods:
-        if name not in METHODS:
-            raise ValueError(f"unknown method {name!r}; expected one of {', '.join(METHODS)}")
-    k = _check_positive_int("k", k)
-    tau = _check_precision(precision)
-    matching = _check_matching(matching)
-    s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
-    n_q = s.shape[1]
-
+def _layout(n_db, n_q, cal_fraction, cal_queries, deploy_fraction, segment_fraction, segment_size) -> dict:
+    """Where the protocol puts the queries, with the parameters as asked for: the
+    ``params`` of the result but ``k``, ``precision`` and ``matching``."""
     if cal_queries is None:
-        n_cal = math.floor(_check_fraction("cal_fraction", cal_fraction) * n_q)
+        calibration = {"fraction": _check_fraction("cal_fraction", cal_fraction)}
+        n_cal = math.floor(calibration["fraction"] * n_q)
     else:
-        n_cal = _check_positive_int("cal_queries", cal_queries)
+        calibration = {"count": _check_positive_int("cal_queries", cal_queries)}
+        n_cal = calibration["count"]
     if not (1 <= n_cal < n_q):
         raise ValueError(
             f"the calibration set must have between 1 and {n_q - 1} of the {n_q} queries, "
@@ -598,7 +596,8 @@ def evaluate(
     if deploy_fraction is None:
         n_dep = n_q - n_cal
     else:
-        n_dep = math.floor(_check_fraction("deploy_fraction", deploy_fraction) * n_q)
+        deploy_fraction = _check_fraction("deploy_fraction", deploy_fraction)
+        n_dep = math.floor(deploy_fraction * n_q)
         if n_dep < 1:
             raise ValueError(f"the deployment set has no query: floor({deploy_fraction} * {n_q}) = 0")
         if n_cal + n_dep > n_q:
@@ -606,16 +605,50 @@ def evaluate(
                 f"the calibration set ({n_cal} queries) and the deployment set ({n_dep} queries) "
                 f"overlap: together they exceed the {n_q} queries"
             )
-    dep_start = n_q - n_dep
     if segment_size is None:
-        size = math.ceil(_check_fraction("segment_fraction", segment_fraction) * n_q)
+        segment = {"fraction": _check_fraction("segment_fraction", segment_fraction)}
+        size = math.ceil(segment["fraction"] * n_q)
     else:
-        size = _check_positive_int("segment_size", segment_size)
+        segment = {"count": _check_positive_int("segment_size", segment_size)}
+        size = segment["count"]
     if size > n_dep:
         raise ValueError(
             f"segment size {size} is larger than the {n_dep} deployment queries"
         )
-    segments = _segments(n_dep // size * size, size)  # full segments only
+    return {
+        "calibration": calibration,
+        "deploy_fraction": deploy_fraction,
+        "segment": segment,
+        "database_size": n_db,
+        "queries": n_q,
+        "calibration_queries": n_cal,
+        "deployment_start": n_q - n_dep,
+        "deployment_queries": n_dep,
+        "segment_size": size,
+        "segments": n_dep // size,
+    }
+
+
+def _recall_at_1(s: np.ndarray, gt: np.ndarray) -> float | None:
+    """R@1: the queries whose best match (first maximum) is a hard match, over the
+    queries with at least one hard match; None when no query has one."""
+    with_match = gt.any(axis=0)
+    if not with_match.any():
+        return None
+    hits = gt[np.argmax(s, axis=0), np.arange(s.shape[1])]
+    return int(np.count_nonzero(hits)) / int(np.count_nonzero(with_match))
+
+
+def _counts_with_bound(c: dict, prefix: str = "") -> dict:
+    """Counts and their figures with the precision's lower bound, keys prefixed."""
+    c = {**c, "precision_lower95": precision_lower95(c["tp"], c["fp"])}
+    return {prefix + key: value for key, value in c.items()}
+
+
+def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
+    """One run of the protocol on validated |DB| x |Q| input: params, R@1, methods."""
+    n_cal, dep_start, size = layout["calibration_queries"], layout["deployment_start"], layout["segment_size"]
+    segments = _segments(layout["segments"] * size, size)  # full segments only
 
     s_cal, gt_cal, ign_cal = s[:, :n_cal], gt[:, :n_cal], ignored[:, :n_cal]
     s_dep, gt_dep, ign_dep = s[:, dep_start:], gt[:, dep_start:], ignored[:, dep_start:]
@@ -662,7 +695,7 @@ def evaluate(
                     "end": b,
                     "threshold": t,
                     "oracle_threshold": t_oracle,
-                    **c,
+                    **_counts_with_bound(c),
                     "meets": c["precision"] >= tau - EPS,
                 }
             )
@@ -677,12 +710,151 @@ def evaluate(
             for r in counted
             if math.isfinite(r["threshold"]) and math.isfinite(r["oracle_threshold"])
         ]
+        # Pooled over every full segment, skipped ones included.
+        tp, fp, positives = (sum(r[key] for r in rows) for key in ("tp", "fp", "positives"))
+        pooled = {
+            "tp": tp,
+            "fp": fp,
+            "positives": positives,
+            "precision": tp / (tp + fp) if tp + fp > 0 else 1.0,
+            "recall": tp / positives if positives > 0 else 0.0,
+        }
         report[name] = {
             "pct_segs": pct_segs,
             "avg_recall": avg_recall,
             "segments_counted": len(counted),
             "segments_skipped": len(rows) - len(counted),
             "threshold_mse": sum(finite) / len(finite) if finite else None,
+            **_counts_with_bound(pooled, "pooled_"),
             "segments": rows,
         }
-    return {"methods": report}
+    end = dep_start + layout["segments"] * size
+    params = {
+        **{key: layout[key] for key in ("calibration", "deploy_fraction", "segment")},
+        "k": k,
+        "precision": tau,
+        "matching": matching,
+        **{key: value for key, value in layout.items() if key not in ("calibration", "deploy_fraction", "segment")},
+    }
+    return {
+        "params": params,
+        "recall_at_1": _recall_at_1(s[:, dep_start:end], gt[:, dep_start:end]),
+        "methods": report,
+    }
+
+
+def _check_methods(methods) -> list:
+    methods = list(METHODS) if methods is None else list(methods)
+    for name in methods:
+        if name not in METHODS:
+            raise ValueError(f"unknown method {name!r}; expected one of {', '.join(METHODS)}")
+    return list(dict.fromkeys(methods))  # a repeated method once
+
+
+def evaluate(
+    s,
+    gt,
+    *,
+    gt_soft=None,
+    methods=None,
+    k=10,
+    precision=1.0,
+    matching="single",
+    cal_fraction=0.1,
+    cal_queries=None,
+    segment_fraction=0.01,
+    segment_size=None,
+    deploy_fraction=None,
+    query_major=False,
+) -> dict:
+    """The evaluation protocol of the paper's Table I (SPEC sections 7 and 8).
+
+    The first ``cal_queries`` (default ``floor(cal_fraction * |Q|)``) columns calibrate;
+    the deployment set is every later column, or with ``deploy_fraction`` the last
+    ``floor(deploy_fraction * |Q|)`` columns (the paper's Fig. 5 protocol: the
+    deployment set stays fixed while the calibration size varies; columns between the
+    two sets are unused, and the two may not overlap). The deployment set is cut into
+    ``floor(|Qdeploy| / size)`` full segments of ``segment_size`` (default
+    ``ceil(segment_fraction * |Q|)``) queries, the remainder dropped. Every method gives
+    each segment a threshold, and the segment's decisions are counted against its own
+    ground truth. For quantile-transfer each segment is its own batch.
+
+    Returns the keys of ``qtvpr-cli evaluate --format json``: ``dataset`` (None here),
+    ``params`` (the parameters as asked for and the split: ``database_size``,
+    ``queries``, ``calibration_queries``, ``deployment_start``, ``deployment_queries``,
+    ``segment_size``, ``segments``), ``recall_at_1`` of the full segments' queries, and
+    ``methods``: ``{name: {"pct_segs", "avg_recall", "segments_counted",
+    "segments_skipped", "threshold_mse", "pooled_tp", "pooled_fp", "pooled_positives",
+    "pooled_precision", "pooled_recall", "pooled_precision_lower95", "segments":
+    [...]}}``; each segment reports ``start``, ``end`` (indices into the deployment set,
+    end exclusive: deployment query i is column ``|Q| - |Qdeploy| + i`` of ``s``),
+    ``threshold``, ``oracle_threshold``, ``tp``, ``fp``, ``positives``, ``precision``,
+    ``recall``, ``precision_lower95`` (:func:`precision_lower95`) and ``meets``.
+    Segments without positives are skipped in the summary figures, which are None when
+    no segment is counted; ``threshold_mse`` is None when no counted segment has both
+    thresholds finite. The pooled counts are summed over every full segment.
+    """
+    methods = _check_methods(methods)
+    k = _check_positive_int("k", k)
+    tau = _check_precision(precision)
+    matching = _check_matching(matching)
+    s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    layout = _layout(*s.shape, cal_fraction, cal_queries, deploy_fraction, segment_fraction, segment_size)
+    return {"dataset": None, **_run(s, gt, ignored, methods, k, tau, matching, layout)}
+
+
+#: The deployment set of an ablation without ``deploy_fraction``: the last half.
+ABLATION_DEPLOY_FRACTION = 0.5
+
+
+def _values(value) -> list:
+    """A list of settings: ``value`` itself if it is a list or tuple, else ``[value]``."""
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def ablation(
+    s,
+    gt,
+    *,
+    gt_soft=None,
+    methods=None,
+    k=10,
+    precision=1.0,
+    matching="single",
+    cal_fraction=0.1,
+    cal_queries=None,
+    segment_fraction=0.01,
+    segment_size=None,
+    deploy_fraction=None,
+    query_major=False,
+) -> dict:
+    """The protocol once per setting of ``k`` and of the calibration size (Fig. 5).
+
+    ``k``, ``cal_fraction`` and ``cal_queries`` may be lists; every combination runs,
+    calibration sizes in the outer loop and ``k`` in the inner one, each as
+    :func:`evaluate` would with that setting, except that every run deploys on the
+    last ``floor(deploy_fraction * |Q|)`` queries, ``deploy_fraction`` defaulting to
+    0.5. Every setting is checked before the first runs. Returns ``{"dataset": None,
+    "ablation": [run, ...]}``, each run with the ``params``, ``recall_at_1`` and
+    ``methods`` of :func:`evaluate`.
+    """
+    methods = _check_methods(methods)
+    ks = [_check_positive_int("k", v) for v in _values(k)]
+    if cal_queries is None:
+        settings = [(f, None) for f in _values(cal_fraction)]
+        name = "cal_fraction"
+    else:
+        settings = [(None, _check_positive_int("cal_queries", n)) for n in _values(cal_queries)]
+        name = "cal_queries"
+    if not ks or not settings:
+        raise ValueError(f"{'k' if not ks else name} must have at least one value")
+    tau = _check_precision(precision)
+    matching = _check_matching(matching)
+    s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    if deploy_fraction is None:
+        deploy_fraction = ABLATION_DEPLOY_FRACTION
+    layouts = [
+        _layout(*s.shape, f, n, deploy_fraction, segment_fraction, segment_size) for f, n in settings
+    ]
+    runs = [_run(s, gt, ignored, methods, kk, tau, matching, layout) for layout in layouts for kk in ks]
+    return {"dataset": None, "ablation": runs}

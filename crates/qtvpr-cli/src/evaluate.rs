@@ -2,17 +2,19 @@
 //! similarity matrix with ground truth, as JSON, a Markdown table or CSV, with figures.
 //!
 //! Lists given to `--k` and `--cal-fraction`/`--cal-queries` make an ablation: the
-//! protocol runs once per combination and reports one row per setting. All numbers
-//! come from `qtvpr::evaluate`; this module only reads, loops and formats.
+//! protocol runs once per combination ([`qtvpr::ablation`]) and reports one row per
+//! setting. All numbers come from `qtvpr::evaluate`, and the JSON is the core's
+//! serialisation of its results (keys: `qtvpr::report`); this module only reads and
+//! formats.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::evaluate::{Evaluation, MethodResult};
-use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
-use serde::Serialize;
+use qtvpr::evaluate::{Ablation, Evaluation, MethodResult};
+use qtvpr::report::Report;
+use qtvpr::{GroundTruth, Matching, Method, Protocol, ScoresView, Split, with_scores};
 
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
@@ -99,7 +101,8 @@ pub struct EvaluateArgs {
 /// Output formats of `evaluate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum EvalFormat {
-    /// One JSON object (SPEC section 9); a reject-all threshold is `null`.
+    /// One JSON object (every key: the `qtvpr::report` docs); a reject-all threshold is
+    /// `null`.
     Json,
     /// A Markdown table.
     Table,
@@ -115,6 +118,17 @@ pub struct Run {
     pub calibration: Split,
     /// The result.
     pub eval: Evaluation,
+}
+
+impl From<Evaluation> for Run {
+    fn from(eval: Evaluation) -> Self {
+        let p = eval.layout.protocol;
+        Self {
+            k: p.k,
+            calibration: p.calibration,
+            eval,
+        }
+    }
 }
 
 /// What the runs were made on, for captions.
@@ -169,7 +183,12 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
         vec![Split::Fraction(0.10)]
     };
     let ablation = args.k.len() > 1 || calibrations.len() > 1;
-    let deploy_fraction = args.deploy_fraction.or(ablation.then_some(0.5));
+    // An ablation's deployment set is the last half unless --deploy-fraction says
+    // otherwise (qtvpr::ablation); checked here too so that a typo fails before any
+    // file is read.
+    let deploy_fraction = args
+        .deploy_fraction
+        .or(ablation.then_some(qtvpr::evaluate::ABLATION_DEPLOY_FRACTION));
     let matching = Matching::from(args.matching);
     let protocol = |k: usize, calibration: Split| Protocol {
         calibration,
@@ -216,16 +235,25 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
         _ => "embedded data".to_string(),
     };
 
-    let mut runs = Vec::new();
-    for &calibration in &calibrations {
-        for &k in &args.k {
-            let p = protocol(k, calibration);
-            let eval = with_scores!(scores, |v| qtvpr::evaluate(v, &gt, &p, &methods))
-                .map_err(|e| e.oriented(query_major))
-                .with_context(input)?;
-            runs.push(Run { k, calibration, eval });
-        }
-    }
+    let base = protocol(args.k[0], calibrations[0]);
+    let runs: Vec<Run> = if ablation {
+        let a = with_scores!(scores, |v| qtvpr::ablation(
+            v,
+            &gt,
+            &base,
+            &args.k,
+            &calibrations,
+            &methods
+        ))
+        .map_err(|e| e.oriented(query_major))
+        .with_context(input)?;
+        a.runs.into_iter().map(Run::from).collect()
+    } else {
+        let eval = with_scores!(scores, |v| qtvpr::evaluate(v, &gt, &base, &methods))
+            .map_err(|e| e.oriented(query_major))
+            .with_context(input)?;
+        vec![Run::from(eval)]
+    };
     let ctx = RunContext {
         dataset,
         database_size: gt.dim().0,
@@ -238,153 +266,32 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
             .with_context(|| format!("--plot {}", dir.display()))?;
     }
     let text = match args.format.unwrap_or(default_format) {
-        EvalFormat::Json => json(&ctx, &runs, ablation)?,
+        EvalFormat::Json => json(&ctx, runs, ablation)?,
         EvalFormat::Table => table(&ctx, &runs, ablation),
         EvalFormat::Csv => csv(&runs),
     };
     emit(&text, args.output.as_deref())
 }
 
-// ---------------------------------------------------------------------------------------
-// JSON (SPEC section 9)
-// ---------------------------------------------------------------------------------------
-
-#[derive(Serialize)]
-struct JsonParams {
-    k: usize,
-    precision: f64,
-    matching: &'static str,
-    queries: usize,
-    database_size: usize,
-    calibration_queries: usize,
-    deployment_start: usize,
-    deployment_queries: usize,
-    segment_size: usize,
-    segments: usize,
-}
-
-#[derive(Serialize)]
-struct JsonSegment {
-    start: usize,
-    end: usize,
-    threshold: f64,
-    oracle_threshold: f64,
-    tp: usize,
-    fp: usize,
-    positives: usize,
-    precision: f64,
-    recall: f64,
-    meets: bool,
-}
-
-#[derive(Serialize)]
-struct JsonMethod {
-    pct_segs: Option<f64>,
-    avg_recall: Option<f64>,
-    segments_counted: usize,
-    segments_skipped: usize,
-    threshold_mse: Option<f64>,
-    /// Pooled over every full segment: the method's operating point on the deployment set.
-    pooled_precision: f64,
-    pooled_recall: f64,
-    segments: Vec<JsonSegment>,
-}
-
-/// Method name to result, serialised as a JSON object in the order asked for.
-struct Methods(Vec<(&'static str, JsonMethod)>);
-
-impl Serialize for Methods {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::SerializeMap;
-        let mut map = serializer.serialize_map(Some(self.0.len()))?;
-        for (name, m) in &self.0 {
-            map.serialize_entry(name, m)?;
-        }
-        map.end()
-    }
-}
-
-#[derive(Serialize)]
-struct JsonRun {
-    params: JsonParams,
-    methods: Methods,
-}
-
-#[derive(Serialize)]
-struct JsonReport {
-    dataset: String,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    params: Option<JsonParams>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    methods: Option<Methods>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    ablation: Option<Vec<JsonRun>>,
-}
-
-fn json_run(ctx: &RunContext, run: &Run) -> JsonRun {
-    let l = run.eval.layout;
-    let params = JsonParams {
-        k: run.k,
-        precision: ctx.precision,
-        matching: ctx.matching.as_str(),
-        queries: l.queries,
-        database_size: ctx.database_size,
-        calibration_queries: l.calibration_queries,
-        deployment_start: l.deployment_start,
-        deployment_queries: l.deployment_queries,
-        segment_size: l.segment_size,
-        segments: l.segments,
-    };
-    let mut methods = Vec::new();
-    for m in &run.eval.methods {
-        let pooled = m.pooled();
-        let value = JsonMethod {
-            pct_segs: m.pct_segs,
-            avg_recall: m.avg_recall,
-            segments_counted: m.segments_counted,
-            segments_skipped: m.segments_skipped,
-            threshold_mse: m.threshold_mse,
-            pooled_precision: pooled.precision(),
-            pooled_recall: pooled.recall(),
-            segments: m
-                .segments
-                .iter()
-                .map(|g| JsonSegment {
-                    start: g.start,
-                    end: g.end,
-                    threshold: g.threshold,
-                    oracle_threshold: g.oracle_threshold,
-                    tp: g.counts.tp,
-                    fp: g.counts.fp,
-                    positives: g.counts.positives,
-                    precision: g.counts.precision(),
-                    recall: g.counts.recall(),
-                    meets: g.meets,
-                })
-                .collect(),
+/// The JSON document: the core's serialisation of the run or the ablation, with the
+/// dataset's name.
+fn json(ctx: &RunContext, runs: Vec<Run>, ablation: bool) -> Result<String> {
+    let dataset = Some(ctx.dataset.as_str());
+    let text = if ablation {
+        let result = Ablation {
+            runs: runs.into_iter().map(|r| r.eval).collect(),
         };
-        methods.push((m.method.as_str(), value));
-    }
-    JsonRun {
-        params,
-        methods: Methods(methods),
-    }
-}
-
-fn json(ctx: &RunContext, runs: &[Run], ablation: bool) -> Result<String> {
-    let mut out = JsonReport {
-        dataset: ctx.dataset.clone(),
-        params: None,
-        methods: None,
-        ablation: None,
-    };
-    if ablation {
-        out.ablation = Some(runs.iter().map(|r| json_run(ctx, r)).collect());
+        serde_json::to_string_pretty(&Report {
+            dataset,
+            result: &result,
+        })?
     } else {
-        let one = json_run(ctx, &runs[0]);
-        (out.params, out.methods) = (Some(one.params), Some(one.methods));
-    }
-    Ok(serde_json::to_string_pretty(&out)? + "\n")
+        serde_json::to_string_pretty(&Report {
+            dataset,
+            result: &runs[0].eval,
+        })?
+    };
+    Ok(text + "\n")
 }
 
 // ---------------------------------------------------------------------------------------
@@ -401,6 +308,11 @@ fn recall(x: Option<f64>) -> String {
 
 fn mse(x: Option<f64>) -> String {
     x.map_or("n/a".into(), |v| format!("{v:.2e}"))
+}
+
+/// A precision (or its lower bound) to three places; `n/a` when nothing is accepted.
+fn precision(x: Option<f64>) -> String {
+    x.map_or("n/a".into(), |v| format!("{v:.3}"))
 }
 
 /// The protocol in one line, for captions.
@@ -463,20 +375,26 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
         writeln!(t, "*{}*\n", describe(ctx, run)).unwrap();
         writeln!(
             t,
-            "| method | %Segs | {avg} | segments counted | skipped (no positives) | threshold MSE vs oracle |"
+            "| method | %Segs | {avg} | segments counted | skipped (no positives) | threshold MSE vs oracle \
+             | pooled precision | its 95% lower bound |"
         )
         .unwrap();
-        writeln!(t, "|:--|--:|--:|--:|--:|--:|").unwrap();
+        writeln!(t, "|:--|--:|--:|--:|--:|--:|--:|--:|").unwrap();
         for m in &run.eval.methods {
+            let pooled = m.pooled();
+            // Without an accepted decision the pooled precision is a convention, not a figure.
+            let accepted = pooled.tp + pooled.fp > 0;
             writeln!(
                 t,
-                "| {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
                 m.method,
                 pct(m.pct_segs),
                 recall(m.avg_recall),
                 m.segments_counted,
                 m.segments_skipped,
-                mse(m.threshold_mse)
+                mse(m.threshold_mse),
+                precision(accepted.then(|| pooled.precision())),
+                precision(pooled.precision_lower95())
             )
             .unwrap();
         }
@@ -516,7 +434,8 @@ fn opt(x: Option<f64>) -> String {
 fn csv(runs: &[Run]) -> String {
     let mut t = String::from(
         "k,calibration_queries,deployment_start,deployment_queries,segment_size,segments,method,\
-         pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_precision,pooled_recall\n",
+         pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_precision,pooled_recall,\
+         pooled_precision_lower95,recall_at_1\n",
     );
     for run in runs {
         let l = run.eval.layout;
@@ -533,7 +452,7 @@ fn csv(runs: &[Run]) -> String {
             let pooled = m.pooled();
             writeln!(
                 t,
-                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{}",
+                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{},{},{}",
                 run.k,
                 l.calibration_queries,
                 l.deployment_start,
@@ -544,7 +463,9 @@ fn csv(runs: &[Run]) -> String {
                 opt(*avg_recall),
                 opt(*threshold_mse),
                 pooled.precision(),
-                pooled.recall()
+                pooled.recall(),
+                opt(pooled.precision_lower95()),
+                opt(run.eval.recall_at_1)
             )
             .unwrap();
         }

@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 /// Output formats of `threshold`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
-    /// One JSON object (SPEC section 9).
+    /// One JSON object (every key: the `qtvpr::report` docs); reject-all is `null`.
     Json,
     /// One CSV row per segment.
     Csv,

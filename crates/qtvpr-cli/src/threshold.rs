@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use qtvpr::{Calibration, Matching, Params};
+use qtvpr::{Calibration, Matching, Params, Segment};
 use serde::Serialize;
 
 use crate::gt_source::CalGtSource;
@@ -71,30 +71,24 @@ impl From<MatchingArg> for Matching {
     }
 }
 
+/// The JSON document of `threshold` (keys: `qtvpr::report`): the core's parameters and
+/// segments, with the sizes of the inputs.
 #[derive(Serialize)]
-struct Report {
+struct Report<'a> {
     method: &'static str,
     params: ReportParams,
-    segments: Vec<ReportSegment>,
+    segments: &'a [Segment],
     calibration_queries: usize,
     deployment_queries: usize,
     database_size: usize,
 }
 
+/// The transfer's [`Params`] (the segment size resolved) and the matching mode.
 #[derive(Serialize)]
 struct ReportParams {
-    k: usize,
-    precision: f64,
-    matching: &'static str,
-    segment_size: usize,
-}
-
-#[derive(Serialize)]
-struct ReportSegment {
-    start: usize,
-    end: usize,
-    quantile: f64,
-    threshold: f64,
+    #[serde(flatten)]
+    params: Params,
+    matching: Matching,
 }
 
 /// Run `threshold`.
@@ -132,21 +126,13 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     let report = Report {
         method: "quantile-transfer",
         params: ReportParams {
-            k: args.k,
-            precision: args.precision,
-            matching: matching.as_str(),
-            segment_size: args.segment_size.unwrap_or(n_val),
+            params: Params {
+                segment_size: Some(params.segment_size.unwrap_or(n_val)),
+                ..params
+            },
+            matching,
         },
-        segments: transfer
-            .segments
-            .iter()
-            .map(|s| ReportSegment {
-                start: s.start,
-                end: s.end,
-                quantile: s.quantile,
-                threshold: s.threshold,
-            })
-            .collect(),
+        segments: &transfer.segments,
         calibration_queries: cal.len(),
         deployment_queries: n_val,
         database_size: n_db,
@@ -155,7 +141,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         Format::Json => serde_json::to_string_pretty(&report)? + "\n",
         Format::Csv => {
             let mut t = String::from("start,end,quantile,threshold\n");
-            for s in &report.segments {
+            for s in report.segments {
                 writeln!(t, "{},{},{},{}", s.start, s.end, s.quantile, s.threshold)?;
             }
             t

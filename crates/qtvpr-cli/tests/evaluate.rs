@@ -127,8 +127,13 @@ fn hand_computed_json() {
         out["params"],
         json!({"k": 10, "precision": 0.5, "matching": "single", "queries": 7, "database_size": 3,
                "calibration_queries": 2, "deployment_start": 2, "deployment_queries": 5,
-               "segment_size": 2, "segments": 2})
+               "segment_size": 2, "segments": 2, "calibration": {"count": 2}, "segment": {"count": 2},
+               "deploy_fraction": null})
     );
+    // Full segments d0..d3: best matches d0 (db0, hard), d1 (db1, wrong), d2 and d3 (no
+    // match); d0 and d1 have a hard match -> R@1 = 1/2.
+    assert_eq!(out["recall_at_1"], 0.5);
+    assert_eq!(out["dataset"], case.path("S.npy").display().to_string());
     let methods = out["methods"].as_object().unwrap();
     assert_eq!(methods.len(), 5);
     for m in methods.values() {
@@ -150,11 +155,26 @@ fn hand_computed_json() {
         (Some(100.0), Some(0.5))
     );
     assert_eq!(o["threshold_mse"], 0.0);
+    // One correct decision: the precision's 95% lower bound is 0.05^(1/1) = 0.05.
+    let mut seg = o["segments"][0].clone();
+    assert!(near(&seg["precision_lower95"], 0.05));
+    seg["precision_lower95"] = json!(0.05);
     assert_eq!(
-        o["segments"][0],
+        seg,
         json!({"start": 0, "end": 2, "threshold": 0.7, "oracle_threshold": 0.7, "tp": 1, "fp": 0,
-               "positives": 2, "precision": 1.0, "recall": 0.5, "meets": true})
+               "positives": 2, "precision": 1.0, "recall": 0.5, "precision_lower95": 0.05, "meets": true})
     );
+    // Segment 1 accepts nothing at inf: no bound. Pooled: TP 1, FP 0, positives 2.
+    assert_eq!(o["segments"][1]["precision_lower95"], Value::Null);
+    assert_eq!(
+        (&o["pooled_tp"], &o["pooled_fp"], &o["pooled_positives"]),
+        (&json!(1), &json!(0), &json!(2))
+    );
+    assert_eq!(
+        (&o["pooled_precision"], &o["pooled_recall"]),
+        (&json!(1.0), &json!(0.5))
+    );
+    assert!(near(&o["pooled_precision_lower95"], 0.05));
     // Calibration threshold 0.9 (c0's 0.9 correct after c1's 0.95 wrong: 1 >= 0.5 x 2),
     // for both segments: accepts nothing in segment 0 -> recall 0; MSE (0.9 - 0.7)^2.
     let c = &methods["calibration-threshold"];
@@ -165,6 +185,11 @@ fn hand_computed_json() {
         (Some(100.0), Some(0.0))
     );
     assert!(near(&c["threshold_mse"], 0.04));
+    // Pooled: segment 1 accepts d3's 0.9 (wrong): TP 0, FP 1 -> precision 0, bound 0.
+    assert_eq!(
+        (&c["pooled_precision"], &c["pooled_precision_lower95"]),
+        (&json!(0.0), &json!(0.0))
+    );
     // Quantile transfer: q = 4/5 everywhere; segment 0 (0.1 .. 0.7) -> 0.6, accepting
     // d0 (T) and d1 (F): precision 1/2 meets 0.5, recall 1/2. MSE (0.6 - 0.7)^2.
     let q = &methods["quantile-transfer"];
@@ -194,10 +219,16 @@ fn table_and_csv() {
     assert!(lines[0].contains("queries 0..2 calibrate; 2 segments of 2"), "{table}");
     assert_eq!(
         lines[2],
-        "| method | %Segs | AvgR@50P | segments counted | skipped (no positives) | threshold MSE vs oracle |"
+        "| method | %Segs | AvgR@50P | segments counted | skipped (no positives) | threshold MSE vs oracle \
+         | pooled precision | its 95% lower bound |"
     );
-    assert_eq!(lines[4], "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 |");
-    assert_eq!(lines[5], "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 |");
+    // Pooled: the oracle accepts one correct decision (bound 0.05^1); the calibration
+    // threshold one wrong one (precision 0, bound 0).
+    assert_eq!(lines[4], "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 | 1.000 | 0.050 |");
+    assert_eq!(
+        lines[5],
+        "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 0.000 | 0.000 |"
+    );
     assert_eq!(lines.len(), 6);
 
     let csv = case.ok(&["--format", "csv", "--method", "oracle", "--k", "1,2"]);
@@ -208,6 +239,43 @@ fn table_and_csv() {
     assert_eq!(rows.len(), 3, "{csv}");
     assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,"), "{csv}");
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
+    // Nothing accepted (the oracle of a segment without positives is reject-all): no
+    // bound; no deployment query with a hard match: no R@1.
+    assert!(rows[1].ends_with(",1,0,,"), "{csv}");
+}
+
+#[test]
+fn ablation_json() {
+    let case = Case::new();
+    let text = case.ok(&["--method", "oracle,schubert", "--k", "1,2", "--cal-queries", "1,2"]);
+    let out: Value = serde_json::from_str(&text).unwrap();
+    fn keys(v: &Value) -> Vec<&str> {
+        let mut k: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+        k.sort_unstable();
+        k
+    }
+    assert_eq!(keys(&out), ["ablation", "dataset"]);
+    let runs = out["ablation"].as_array().unwrap();
+    // Calibration sizes outer, k inner; every run deploys on the last floor(0.5 x 7) = 3.
+    let settings: Vec<(u64, u64)> = runs
+        .iter()
+        .map(|r| {
+            (
+                r["params"]["calibration_queries"].as_u64().unwrap(),
+                r["params"]["k"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(settings, [(1, 1), (1, 2), (2, 1), (2, 2)]);
+    for r in runs {
+        assert_eq!(keys(r), ["methods", "params", "recall_at_1"]);
+        assert_eq!(
+            (&r["params"]["deployment_start"], &r["params"]["deploy_fraction"]),
+            (&json!(4), &json!(0.5))
+        );
+        // The oracle and per-segment Schubert see the deployment set only.
+        assert_eq!(r["methods"], runs[0]["methods"]);
+    }
 }
 
 #[test]

@@ -1,13 +1,111 @@
-//! `evaluate`: the evaluation protocol (SPEC sections 7 and 8), as a dict like the
-//! reference's.
+//! `evaluate` and `ablation`: the evaluation protocol (SPEC sections 7 and 8).
+//!
+//! The results are the core's serde values turned into Python objects by `pythonize`,
+//! so the dicts have exactly the keys of `qtvpr-cli evaluate --format json` (listed in
+//! `qtvpr::report`); a reject-all threshold is `math.inf` here, `null` in JSON.
+
+use std::path::PathBuf;
 
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
-use qtvpr::{Matching, Method, Protocol, Split};
+use qtvpr::report::Report;
+use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
 use crate::convert::{GroundTruthArgs, Scores, count};
 use crate::error::Args;
 use qtvpr::with_scores;
+
+/// One value or a list of them (the settings of an ablation).
+#[derive(FromPyObject)]
+pub(crate) enum OneOrMany<T> {
+    /// A single value.
+    One(T),
+    /// A list of values.
+    Many(Vec<T>),
+}
+
+/// The values of argument `name`, at least one.
+fn nonempty<T>(name: &str, values: OneOrMany<T>) -> PyResult<Vec<T>> {
+    match values {
+        OneOrMany::One(v) => Ok(vec![v]),
+        OneOrMany::Many(v) if v.is_empty() => Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "{name} must have at least one value"
+        ))),
+        OneOrMany::Many(v) => Ok(v),
+    }
+}
+
+/// The arguments `evaluate` and `ablation` share, checked.
+struct Setup {
+    methods: Vec<Method>,
+    protocol: Protocol,
+    args: Args,
+}
+
+#[allow(clippy::too_many_arguments)] // the Python signature
+fn setup(
+    methods: Option<Vec<String>>,
+    k: usize,
+    precision: f64,
+    matching: &str,
+    calibration: Split,
+    segment_fraction: f64,
+    segment_size: Option<i64>,
+    deploy_fraction: Option<f64>,
+    query_major: bool,
+) -> PyResult<Setup> {
+    let args = Args { gt: "gt", query_major };
+    let methods: Vec<Method> = match methods {
+        None => Method::ALL.to_vec(),
+        Some(names) => names
+            .iter()
+            .map(|n| n.parse())
+            .collect::<qtvpr::Result<_>>()
+            .map_err(|e| args.error(e))?,
+    };
+    let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
+    let protocol = Protocol {
+        calibration,
+        deploy_fraction,
+        segment: match segment_size {
+            Some(n) => Split::Count(count("segment_size", n)?),
+            None => Split::Fraction(segment_fraction),
+        },
+        k,
+        precision,
+        matching,
+    };
+    protocol.validate().map_err(|e| args.error(e))?;
+    Ok(Setup {
+        methods,
+        protocol,
+        args,
+    })
+}
+
+fn calibration(cal_fraction: f64, cal_queries: Option<i64>) -> PyResult<Split> {
+    Ok(match cal_queries {
+        Some(n) => Split::Count(count("cal_queries", n)?),
+        None => Split::Fraction(cal_fraction),
+    })
+}
+
+/// The matrices, |DB| x |Q|, and the name the report gives them: `s`'s path when it is
+/// one.
+fn inputs<'py>(
+    s: &Bound<'py, PyAny>,
+    gt: &Bound<'py, PyAny>,
+    gt_soft: Option<&Bound<'py, PyAny>>,
+) -> PyResult<(Scores<'py>, GroundTruthArgs<'py>, Option<String>)> {
+    let scores = Scores::extract("s", s)?;
+    let labels = GroundTruthArgs::extract("gt", gt, gt_soft)?;
+    let dataset = s.extract::<PathBuf>().ok().map(|p| p.display().to_string());
+    Ok((scores, labels, dataset))
+}
+
+fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: bool) -> PyResult<GroundTruth> {
+    let gt = gt.view(query_major);
+    py.detach(|| gt.build())
+}
 
 /// Run the evaluation protocol of the paper's Table I on one similarity matrix.
 ///
@@ -15,23 +113,31 @@ use qtvpr::with_scores;
 /// ``gt_soft``) for every query. The first ``cal_queries`` queries (default
 /// ``floor(cal_fraction * |Q|)``) calibrate. The deployment set is every later query,
 /// or with ``deploy_fraction`` the last ``floor(deploy_fraction * |Q|)`` queries (the
-/// calibration-size ablation: the queries between the two sets are unused). It is cut
-/// into full segments of ``segment_size`` queries (default
-/// ``ceil(segment_fraction * |Q|)``), the remainder dropped. Each of ``methods``
-/// (default all: ``"quantile-transfer"``, ``"schubert"``, ``"schubert-calibrated"``,
-/// ``"calibration-threshold"``, ``"oracle"``) gives every segment a threshold, and the
-/// segment's decisions (``matching``) are counted against its own ground truth.
+/// queries between the two sets are unused). It is cut into full segments of
+/// ``segment_size`` queries (default ``ceil(segment_fraction * |Q|)``), the remainder
+/// dropped. Each of ``methods`` (default all: ``"quantile-transfer"``, ``"schubert"``,
+/// ``"schubert-calibrated"``, ``"calibration-threshold"``, ``"oracle"``) gives every
+/// segment a threshold, and the segment's decisions (``matching``) are counted against
+/// its own ground truth.
 ///
-/// Returns ``{"methods": {name: {"pct_segs", "avg_recall", "segments_counted",
-/// "segments_skipped", "threshold_mse", "segments": [...]}}}``. A segment meets the
-/// target when its precision is at least ``precision``; segments without positives
-/// are skipped; ``pct_segs`` is the percentage of counted segments that meet,
-/// ``avg_recall`` the mean of their recall (0 for those that miss), both ``None`` when
-/// no segment is counted. Each segment has ``start``, ``end`` (indices into the
-/// deployment set), ``threshold``, ``oracle_threshold`` (``inf`` is reject-all),
-/// ``tp``, ``fp``, ``positives``, ``precision``, ``recall`` and ``meets``.
-/// ``threshold_mse`` is the mean squared difference from the oracle's threshold where
-/// both are finite (``None`` if nowhere).
+/// Returns a dict with the keys of ``qtvpr-cli evaluate --format json``:
+/// ``dataset`` (``s``'s path if it is one, else ``None``), ``params`` (the parameters
+/// and the split: ``calibration_queries``, ``deployment_start``, ``segment_size``,
+/// ``segments``, ...), ``recall_at_1`` (R@1 of the deployment set: queries whose best
+/// match is a hard match over queries with a hard match) and ``methods``: ``{name:
+/// {"pct_segs", "avg_recall", "segments_counted", "segments_skipped", "threshold_mse",
+/// "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
+/// "pooled_precision_lower95", "segments": [...]}}``. A segment meets the target when
+/// its precision is at least ``precision``; segments without positives are skipped;
+/// ``pct_segs`` is the percentage of counted segments that meet, ``avg_recall`` the
+/// mean of their recall (0 for those that miss), both ``None`` when no segment is
+/// counted. Each segment has ``start``, ``end`` (indices into the deployment set),
+/// ``threshold``, ``oracle_threshold`` (``inf`` is reject-all), ``tp``, ``fp``,
+/// ``positives``, ``precision``, ``recall``, ``precision_lower95`` and ``meets``.
+/// ``precision_lower95`` is the one-sided 95% Clopper-Pearson lower bound on the
+/// precision (the 0.05 quantile of Beta(TP, FP + 1); 0 when TP = 0, ``None`` when
+/// nothing is accepted). ``threshold_mse`` is the mean squared difference from the
+/// oracle's threshold where both are finite (``None`` if nowhere).
 #[pyfunction]
 #[pyo3(signature = (
     s, gt, *, gt_soft = None, methods = None, k = 10, precision = 1.0, matching = "single",
@@ -54,67 +160,132 @@ pub(crate) fn evaluate<'py>(
     segment_size: Option<i64>,
     deploy_fraction: Option<f64>,
     query_major: bool,
-) -> PyResult<Bound<'py, PyDict>> {
-    let args = Args { gt: "gt", query_major };
-    let methods: Vec<Method> = match methods {
-        None => Method::ALL.to_vec(),
-        Some(names) => names
-            .iter()
-            .map(|n| n.parse())
-            .collect::<qtvpr::Result<_>>()
-            .map_err(|e| args.error(e))?,
-    };
-    let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-    let protocol = Protocol {
-        calibration: match cal_queries {
-            Some(n) => Split::Count(count("cal_queries", n)?),
-            None => Split::Fraction(cal_fraction),
-        },
-        deploy_fraction,
-        segment: match segment_size {
-            Some(n) => Split::Count(count("segment_size", n)?),
-            None => Split::Fraction(segment_fraction),
-        },
-        k: count("k", k)?,
+) -> PyResult<Bound<'py, PyAny>> {
+    let Setup {
+        methods,
+        protocol,
+        args,
+    } = setup(
+        methods,
+        count("k", k)?,
         precision,
         matching,
-    };
-    protocol.validate().map_err(|e| args.error(e))?;
-    let s = Scores::extract("s", s)?;
-    let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
-    let (s, gt) = (s.view(query_major), gt.view(query_major));
-    let gt = py.detach(|| gt.build())?;
+        calibration(cal_fraction, cal_queries)?,
+        segment_fraction,
+        segment_size,
+        deploy_fraction,
+        query_major,
+    )?;
+    let (s, gt, dataset) = inputs(s, gt, gt_soft)?;
+    let gt = build_ground_truth(py, &gt, query_major)?;
+    let s = s.view(query_major);
     let out = py
         .detach(|| with_scores!(s, |s| qtvpr::evaluate(s, &gt, &protocol, &methods)))
         .map_err(|e| args.error(e))?;
+    let report = Report {
+        dataset: dataset.as_deref(),
+        result: &out,
+    };
+    Ok(pythonize::pythonize(py, &report)?)
+}
 
-    let report = PyDict::new(py);
-    for m in &out.methods {
-        let segments = PyList::empty(py);
-        for g in &m.segments {
-            let d = PyDict::new(py);
-            d.set_item("start", g.start)?;
-            d.set_item("end", g.end)?;
-            d.set_item("threshold", g.threshold)?;
-            d.set_item("oracle_threshold", g.oracle_threshold)?;
-            d.set_item("tp", g.counts.tp)?;
-            d.set_item("fp", g.counts.fp)?;
-            d.set_item("positives", g.counts.positives)?;
-            d.set_item("precision", g.counts.precision())?;
-            d.set_item("recall", g.counts.recall())?;
-            d.set_item("meets", g.meets)?;
-            segments.append(d)?;
+/// Run the evaluation protocol once per setting of ``k`` and of the calibration size:
+/// the paper's Fig. 5 (%Segs and AvgR@tauP against ``k`` and against the calibration
+/// size).
+///
+/// The arguments are those of :func:`evaluate`, except that ``k``, ``cal_fraction``
+/// and ``cal_queries`` may each be a list: the protocol runs for every combination,
+/// calibration sizes in the outer loop and ``k`` in the inner one. So that the
+/// settings are comparable, every run deploys on the same queries: the last
+/// ``floor(deploy_fraction * |Q|)``, by default the last half (``deploy_fraction =
+/// 0.5``); the calibration set is always the first queries and may not reach into the
+/// deployment set. Every setting is checked before the first one runs.
+///
+/// Returns a dict with the keys of ``qtvpr-cli evaluate --format json`` given lists:
+/// ``dataset`` and ``ablation``, a list with one dict per setting holding the
+/// ``params``, ``recall_at_1`` and ``methods`` of that run (as :func:`evaluate`
+/// returns them). For example, AvgR@100P of quantile transfer against k::
+///
+///     runs = qtvpr.ablation(s, gt, k=[1, 3, 5, 10, 20, 40])["ablation"]
+///     [(r["params"]["k"], r["methods"]["quantile-transfer"]["avg_recall"]) for r in runs]
+#[pyfunction]
+#[pyo3(
+    signature = (
+        s, gt, *, gt_soft = None, methods = None, k = OneOrMany::One(10), precision = 1.0,
+        matching = "single", cal_fraction = OneOrMany::One(0.1), cal_queries = None,
+        segment_fraction = 0.01, segment_size = None, deploy_fraction = None, query_major = false,
+    ),
+    // The defaults as Python spells them (pyo3 would show the list-or-value ones as `...`).
+    text_signature = "(s, gt, *, gt_soft=None, methods=None, k=10, precision=1.0, matching='single', \
+                      cal_fraction=0.1, cal_queries=None, segment_fraction=0.01, segment_size=None, \
+                      deploy_fraction=None, query_major=False)"
+)]
+#[allow(clippy::too_many_arguments)] // the Python signature
+pub(crate) fn ablation<'py>(
+    py: Python<'py>,
+    s: &Bound<'py, PyAny>,
+    gt: &Bound<'py, PyAny>,
+    gt_soft: Option<&Bound<'py, PyAny>>,
+    methods: Option<Vec<String>>,
+    k: OneOrMany<i64>,
+    precision: f64,
+    matching: &str,
+    cal_fraction: OneOrMany<f64>,
+    cal_queries: Option<OneOrMany<i64>>,
+    segment_fraction: f64,
+    segment_size: Option<i64>,
+    deploy_fraction: Option<f64>,
+    query_major: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let ks: Vec<usize> = nonempty("k", k)?
+        .into_iter()
+        .map(|k| count("k", k))
+        .collect::<PyResult<_>>()?;
+    let calibrations: Vec<Split> = match cal_queries {
+        Some(n) => nonempty("cal_queries", n)?
+            .into_iter()
+            .map(|n| count("cal_queries", n).map(Split::Count))
+            .collect::<PyResult<_>>()?,
+        None => nonempty("cal_fraction", cal_fraction)?
+            .into_iter()
+            .map(Split::Fraction)
+            .collect(),
+    };
+    let Setup {
+        methods,
+        protocol,
+        args,
+    } = setup(
+        methods,
+        ks[0],
+        precision,
+        matching,
+        calibrations[0],
+        segment_fraction,
+        segment_size,
+        deploy_fraction,
+        query_major,
+    )?;
+    for &k in &ks {
+        for &calibration in &calibrations {
+            Protocol {
+                k,
+                calibration,
+                ..protocol
+            }
+            .validate()
+            .map_err(|e| args.error(e))?;
         }
-        let d = PyDict::new(py);
-        d.set_item("pct_segs", m.pct_segs)?;
-        d.set_item("avg_recall", m.avg_recall)?;
-        d.set_item("segments_counted", m.segments_counted)?;
-        d.set_item("segments_skipped", m.segments_skipped)?;
-        d.set_item("threshold_mse", m.threshold_mse)?;
-        d.set_item("segments", segments)?;
-        report.set_item(m.method.as_str(), d)?;
     }
-    let result = PyDict::new(py);
-    result.set_item("methods", report)?;
-    Ok(result)
+    let (s, gt, dataset) = inputs(s, gt, gt_soft)?;
+    let gt = build_ground_truth(py, &gt, query_major)?;
+    let s = s.view(query_major);
+    let out = py
+        .detach(|| with_scores!(s, s => qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods)))
+        .map_err(|e| args.error(e))?;
+    let report = Report {
+        dataset: dataset.as_deref(),
+        result: &out,
+    };
+    Ok(pythonize::pythonize(py, &report)?)
 }

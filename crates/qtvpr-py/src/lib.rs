@@ -217,6 +217,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_tolerance, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_positions, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::ablation, m)?)?;
     m.add_function(wrap_pyfunction!(schubert_threshold, m)?)?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;

@@ -3,7 +3,10 @@
 //! - **schubert**: Schubert et al.'s (ICRA 2021) automatic threshold, a robust normal
 //!   fit to the raw scores: `mu + sigma * z` with `mu` the median, `sigma` the median
 //!   absolute deviation over 0.675 and `z` the standard normal quantile at 1 - 1e-6. It
-//!   needs no ground truth, so the protocol fits it to each deployment segment.
+//!   needs no ground truth, so the protocol fits it to each deployment segment. When
+//!   half or more of the scores are equal the deviation is 0 and the fit degenerate:
+//!   the threshold is reject-all, as in VPR_Tutorial (whose NaN threshold accepts
+//!   nothing).
 //! - **schubert-calibrated**: the same fit to the calibration scores, kept fixed.
 //! - **calibration-threshold**: the section-3 threshold of the calibration set, kept
 //!   fixed ([`Calibration::threshold`](crate::Calibration::threshold)).
@@ -28,7 +31,8 @@ pub const SCHUBERT_Z: f64 = 4.753424308817087;
 pub const MAD_SCALE: f64 = 0.675;
 
 /// Schubert et al.'s threshold over every raw score of `s` (orientation does not
-/// matter): `mu + sigma * SCHUBERT_Z`, or `mu` when `sigma = 0`.
+/// matter): `mu + sigma * SCHUBERT_Z`, or reject-all (`f64::INFINITY`) when
+/// `sigma = 0`, that is when half or more of the scores are equal.
 ///
 /// # Errors
 /// Empty or non-finite scores.
@@ -48,7 +52,12 @@ pub(crate) fn schubert_of(values: &mut [f64]) -> f64 {
     let mu = median(values);
     values.iter_mut().for_each(|v| *v = (*v - mu).abs());
     let sigma = median(values) / MAD_SCALE;
-    if sigma == 0.0 { mu } else { mu + sigma * SCHUBERT_Z }
+    // A degenerate fit: VPR_Tutorial's threshold is then NaN, which accepts nothing.
+    if sigma == 0.0 {
+        f64::INFINITY
+    } else {
+        mu + sigma * SCHUBERT_Z
+    }
 }
 
 /// The median of `values` (non-empty, finite): the middle value, or `(a + b) / 2` of the
@@ -103,13 +112,19 @@ mod tests {
     }
 
     #[test]
-    fn schubert_zero_sigma_is_the_median() {
-        // {1, 1, 1, 5}: mu = (1 + 1) / 2 = 1; |S - mu| = (0, 0, 0, 4) -> median 0 -> t = mu = 1.
-        assert_eq!(schubert_threshold(array![[1.0, 1.0], [1.0, 5.0]].view()).unwrap(), 1.0);
-        // A single score: mu = 0.3, MAD 0 -> 0.3.
-        assert_eq!(schubert_threshold(array![[0.3]].view()).unwrap(), 0.3);
-        // {-1, -1, 2}: mu = -1, |S - mu| = (0, 0, 3) -> median 0 -> -1.
-        assert_eq!(schubert_threshold(array![[-1.0, -1.0, 2.0]].view()).unwrap(), -1.0);
+    fn schubert_zero_sigma_is_reject_all() {
+        let inf = f64::INFINITY;
+        // {1, 1, 1, 2}: mu = (1 + 1) / 2 = 1; |S - mu| = (0, 0, 0, 1) -> median (0 + 0) / 2
+        // = 0 -> sigma 0 -> reject-all.
+        assert_eq!(schubert_threshold(array![[1.0, 1.0], [1.0, 2.0]].view()).unwrap(), inf);
+        // A single score: mu = 0.3, MAD 0 -> reject-all.
+        assert_eq!(schubert_threshold(array![[0.3f32]].view()).unwrap(), inf);
+        // {-1, -1, 2}: mu = -1, |S - mu| = (0, 0, 3) -> median 0 -> reject-all.
+        assert_eq!(schubert_threshold(array![[-1.0, -1.0, 2.0]].view()).unwrap(), inf);
+        // Two equal scores out of four are not enough: {1, 1, 2, 3}: mu = (1 + 2) / 2 = 1.5;
+        // |S - mu| = (0.5, 0.5, 0.5, 1.5) -> median 0.5 -> t = 1.5 + (0.5 / 0.675) * z.
+        let t = schubert_threshold(array![[1.0, 1.0], [2.0, 3.0]].view()).unwrap();
+        assert_eq!(t, 1.5 + (0.5 / 0.675) * SCHUBERT_Z);
     }
 
     #[test]

@@ -16,6 +16,7 @@ use crate::input::{Score, Truth};
 
 /// How a query's matches are decided (SPEC section 2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "lowercase"))]
 pub enum Matching {
     /// Single-best-match VPR: one decision per query, on its best-scoring database image.
     #[default]
@@ -162,6 +163,9 @@ fn column_candidates<T: Score>(
 }
 
 /// Decision counts of a set of queries at one threshold (SPEC section 2).
+///
+/// Serialised (feature `serde`) as `tp`, `fp`, `positives` and the figures derived
+/// from them: `precision`, `recall` and `precision_lower95` (see [`crate::report`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Counts {
     /// Accepted and correct.
@@ -189,6 +193,29 @@ impl Counts {
         } else {
             self.tp as f64 / self.positives as f64
         }
+    }
+
+    /// The one-sided 95% Clopper-Pearson lower bound on the precision: the 0.05
+    /// quantile of Beta(TP, FP + 1). With probability at least 95%, a matcher whose
+    /// true precision is below this bound would have produced fewer than TP correct
+    /// decisions out of TP + FP.
+    ///
+    /// "100% precision" on 2 accepted decisions is weak evidence: the bound is then
+    /// 0.05^(1/2) = 0.22, and 0.05^(1/n) for n accepted decisions without a false
+    /// positive in general. 0 when TP = 0 (no evidence of any precision); `None` when
+    /// nothing is accepted (TP + FP = 0: the precision of 1 is a convention, not a
+    /// measurement).
+    pub fn precision_lower95(&self) -> Option<f64> {
+        use statrs::distribution::{Beta, ContinuousCDF};
+        if self.tp + self.fp == 0 {
+            return None;
+        }
+        if self.tp == 0 {
+            return Some(0.0);
+        }
+        // Both shapes are >= 1, which Beta::new accepts.
+        let beta = Beta::new(self.tp as f64, (self.fp + 1) as f64).expect("shapes are positive and finite");
+        Some(beta.inverse_cdf(0.05))
     }
 }
 
@@ -280,6 +307,36 @@ mod tests {
             .unwrap();
         let c = counts(s.view(), &gt, Matching::Multi, 0.0).unwrap();
         assert_eq!((c.tp, c.fp, c.positives), (1, 1, 1));
+    }
+
+    #[test]
+    fn clopper_pearson_lower_bound() {
+        let lower = |tp, fp| Counts { tp, fp, positives: tp }.precision_lower95();
+        // No false positive in n: P(Beta(n, 1) <= x) = x^n, so the 0.05 quantile is
+        // 0.05^(1/n). n = 10: exp(ln(0.05) / 10) = exp(-2.995732 / 10) = exp(-0.2995732)
+        // = 0.741134; n = 1: 0.05; n = 2: sqrt(0.05) = 0.223607.
+        assert!((lower(10, 0).unwrap() - 0.741_134_449_9).abs() < 1e-9);
+        for n in [1usize, 2, 28, 1000] {
+            let want = 0.05f64.powf(1.0 / n as f64);
+            assert!((lower(n, 0).unwrap() - want).abs() < 1e-12, "{n}");
+        }
+        // TP = 8, FP = 2: the 0.05 quantile x of Beta(8, 3). For integer shapes,
+        // P(Beta(a, b) <= x) = P(Binomial(a + b - 1, x) >= a), so x solves
+        // P(Binomial(10, x) >= 8) = sum_{i=8..10} C(10, i) x^i (1 - x)^(10 - i) = 0.05;
+        // 80 steps of bisection on that sum in exact rational arithmetic give
+        // x = 0.4930986989 (the sum is 0.0500000007 at 0.4930987).
+        let x = lower(8, 2).unwrap();
+        assert!((x - 0.493_098_698_9).abs() < 1e-9, "{x}");
+        let tail: f64 = (8..=10)
+            .map(|i| {
+                let c = [1.0, 10.0, 45.0][10 - i]; // C(10, 10), C(10, 9), C(10, 8)
+                c * x.powi(i as i32) * (1.0 - x).powi(10 - i as i32)
+            })
+            .sum();
+        assert!((tail - 0.05).abs() < 1e-12, "{tail}");
+        // Nothing correct: 0; nothing accepted: no bound.
+        assert_eq!(lower(0, 3), Some(0.0));
+        assert_eq!(lower(0, 0), None);
     }
 
     #[test]

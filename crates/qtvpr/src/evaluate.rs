@@ -15,8 +15,12 @@
 //! method's thresholds and counts are computed for all segments in parallel.
 //!
 //! [`Protocol::deploy_fraction`] pins the deployment set to the last queries, so that
-//! the calibration size can vary while the deployment set stays the same (the paper's
-//! Fig. 5 ablation).
+//! the calibration size can vary while the deployment set stays the same; [`ablation`]
+//! runs the protocol once per `k` and calibration size on such a fixed deployment set
+//! (the paper's Fig. 5).
+//!
+//! Every result derives `serde::Serialize` under the `serde` feature; the keys are
+//! listed in [`crate::report`].
 
 use std::ops::Range;
 
@@ -89,7 +93,10 @@ impl std::str::FromStr for Method {
 }
 
 /// A number of queries, given as a fraction of |Q| or as a count.
+///
+/// Serialised as `{"fraction": f}` or `{"count": n}`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "snake_case"))]
 pub enum Split {
     /// A fraction of all |Q| queries, in (0, 1).
     Fraction(f64),
@@ -99,6 +106,7 @@ pub enum Split {
 
 /// The protocol's parameters (SPEC section 8.1); [`Default`] is the paper's.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Protocol {
     /// Calibration queries, the first ones: `floor(f |Q|)` for a fraction `f`.
     /// Default: 10%.
@@ -131,9 +139,16 @@ impl Default for Protocol {
     }
 }
 
-/// Where the protocol puts the queries of a matrix with |Q| columns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The protocol applied to a |DB| x |Q| matrix: its parameters and where it puts the
+/// queries (the `params` of the JSON output).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Layout {
+    /// The parameters.
+    #[cfg_attr(feature = "serde", serde(flatten))]
+    pub protocol: Protocol,
+    /// |DB|.
+    pub database_size: usize,
     /// |Q|.
     pub queries: usize,
     /// Columns `0..calibration_queries` calibrate.
@@ -188,13 +203,14 @@ impl Protocol {
         }
     }
 
-    /// Split `queries` columns as the protocol says.
+    /// Split the `queries` columns of a matrix with `database_size` rows as the
+    /// protocol says.
     ///
     /// # Errors
     /// Invalid parameters ([`Protocol::validate`]), or a split that leaves no
     /// calibration query, no deployment query, overlapping sets or no full segment
     /// ([`Error::Protocol`]).
-    pub fn layout(&self, queries: usize) -> Result<Layout> {
+    pub fn layout(&self, database_size: usize, queries: usize) -> Result<Layout> {
         self.validate()?;
         let n_q = queries;
         let n_cal = match self.calibration {
@@ -235,6 +251,8 @@ impl Protocol {
             )));
         }
         Ok(Layout {
+            protocol: *self,
+            database_size,
             queries: n_q,
             calibration_queries: n_cal,
             deployment_start: n_q - n_dep,
@@ -247,6 +265,7 @@ impl Protocol {
 
 /// One segment under one method (SPEC section 8.6).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SegmentResult {
     /// First query of the segment, counted from the first deployment query.
     pub start: usize,
@@ -256,7 +275,9 @@ pub struct SegmentResult {
     pub threshold: f64,
     /// The oracle's threshold of the segment (`inf` when no threshold meets the target).
     pub oracle_threshold: f64,
-    /// TP, FP and positives at `threshold`.
+    /// TP, FP and positives at `threshold` (serialised with the figures derived from
+    /// them: precision, recall and the precision's lower bound).
+    #[cfg_attr(feature = "serde", serde(flatten))]
     pub counts: Counts,
     /// Whether the precision is at least tau (less 1e-12).
     pub meets: bool,
@@ -264,8 +285,10 @@ pub struct SegmentResult {
 
 /// A method's results over every full segment (SPEC section 8).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct MethodResult {
-    /// Which method.
+    /// Which method (serialised as the key of this result).
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub method: Method,
     /// %Segs: 100 x segments that meet / segments counted; `None` when none is counted.
     pub pct_segs: Option<f64>,
@@ -279,6 +302,12 @@ pub struct MethodResult {
     /// Mean squared difference from the oracle's threshold over the counted segments
     /// where both are finite; `None` when there is no such segment.
     pub threshold_mse: Option<f64>,
+    /// [`MethodResult::pooled`], serialised as `pooled_tp`, ..., `pooled_precision_lower95`.
+    #[cfg_attr(
+        feature = "serde",
+        serde(flatten, serialize_with = "crate::report::serialize::pooled")
+    )]
+    pooled: Counts,
     /// Every full segment, in order.
     pub segments: Vec<SegmentResult>,
 }
@@ -287,18 +316,7 @@ impl MethodResult {
     /// TP, FP and positives summed over every full segment (skipped ones included): the
     /// method's operating point on the whole deployment set.
     pub fn pooled(&self) -> Counts {
-        self.segments.iter().fold(
-            Counts {
-                tp: 0,
-                fp: 0,
-                positives: 0,
-            },
-            |a, s| Counts {
-                tp: a.tp + s.counts.tp,
-                fp: a.fp + s.counts.fp,
-                positives: a.positives + s.counts.positives,
-            },
-        )
+        self.pooled
     }
 }
 
@@ -315,14 +333,26 @@ pub struct PrPoint {
 
 /// The result of [`evaluate`].
 #[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Evaluation {
-    /// How the queries were split.
+    /// The protocol's parameters and how they split the queries (serialised as `params`).
+    #[cfg_attr(feature = "serde", serde(rename = "params"))]
     pub layout: Layout,
-    /// The protocol's parameters.
-    pub protocol: Protocol,
-    /// One result per method asked for, in the order asked (duplicates removed).
+    /// R@1 of the deployment set's full segments: the fraction of its queries with at
+    /// least one hard match whose best match (the first maximum of the column) is a hard
+    /// match. It counts best matches whatever the matching mode; a best match that is
+    /// soft but not hard is a miss. `None` when no such query has a hard match.
+    ///
+    /// VPR-Bench's "recall at 100% precision" divides by the queries whose best match is
+    /// correct instead of the queries with a match: with single matching at tau = 1 it
+    /// is the recall reported here divided by `recall_at_1`.
+    pub recall_at_1: Option<f64>,
+    /// One result per method asked for, in the order asked (duplicates removed);
+    /// serialised as an object keyed by method name.
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::report::serialize::methods"))]
     pub methods: Vec<MethodResult>,
     /// The candidates of the full segments' queries, for the precision-recall curve.
+    #[cfg_attr(feature = "serde", serde(skip))]
     deployment: Candidates,
 }
 
@@ -397,7 +427,7 @@ pub fn evaluate<T: Score>(
     protocol.validate()?;
     validate_scores(SIMILARITY, s)?;
     check_gt_shape(gt, SIMILARITY, s.dim())?;
-    let layout = protocol.layout(s.ncols())?;
+    let layout = protocol.layout(s.nrows(), s.ncols())?;
     let mut unique: Vec<Method> = Vec::with_capacity(methods.len());
     for &m in methods {
         if !unique.contains(&m) {
@@ -416,6 +446,13 @@ pub fn evaluate<T: Score>(
     let ranges: Vec<Range<usize>> = (0..layout.segments).map(|i| i * size..(i + 1) * size).collect();
 
     let deployment = Candidates::new(s_dep, gt_dep, protocol.matching);
+    // R@1 is the recall of single-match decisions with nothing rejected.
+    let all = 0..deployment.ncols();
+    let best_matches = match protocol.matching {
+        Matching::Single => deployment.counts(all, f64::NEG_INFINITY),
+        Matching::Multi => Candidates::new(s_dep, gt_dep, Matching::Single).counts(all, f64::NEG_INFINITY),
+    };
+    let recall_at_1 = (best_matches.positives > 0).then(|| best_matches.recall());
     let oracle: Vec<f64> = ranges
         .par_iter()
         .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
@@ -458,10 +495,76 @@ pub fn evaluate<T: Score>(
     }
     Ok(Evaluation {
         layout,
-        protocol: *protocol,
+        recall_at_1,
         methods: results,
         deployment,
     })
+}
+
+/// The deployment set of an [`ablation`] whose base protocol leaves it open: the last
+/// half of the queries.
+pub const ABLATION_DEPLOY_FRACTION: f64 = 0.5;
+
+/// The result of [`ablation`].
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct Ablation {
+    /// One evaluation per setting: calibration sizes in the outer loop, `k` in the inner
+    /// one, each in the order given (serialised as `ablation`).
+    #[cfg_attr(feature = "serde", serde(rename = "ablation"))]
+    pub runs: Vec<Evaluation>,
+}
+
+/// Run the protocol once per combination of `ks` and `calibration` sizes (the paper's
+/// Fig. 5: %Segs and AvgR@tauP against `k` and against the calibration size).
+///
+/// Every run is `base` with its `k` and calibration replaced; an empty list keeps
+/// `base`'s value. So that the figures of different settings are comparable, every run
+/// deploys on the same queries: the last `floor(f |Q|)` with `f = base.deploy_fraction`,
+/// or [`ABLATION_DEPLOY_FRACTION`] (the last 50%) when that is `None`. The calibration
+/// set is always the first queries, and may not reach into the deployment set.
+///
+/// # Errors
+/// As [`evaluate`]; every setting is checked ([`Protocol::layout`]) before the first
+/// one runs.
+pub fn ablation<T: Score>(
+    s: ArrayView2<'_, T>,
+    gt: &GroundTruth,
+    base: &Protocol,
+    ks: &[usize],
+    calibration: &[Split],
+    methods: &[Method],
+) -> Result<Ablation> {
+    let ks = if ks.is_empty() {
+        std::slice::from_ref(&base.k)
+    } else {
+        ks
+    };
+    let calibration = if calibration.is_empty() {
+        std::slice::from_ref(&base.calibration)
+    } else {
+        calibration
+    };
+    let deploy_fraction = Some(base.deploy_fraction.unwrap_or(ABLATION_DEPLOY_FRACTION));
+    let protocols: Vec<Protocol> = calibration
+        .iter()
+        .flat_map(|&calibration| {
+            ks.iter().map(move |&k| Protocol {
+                calibration,
+                deploy_fraction,
+                k,
+                ..*base
+            })
+        })
+        .collect();
+    for p in &protocols {
+        p.layout(s.nrows(), s.ncols())?;
+    }
+    let runs = protocols
+        .iter()
+        .map(|p| evaluate(s, gt, p, methods))
+        .collect::<Result<_>>()?;
+    Ok(Ablation { runs })
 }
 
 /// Count every segment at its threshold and summarise (SPEC sections 8.2-8.6).
@@ -505,6 +608,18 @@ fn score(
         .map(|g| (g.threshold - g.oracle_threshold).powi(2))
         .collect();
     let threshold_mse = (!squares.is_empty()).then(|| squares.iter().sum::<f64>() / squares.len() as f64);
+    let pooled = segments.iter().fold(
+        Counts {
+            tp: 0,
+            fp: 0,
+            positives: 0,
+        },
+        |a, g| Counts {
+            tp: a.tp + g.counts.tp,
+            fp: a.fp + g.counts.fp,
+            positives: a.positives + g.counts.positives,
+        },
+    );
     MethodResult {
         method,
         pct_segs,
@@ -512,6 +627,7 @@ fn score(
         segments_counted: n,
         segments_skipped: segments.len() - n,
         threshold_mse,
+        pooled,
         segments,
     }
 }
@@ -566,6 +682,8 @@ mod tests {
         assert_eq!(
             e.layout,
             Layout {
+                protocol: protocol(),
+                database_size: 3,
                 queries: 7,
                 calibration_queries: 2,
                 deployment_start: 2,
@@ -707,7 +825,7 @@ mod tests {
             segment: Split::Fraction(0.2),
             ..Protocol::default()
         };
-        let l = p.layout(10).unwrap();
+        let l = p.layout(4, 10).unwrap();
         assert_eq!(
             (
                 l.calibration_queries,
@@ -723,7 +841,7 @@ mod tests {
             ..p
         };
         assert_eq!(
-            p.layout(10).unwrap_err().to_string(),
+            p.layout(4, 10).unwrap_err().to_string(),
             "the calibration set (6 queries) and the deployment set (5 queries) overlap: \
              together they exceed the 10 queries"
         );
@@ -731,7 +849,7 @@ mod tests {
 
     #[test]
     fn bad_protocols() {
-        let msg = |p: Protocol, n: usize| p.layout(n).unwrap_err().to_string();
+        let msg = |p: Protocol, n: usize| p.layout(3, n).unwrap_err().to_string();
         let d = Protocol::default();
         // floor(0.1 * 7) = 0 calibration queries.
         assert_eq!(
@@ -797,6 +915,205 @@ mod tests {
         // the last point is always kept.
         let thin: Vec<f64> = e.precision_recall_curve(2).iter().map(|p| p.threshold).collect();
         assert_eq!(thin, vec![0.9, 0.7, 0.5]);
+    }
+
+    #[test]
+    fn recall_at_1_counts_best_matches_in_both_modes() {
+        // Full segments d0..d3: best matches d0 0.7 (db0, hard), d1 0.6 (db1, wrong),
+        // d2 0.5 (db0, no match), d3 0.9 (db1, no match). Queries with a hard match: d0, d1
+        // -> R@1 = 1 / 2, in multi mode too (it is about best matches).
+        for matching in [Matching::Single, Matching::Multi] {
+            let (s, gt) = tiny();
+            let p = Protocol { matching, ..protocol() };
+            let e = evaluate(s.view(), &gt, &p, &[Method::Oracle]).unwrap();
+            assert_eq!(e.recall_at_1, Some(0.5), "{matching:?}");
+        }
+        // Columns c0, c1, d2, d3: the deployment queries have no hard match -> None.
+        let (s, gt) = tiny();
+        let cols = [0, 1, 4, 5];
+        let s = s.select(ndarray::Axis(1), &cols);
+        let gt = GroundTruth::from_truth(gt.view().select(ndarray::Axis(1), &cols));
+        let e = evaluate(s.view(), &gt, &protocol(), &[Method::Oracle]).unwrap();
+        assert_eq!(e.recall_at_1, None);
+    }
+
+    #[test]
+    fn pooled_counts_and_their_lower_bound() {
+        // Oracle: segment 0 TP 1, FP 0, positives 2; segment 1 (d2 0.5, d3 0.9 wrong, no
+        // positives) at inf accepts nothing. Pooled: TP 1, FP 0, positives 2; precision 1,
+        // recall 1/2, lower bound 0.05^(1/1) = 0.05.
+        let e = run(&[Method::Oracle]);
+        let p = e.methods[0].pooled();
+        assert_eq!((p.tp, p.fp, p.positives), (1, 0, 2));
+        assert!((p.precision_lower95().unwrap() - 0.05).abs() < 1e-12);
+        // Nothing accepted in segment 1: no bound there.
+        assert_eq!(e.methods[0].segments[1].counts.precision_lower95(), None);
+    }
+
+    /// The k and calibration-size ablation: one run per setting on the last half.
+    #[test]
+    fn ablation_runs_every_setting_on_one_deployment_set() {
+        // |Q| = 7: the last floor(0.5 * 7) = 3 queries (columns 4..7 = d2, d3, d4) deploy
+        // in segments of one; calibration 1 or 2 first queries; k 1 or 5.
+        let (s, gt) = tiny();
+        let base = Protocol {
+            segment: Split::Count(1),
+            precision: 0.5,
+            ..Protocol::default()
+        };
+        let a = ablation(
+            s.view(),
+            &gt,
+            &base,
+            &[1, 5],
+            &[Split::Count(1), Split::Count(2)],
+            &[Method::QuantileTransfer, Method::Oracle],
+        )
+        .unwrap();
+        let settings: Vec<(usize, Split)> = a
+            .runs
+            .iter()
+            .map(|r| (r.layout.protocol.k, r.layout.protocol.calibration))
+            .collect();
+        assert_eq!(
+            settings,
+            vec![
+                (1, Split::Count(1)),
+                (5, Split::Count(1)),
+                (1, Split::Count(2)),
+                (5, Split::Count(2))
+            ]
+        );
+        for r in &a.runs {
+            let l = r.layout;
+            assert_eq!(l.protocol.deploy_fraction, Some(ABLATION_DEPLOY_FRACTION));
+            assert_eq!((l.deployment_start, l.deployment_queries, l.segments), (4, 3, 3));
+            // Each run is the protocol with that setting.
+            let one = evaluate(s.view(), &gt, &l.protocol, &[Method::QuantileTransfer, Method::Oracle]).unwrap();
+            assert_eq!(r.methods, one.methods);
+        }
+        // An empty list keeps the base value; a deploy fraction given is kept.
+        let a = ablation(
+            s.view(),
+            &gt,
+            &Protocol {
+                calibration: Split::Count(2),
+                deploy_fraction: Some(0.6),
+                ..base
+            },
+            &[3],
+            &[],
+            &[Method::Oracle],
+        )
+        .unwrap();
+        assert_eq!(a.runs.len(), 1);
+        let p = a.runs[0].layout.protocol;
+        assert_eq!((p.k, p.calibration, p.deploy_fraction), (3, Split::Count(2), Some(0.6)));
+        // A bad setting fails before any run: 5 calibration queries reach into the last 3.
+        let err = ablation(
+            s.view(),
+            &gt,
+            &base,
+            &[1],
+            &[Split::Count(1), Split::Count(5)],
+            &[Method::Oracle],
+        );
+        assert_eq!(
+            err.unwrap_err().to_string(),
+            "the calibration set (5 queries) and the deployment set (3 queries) overlap: \
+             together they exceed the 7 queries"
+        );
+    }
+
+    #[cfg(feature = "serde")]
+    #[test]
+    fn serialised_keys() {
+        let e = run(&[Method::Oracle, Method::Schubert]);
+        let v = serde_json::to_value(crate::report::Report {
+            dataset: Some("tiny"),
+            result: &e,
+        })
+        .unwrap();
+        let keys = |v: &serde_json::Value| {
+            let mut k: Vec<String> = v.as_object().unwrap().keys().cloned().collect();
+            k.sort();
+            k
+        };
+        assert_eq!(keys(&v), ["dataset", "methods", "params", "recall_at_1"]);
+        assert_eq!(
+            keys(&v["params"]),
+            [
+                "calibration",
+                "calibration_queries",
+                "database_size",
+                "deploy_fraction",
+                "deployment_queries",
+                "deployment_start",
+                "k",
+                "matching",
+                "precision",
+                "queries",
+                "segment",
+                "segment_size",
+                "segments"
+            ]
+        );
+        assert_eq!(v["params"]["calibration"], serde_json::json!({"count": 2}));
+        assert_eq!(v["params"]["matching"], "single");
+        assert_eq!(v["params"]["database_size"], 3);
+        assert_eq!(keys(&v["methods"]), ["oracle", "schubert"]);
+        let oracle = &v["methods"]["oracle"];
+        assert_eq!(
+            keys(oracle),
+            [
+                "avg_recall",
+                "pct_segs",
+                "pooled_fp",
+                "pooled_positives",
+                "pooled_precision",
+                "pooled_precision_lower95",
+                "pooled_recall",
+                "pooled_tp",
+                "segments",
+                "segments_counted",
+                "segments_skipped",
+                "threshold_mse"
+            ]
+        );
+        assert!((oracle["pooled_precision_lower95"].as_f64().unwrap() - 0.05).abs() < 1e-12);
+        let seg = &oracle["segments"][1];
+        assert_eq!(
+            keys(seg),
+            [
+                "end",
+                "fp",
+                "meets",
+                "oracle_threshold",
+                "positives",
+                "precision",
+                "precision_lower95",
+                "recall",
+                "start",
+                "threshold",
+                "tp"
+            ]
+        );
+        // Reject-all is null in JSON; so is a bound over nothing accepted.
+        assert_eq!(
+            (seg["threshold"].is_null(), seg["precision_lower95"].is_null()),
+            (true, true)
+        );
+        assert_eq!(v["recall_at_1"], 0.5);
+        let (s, gt) = tiny();
+        let a = ablation(s.view(), &gt, &protocol(), &[1, 2], &[], &[Method::Oracle]).unwrap();
+        let v = serde_json::to_value(crate::report::Report {
+            dataset: None,
+            result: &a,
+        })
+        .unwrap();
+        assert_eq!(keys(&v), ["ablation", "dataset"]);
+        assert_eq!(keys(&v["ablation"][1]), ["methods", "params", "recall_at_1"]);
+        assert_eq!(v["ablation"][1]["params"]["k"], 2);
     }
 
     #[test]

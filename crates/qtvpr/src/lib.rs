@@ -20,7 +20,8 @@
 //! | 6 deployment threshold of a segment | [`deployment`] |
 //! | 4-6 together | [`transfer`] |
 //! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
-//! | 8 evaluation protocol (%Segs, AvgR@tauP) | [`evaluate`](mod@evaluate) |
+//! | 8 evaluation protocol (%Segs, AvgR@tauP), ablations | [`evaluate`](mod@evaluate) |
+//! | 9 machine-readable output (feature `serde`) | [`report`] |
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
@@ -66,6 +67,7 @@ pub mod names;
 #[cfg(feature = "npy")]
 pub mod npy;
 pub mod ranked_correlation;
+pub mod report;
 pub mod sequence;
 pub mod similarity;
 pub mod subset_quantile;
@@ -75,7 +77,7 @@ pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
-pub use evaluate::{Evaluation, Method, Protocol, Split, evaluate};
+pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate};
 pub use input::{GroundTruth, Label, Score, ScoresView, Truth};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};

@@ -31,6 +31,7 @@ pub const DEFAULT_K: usize = 10;
 
 /// Parameters of a transfer.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Params {
     /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
     pub k: usize,
@@ -65,6 +66,7 @@ impl Params {
 
 /// The threshold of one segment of deployment queries.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Segment {
     /// First deployment query (column index of the deployment matrix).
     pub start: usize,

@@ -1,0 +1,165 @@
+"""Per-query latency of online thresholds (``qtvpr.Online.push``) on one thread.
+
+A robot decides each query as it arrives, so what matters is the time of one ``push``:
+one column of |DB| scores in, one accept/reject out. This measures it at three scales,
+with the core on one thread (``RAYON_NUM_THREADS=1``, set before the wheel starts its
+pool):
+
+1. Nordland HOG (real): 3576 DB, the first 357 queries calibrate, window 36, k = 10;
+2. paper scale (synthetic, benches/synthetic.py): 27,592 DB, 276 calibration queries,
+   window 28;
+3. MSLS val scale (synthetic): 18,871 DB, 1,108 calibration queries, window 111.
+
+Each query is pushed as a column view of a float32 matrix, as a front end would hand
+it over. Reported: the median and 99th percentile of the pushes once the window is full
+(the steady state), and the time of the two stages every push must pay at least, one
+sort of the column and one pass of float64 correlations over the calibration profiles,
+measured on the same column with NumPy as a yardstick.
+
+    python benches/online_latency.py [--no-readme] [--queries N]
+
+Writes the table into README.md between <!-- online-bench:start --> and
+<!-- online-bench:end -->. Needs the wheel (pip install .) and ../shared/data.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["RAYON_NUM_THREADS"] = "1"  # before qtvpr starts its thread pool
+
+import argparse
+import platform
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import qtvpr
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import synthetic  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared" / "data"
+START, END = "<!-- online-bench:start -->", "<!-- online-bench:end -->"
+
+
+def nordland() -> tuple[np.ndarray, np.ndarray]:
+    db = np.load(SHARED / "nordland-hog" / "db_winter.npy").astype(np.float64)
+    q = np.load(SHARED / "nordland-hog" / "query_summer.npy").astype(np.float64)
+    db /= np.linalg.norm(db, axis=1, keepdims=True)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    s = (db @ q.T).astype(np.float32)
+    i = np.arange(s.shape[0])
+    return s, np.abs(i[:, None] - i[None, :]) <= 1
+
+
+def synthetic_case(work: Path, n_db: int, n_q: int, n_val: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Calibration scores and labels (the first 10% of n_q) and the first n_val deployment columns."""
+    rng = np.random.default_rng(0)
+    n_cal = n_q // 10
+    for part, cols, gt in (("cal", range(n_cal), True), ("val", range(n_cal, n_cal + n_val), False)):
+        (work / part).mkdir(parents=True, exist_ok=True)
+        synthetic.write(work / part, n_db, n_q, cols, rng, gt)
+    return np.load(work / "cal" / "S.npy"), np.load(work / "cal" / "GT.npy"), np.load(work / "val" / "S.npy")
+
+
+def floor_ms(s_cal: np.ndarray, column: np.ndarray, reps: int = 20) -> tuple[float, float]:
+    """NumPy's time (ms) for one sort of a column and one f64 correlation pass over the profiles."""
+    profiles = np.sort(s_cal.astype(np.float64), axis=0)
+    profiles -= profiles.mean(axis=0)
+    profiles /= np.linalg.norm(profiles, axis=0)
+    profiles = np.ascontiguousarray(profiles.T)  # one row per calibration query
+    u = np.sort(column.astype(np.float64))
+    u -= u.mean()
+    u /= np.linalg.norm(u)
+
+    def best(f) -> float:
+        out = np.inf
+        for _ in range(reps):
+            t = time.perf_counter()
+            f()
+            out = min(out, time.perf_counter() - t)
+        return out * 1e3
+
+    return best(lambda: np.sort(column)), best(lambda: profiles @ u)
+
+
+def measure(name: str, s_cal, gt_cal, s_val, window: int, k: int = 10) -> dict:
+    cal = qtvpr.Calibration(s_cal, gt_cal)
+    online = qtvpr.Online(cal, k=k, precision=1.0, window=window)
+    times = []
+    for j in range(s_val.shape[1]):
+        column = s_val[:, j]
+        t = time.perf_counter_ns()
+        online.push(column)
+        times.append(time.perf_counter_ns() - t)
+    steady = np.array(times[window:], dtype=np.float64) / 1e6
+    sort_ms, corr_ms = floor_ms(s_cal, s_val[:, 0])
+    return {
+        "name": name,
+        "db": s_cal.shape[0],
+        "cal": s_cal.shape[1],
+        "window": window,
+        "pushes": len(steady),
+        "median": float(np.median(steady)),
+        "p99": float(np.percentile(steady, 99)),
+        "sort": sort_ms,
+        "corr": corr_ms,
+    }
+
+
+def machine() -> str:
+    cpu = "unknown CPU"
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {platform.system()}, Python {platform.python_version()}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    ap.add_argument("--queries", type=int, default=1000, help="deployment queries pushed at the synthetic scales")
+    args = ap.parse_args()
+
+    rows = []
+    s, gt = nordland()
+    n_cal = s.shape[1] // 10
+    rows.append(measure("Nordland HOG (real)", s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:], window=36))
+    for name, n_db, n_q, window in (("paper scale (synthetic)", 27592, 2760, 28), ("MSLS val scale (synthetic)", 18871, 11084, 111)):
+        with tempfile.TemporaryDirectory() as tmp:
+            s_cal, gt_cal, s_val = synthetic_case(Path(tmp), n_db, n_q, min(args.queries, n_q - n_q // 10))
+            rows.append(measure(name, s_cal, gt_cal, s_val, window=window))
+
+    lines = [
+        f"Measured by `benches/online_latency.py` on one thread of {machine()}; float32 columns, k = 10, tau = 1; "
+        "the pushes after the window first fills. The last two columns are NumPy's time for the two stages every "
+        "push pays at least (one sort of the column; one float64 correlation pass over every calibration profile), "
+        "on the same machine, as a yardstick.",
+        "",
+        "| case | \\|DB\\| | calibration queries | window | pushes | median | 99th percentile | NumPy sort | NumPy correlation pass |",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['name']} | {r['db']} | {r['cal']} | {r['window']} | {r['pushes']} | {r['median']:.3f} ms | "
+            f"{r['p99']:.3f} ms | {r['sort']:.3f} ms | {r['corr']:.3f} ms |"
+        )
+    text = "\n".join(lines)
+    print(text)
+    if not args.no_readme:
+        readme = REPO / "README.md"
+        new, n = re.subn(f"({re.escape(START)}\n).*?({re.escape(END)})", lambda m: m[1] + text + "\n" + m[2], readme.read_text(), flags=re.S)
+        if n != 1:
+            sys.exit(f"README.md has no {START} ... {END} block")
+        readme.write_text(new)
+
+
+if __name__ == "__main__":
+    main()

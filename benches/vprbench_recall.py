@@ -1,0 +1,84 @@
+"""VPR-Bench's "recall at 100% precision" against ours, on every real matrix.
+
+VPR-Bench (Zaffar et al., IJCV 2021, ``performance_comparison.py``) marks each query's
+best match correct or not, runs scikit-learn's ``precision_recall_curve`` on those
+marks against the best-match scores, and reports the recall of the lowest threshold
+whose precision is 1 (0 when the top-scoring match is wrong). Its recall divides by
+the number of *correct best matches*. Ours (single matching, tau = 1, the exact sweep
+of docs/semantics.md) divides by the number of *queries with a hard match*. The
+numerators are the same (the most correct best matches accepted with no false one),
+so VPR-Bench's figure should be ours divided by R@1 = correct best matches / queries
+with a match.
+
+This script computes VPR-Bench's figure directly in NumPy and ours from
+``qtvpr.evaluate``'s JSON keys (one deployment segment holding every query but the
+first, which must calibrate; the oracle's recall is then our recall at 100% precision
+and ``recall_at_1`` is R@1 of the same queries), and prints both. Matrices: those of
+``benches/results_table.py`` (20 VPR-Bench, Nordland HOG single frame and 11-frame
+sequence).
+
+    python benches/vprbench_recall.py [--data ../shared/data]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+import qtvpr
+from results_table import matrices
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def vprbench_recall_at_100p(s: np.ndarray, gt: np.ndarray) -> float:
+    """VPR-Bench's recall at 100% precision of ``s`` (|DB| x |Q|) under ``gt``.
+
+    ``matches[j]`` is whether query j's best match (``argmax``, the first on ties) is
+    correct, ``scores[j]`` its score. Over the distinct thresholds (accept
+    ``score >= t``), precision = correct accepted / accepted and recall = correct
+    accepted / all correct matches; the result is the largest recall at precision 1,
+    or 0 if no threshold has precision 1.
+    """
+    columns = np.arange(s.shape[1])
+    best = np.argmax(s, axis=0)
+    scores, matches = s[best, columns].astype(np.float64), gt[best, columns].astype(bool)
+    if not matches.any():
+        return float("nan")  # VPR-Bench divides by zero
+    order = np.argsort(-scores, kind="stable")
+    scores, matches = scores[order], matches[order]
+    tp, fp = np.cumsum(matches), np.cumsum(~matches)
+    last = np.append(scores[1:] != scores[:-1], True)  # equal scores are accepted together
+    exact = last & (fp == 0)
+    return float(tp[exact].max() / matches.sum()) if exact.any() else 0.0
+
+
+def ours(s: np.ndarray, gt: np.ndarray) -> tuple[float, float | None]:
+    """(our recall at 100% precision, R@1) of every query but the first, from the JSON keys."""
+    out = qtvpr.evaluate(s, gt, cal_queries=1, segment_size=s.shape[1] - 1, methods=["oracle"])
+    (segment,) = out["methods"]["oracle"]["segments"]
+    return segment["recall"], out["recall_at_1"]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
+    args = parser.parse_args()
+    print("| matrix | R@1 | ours R@100P | ours / R@1 | VPR-Bench R@100P | agree |")
+    print("|:--|--:|--:|--:|--:|:-:|")
+    agree = total = 0
+    for name, s, gt in matrices(args.data):
+        recall, r1 = ours(s, gt)
+        theirs = vprbench_recall_at_100p(s[:, 1:], gt[:, 1:])
+        rescaled = recall / r1 if r1 else float("nan")
+        same = abs(rescaled - theirs) <= 1e-12
+        agree += same
+        total += 1
+        print(f"| {name} | {r1:.4f} | {recall:.4f} | {rescaled:.4f} | {theirs:.4f} | {'yes' if same else 'NO'} |")
+    print(f"\n{agree} of {total} agree to 1e-12.")
+
+
+if __name__ == "__main__":
+    main()

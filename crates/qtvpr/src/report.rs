@@ -1,0 +1,145 @@
+//! The machine-readable results: one schema for `qtvpr-cli ... --format json` and the
+//! dicts of the Python binding.
+//!
+//! With the `serde` feature, the result types derive `serde::Serialize`, and both
+//! front ends serialise those same values: the CLI with `serde_json`, the binding with
+//! `pythonize`. The keys are therefore identical by construction; only the encoding of
+//! a reject-all threshold differs: `null` in JSON (which has no infinity), `math.inf`
+//! in Python. Figures that are undefined (no segment counted, nothing accepted) are
+//! `null` / `None` in both.
+//!
+//! # `evaluate` (and `qtvpr.evaluate`)
+//!
+//! One run of the evaluation protocol ([`Evaluation`] inside a `Report`, the wrapper
+//! this module defines with the `serde` feature):
+//!
+//! - `dataset`: what the run was made on: the similarity file's path, the embedded
+//!   data's name, or `None` in Python when the matrix was passed as an array.
+//! - `params` ([`Layout`], with its [`Protocol`] flattened in):
+//!   - the parameters: `k`, `precision` (tau), `matching` (`"single"` or `"multi"`),
+//!     `calibration` and `segment` as asked for (`{"fraction": f}` of all |Q| queries or
+//!     `{"count": n}`), `deploy_fraction` (`null`: every query after the calibration
+//!     set);
+//!   - how they split this matrix: `database_size` (|DB|), `queries` (|Q|),
+//!     `calibration_queries` (columns `0..calibration_queries` calibrate),
+//!     `deployment_start` (the column of deployment query 0), `deployment_queries`
+//!     (|Qdeploy|, including the dropped remainder), `segment_size`, `segments` (the
+//!     number of full segments).
+//! - `recall_at_1`: R@1 of the deployment set (its full segments): the queries whose
+//!   best match (the first maximum of the column) is a hard match, divided by the
+//!   queries with at least one hard match. It is computed from best matches whatever
+//!   `matching` is; a query whose best match is soft-only counts as a miss. `null` when
+//!   no deployment query has a hard match.
+//! - `methods`: one object per method asked for, keyed by its name
+//!   (`"quantile-transfer"`, `"schubert"`, `"schubert-calibrated"`,
+//!   `"calibration-threshold"`, `"oracle"`), in the order asked ([`MethodResult`]):
+//!   - `pct_segs`: %Segs, 100 x segments that meet the target / segments counted;
+//!   - `avg_recall`: AvgR@tauP, the mean over counted segments of their recall if they
+//!     meet the target, else 0;
+//!   - `segments_counted` (segments with at least one positive) and
+//!     `segments_skipped` (without: left out of both figures, which are `null` when no
+//!     segment is counted);
+//!   - `threshold_mse`: the mean squared difference from the oracle's threshold over
+//!     the counted segments where both are finite (`null` if none);
+//!   - `pooled_tp`, `pooled_fp`, `pooled_positives`: the counts summed over every full
+//!     segment (skipped ones included), the method's operating point on the whole
+//!     deployment set, and from them `pooled_precision`, `pooled_recall` and
+//!     `pooled_precision_lower95` (as for a segment, below);
+//!   - `segments`: every full segment in order ([`SegmentResult`]): `start`, `end`
+//!     (deployment-query indices, end exclusive: deployment query i is column
+//!     `deployment_start + i`), `threshold` (the method's; reject-all is `null` /
+//!     `inf`), `oracle_threshold`, `tp`, `fp`, `positives`, `precision` (1 when
+//!     nothing is accepted), `recall` (0 without positives), `precision_lower95` and
+//!     `meets` (precision >= tau - 1e-12).
+//!
+//! `precision_lower95` is the one-sided 95% Clopper-Pearson lower bound on the
+//! precision, the 0.05 quantile of Beta(TP, FP + 1) ([`Counts::precision_lower95`]): 0
+//! when TP = 0, `null` when nothing is accepted. A segment of 2 decisions at "100%
+//! precision" has a bound of 0.22; 28 correct decisions without a false positive, 0.90.
+//!
+//! # An ablation (`evaluate --k 1,3,5 ...`, `qtvpr.ablation`)
+//!
+//! `dataset` as above, and `ablation`: a list with one object per setting
+//! ([`Ablation`]), each with the `params`, `recall_at_1` and `methods` of one run. Every
+//! run shares the deployment set (see [`ablation`](crate::evaluate::ablation)).
+//!
+//! # `threshold`
+//!
+//! `method` (`"quantile-transfer"`), `params` ([`Params`] with the segment size resolved,
+//! and `matching`), `segments` ([`Segment`]: `start`, `end`, `quantile`, `threshold`;
+//! reject-all is `null`), `calibration_queries`, `deployment_queries` and
+//! `database_size`.
+//!
+//! [`Evaluation`]: crate::evaluate::Evaluation
+//! [`Layout`]: crate::evaluate::Layout
+//! [`Protocol`]: crate::evaluate::Protocol
+//! [`MethodResult`]: crate::evaluate::MethodResult
+//! [`SegmentResult`]: crate::evaluate::SegmentResult
+//! [`Ablation`]: crate::evaluate::Ablation
+//! [`Counts::precision_lower95`]: crate::Counts::precision_lower95
+//! [`Params`]: crate::Params
+//! [`Segment`]: crate::Segment
+
+#[cfg(feature = "serde")]
+pub use serialize::Report;
+
+#[cfg(feature = "serde")]
+pub(crate) mod serialize {
+    use serde::Serialize;
+    use serde::ser::{SerializeMap, Serializer};
+
+    use crate::decisions::Counts;
+    use crate::evaluate::MethodResult;
+
+    /// A result with the name of what it was computed on: the document `qtvpr-cli
+    /// evaluate` prints and the dict `qtvpr.evaluate` / `qtvpr.ablation` return.
+    #[derive(Debug, Clone, Copy, Serialize)]
+    pub struct Report<'a, T> {
+        /// The similarity file's path or the dataset's name; `None` when unknown.
+        pub dataset: Option<&'a str>,
+        /// The [`Evaluation`](crate::Evaluation) or
+        /// [`Ablation`](crate::evaluate::Ablation), its keys beside `dataset`.
+        #[serde(flatten)]
+        pub result: &'a T,
+    }
+
+    /// The keys of [`Counts`] and the figures derived from it.
+    const COUNTS: [&str; 6] = ["tp", "fp", "positives", "precision", "recall", "precision_lower95"];
+
+    /// The same, for counts pooled over a deployment set.
+    const POOLED: [&str; 6] = [
+        "pooled_tp",
+        "pooled_fp",
+        "pooled_positives",
+        "pooled_precision",
+        "pooled_recall",
+        "pooled_precision_lower95",
+    ];
+
+    fn counts<S: Serializer>(c: &Counts, keys: &[&'static str; 6], serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(keys.len()))?;
+        map.serialize_entry(keys[0], &c.tp)?;
+        map.serialize_entry(keys[1], &c.fp)?;
+        map.serialize_entry(keys[2], &c.positives)?;
+        map.serialize_entry(keys[3], &c.precision())?;
+        map.serialize_entry(keys[4], &c.recall())?;
+        map.serialize_entry(keys[5], &c.precision_lower95())?;
+        map.end()
+    }
+
+    impl Serialize for Counts {
+        fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+            counts(self, &COUNTS, serializer)
+        }
+    }
+
+    /// [`Counts`] with `pooled_` keys (`serialize_with` of [`MethodResult`]'s pooled counts).
+    pub(crate) fn pooled<S: Serializer>(c: &Counts, serializer: S) -> Result<S::Ok, S::Error> {
+        counts(c, &POOLED, serializer)
+    }
+
+    /// Method results as an object keyed by method name, in order.
+    pub(crate) fn methods<S: Serializer>(methods: &[MethodResult], serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_map(methods.iter().map(|m| (m.method.as_str(), m)))
+    }
+}
