@@ -43,8 +43,13 @@ struct Cli {
     command: Command,
 }
 
-/// Options of every command.
+/// The help heading of [`Global`]'s options.
+const GLOBAL_HEADING: &str = "Global options";
+
+/// Options of every command, listed under their own heading at the end of each
+/// command's help (after the command's own options, which are what a reader looks for).
 #[derive(Debug, clap::Args)]
+#[command(next_help_heading = GLOBAL_HEADING)]
 pub struct Global {
     /// Worker threads (default: RAYON_NUM_THREADS if set, else all cores).
     #[arg(long, global = true, value_name = "N")]
