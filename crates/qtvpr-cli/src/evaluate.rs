@@ -10,9 +10,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use ndarray::ArrayView2;
 use qtvpr::evaluate::{Evaluation, MethodResult};
-use qtvpr::{GroundTruth, Matching, Method, Protocol, Score, Split};
+use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 use serde::Serialize;
 
 use crate::embedded;
@@ -161,7 +160,7 @@ fn methods_of(names: &[String]) -> Result<Vec<Method>> {
 }
 
 /// Run `evaluate`.
-pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
+pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
     let methods = methods_of(&args.method).context("--method")?;
     let calibrations: Vec<Split> = if !args.cal_queries.is_empty() {
         args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
@@ -222,13 +221,25 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
     };
 
     let mut runs = Vec::new();
+    // Counts methods evaluated: `total` distinct methods in each of the `n` runs.
+    let n = calibrations.len() * args.k.len();
+    let bar = crate::progress::bar(global.quiet, n * methods.len(), "methods evaluated");
     for &calibration in &calibrations {
         for &k in &args.k {
             let p = protocol(k, calibration);
-            let eval = with_view!(scores, |v| evaluate_view(v, &gt, &p, &methods)).with_context(input)?;
+            let i = runs.len();
+            let progress = |done: usize, total: usize| {
+                bar.set_length((n * total) as u64);
+                bar.set_position((i * total + done) as u64);
+            };
+            let eval = with_view!(scores, |v| qtvpr::evaluate_with_progress(
+                v, &gt, &p, &methods, progress
+            ))
+            .with_context(input)?;
             runs.push(Run { k, calibration, eval });
         }
     }
+    bar.finish_and_clear();
     let ctx = RunContext {
         dataset,
         database_size: gt.dim().0,
@@ -246,15 +257,6 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
         EvalFormat::Csv => csv(&runs),
     };
     emit(&text, args.output.as_deref())
-}
-
-fn evaluate_view<T: Score>(
-    s: ArrayView2<'_, T>,
-    gt: &GroundTruth,
-    p: &Protocol,
-    methods: &[Method],
-) -> qtvpr::Result<Evaluation> {
-    qtvpr::evaluate(s, gt, p, methods)
 }
 
 // ---------------------------------------------------------------------------------------

@@ -83,7 +83,7 @@ fn main() -> ExitCode {
     let result = configure_threads(cli.global.threads).and_then(|()| match &cli.command {
         Command::Threshold(args) => threshold::run(args, &cli.global),
         Command::Evaluate(args) => evaluate::run(args, &cli.global),
-        Command::Similarity(args) => similarity::run(args),
+        Command::Similarity(args) => similarity::run(args, &cli.global),
         Command::GroundTruth(args) => ground_truth::run(args),
     });
     match result {

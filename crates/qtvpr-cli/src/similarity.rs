@@ -10,6 +10,7 @@ use qtvpr::Sequence;
 use qtvpr::similarity::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
 
 use crate::matrix_io::{blame, read_rows, write_npy};
+use crate::{Global, progress};
 
 /// Arguments of `similarity`.
 #[derive(Debug, Args)]
@@ -37,7 +38,7 @@ pub struct SimilarityArgs {
 }
 
 /// Run `similarity`.
-pub fn run(args: &SimilarityArgs) -> Result<()> {
+pub fn run(args: &SimilarityArgs, global: &Global) -> Result<()> {
     // Check the cheap parameter before reading anything.
     let sequence = args
         .sequence
@@ -61,10 +62,12 @@ pub fn run(args: &SimilarityArgs) -> Result<()> {
         (DB_DESCRIPTORS, format!("--db {}", args.db.display())),
         (QUERY_DESCRIPTORS, format!("--queries {}", args.queries.display())),
     ];
-    let s = with_view!(db.view(), |d| with_view!(queries.view(), |q| qtvpr::cosine_similarity(
-        d, q
-    )))
+    let bar = progress::bar(global.quiet, db.view().dim().0, "database rows");
+    let s = with_view!(db.view(), |d| with_view!(queries.view(), |q| {
+        qtvpr::cosine_similarity_with_progress(d, q, |done, _| bar.set_position(done as u64))
+    }))
     .map_err(|e| blame(e, &sources))?;
+    bar.finish_and_clear();
     drop((db, queries));
     let s = match sequence {
         Some(sequence) => qtvpr::sequence_match(s.view(), sequence).context("--sequence")?,
