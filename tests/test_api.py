@@ -71,7 +71,8 @@ def test_transfer_result_repr_is_short():
     r = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, k=5, segment_size=1)
     t = r.thresholds
     assert len(t) == 5
-    assert repr(r) == f"TransferResult(segments=5, queries=5, k=3, thresholds=[{t[0]:.6g}, {t[1]:.6g}, {t[2]:.6g}, ...])"
+    first = f"{t[0]:.6g}, {t[1]:.6g}, {t[2]:.6g}"
+    assert repr(r) == f"TransferResult(segments=5, queries=5, k=3, thresholds=[{first}, ...])"
     # Four segments: the "..." would hide one threshold, so all four are shown.
     r4 = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL[:, :4], k=5, segment_size=1)
     assert repr(r4).endswith(", ".join(f"{x:.6g}" for x in r4.thresholds) + "])")

@@ -33,23 +33,21 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+# The paper's functions, and extensions that meet users where their data is
+# (cosine_similarity, sequence_match, ground_truth_*: descriptors, positions, tolerance).
 from qtvpr._native import (
     Calibration,
     TransferResult,
     __version__,
     best_threshold,
+    cosine_similarity,
     counts,
     evaluate,
+    ground_truth_positions,
+    ground_truth_tolerance,
     quantile_transfer,
     ranked_correlation,
     schubert_threshold,
-)
-
-# Extensions: meet users where their data is (descriptors, positions, frame tolerance).
-from qtvpr._native import (
-    cosine_similarity,
-    ground_truth_positions,
-    ground_truth_tolerance,
     sequence_match,
 )
 
@@ -71,7 +69,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from qtvpr import reference
+    from qtvpr import reference as reference
 
 
 def __getattr__(name: str) -> Any:
