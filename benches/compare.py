@@ -17,11 +17,9 @@ import math
 import os
 import platform
 import re
-import resource
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -67,7 +65,8 @@ def run_cli(cli: Path, cal: Path, gt: Path, val: Path, *extra: str) -> tuple[flo
         "print(json.dumps({'wall': w, 'rss_kb': r, 'rc': p.returncode, 'out': p.stdout, 'err': p.stderr}))"
     )
     args = [str(cli), "threshold", "--quiet", "--cal", str(cal), "--cal-gt", str(gt), "--val", str(val), *extra]
-    res = json.loads(subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, check=True).stdout)
+    proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, check=True)
+    res = json.loads(proc.stdout)
     if res["rc"] != 0:
         raise RuntimeError(res["err"])
     return res["wall"], res["rss_kb"] * 1024, json.loads(res["out"])
@@ -85,8 +84,8 @@ def real_case(cli: Path, work: Path) -> list[str]:
     ]
     for matching in ("single", "multi"):
         kw = dict(matching=matching, segment_size=seg)
-        wheel, t_wheel = best_of(5, lambda: qtvpr.quantile_transfer(s_cal, gt_cal, s_val, **kw))
-        ref, t_ref = best_of(1, lambda: reference.quantile_transfer(s_cal, gt_cal, s_val, **kw))
+        wheel, t_wheel = best_of(5, lambda kw=kw: qtvpr.quantile_transfer(s_cal, gt_cal, s_val, **kw))
+        ref, t_ref = best_of(1, lambda kw=kw: reference.quantile_transfer(s_cal, gt_cal, s_val, **kw))
         same = np.allclose(wheel.thresholds, ref.thresholds, rtol=0, atol=1e-9)
         t_cli = min(run_cli(cli, *(work / f"nordland_{n}.npy" for n in ("cal", "gt", "val")),
                             "--matching", matching, "--segment-size", str(seg))[0] for _ in range(5))

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Every check of the project, from a fresh clone: Rust format, lints and tests, then the
-# wheel built into a virtualenv and the Python tests (wheel, reference and CLI).
+# wheel built into a virtualenv, its stubs checked, the Python code linted, and the
+# Python tests (wheel, reference and CLI).
 # Installs what it needs from crates.io and PyPI. Run from anywhere.
 #
 # One build of the workspace serves everything: `cargo test` builds the CLI binary
@@ -30,8 +31,14 @@ rm -rf "$target/test-wheels"
 "$venv/bin/maturin" build --quiet --locked --profile dev --interpreter "$venv/bin/python" --out "$target/test-wheels"
 wheel=$(ls "$target"/test-wheels/qtvpr-*.whl)
 pip=("$venv/bin/python" -m pip install --quiet --disable-pip-version-check)
-"${pip[@]}" "$wheel[test]"                        # the test dependencies
+"${pip[@]}" "$wheel[test,lint]"                   # the test and lint dependencies
 "${pip[@]}" --force-reinstall --no-deps "$wheel"   # this build, even if the version is unchanged
+
+step "stubtest and ruff"
+# The stubs against the installed compiled module (from the repository root, where
+# `qtvpr` is not importable from source), then the lint of every Python file.
+"$venv/bin/python" -m mypy.stubtest --mypy-config-file pyproject.toml qtvpr._native
+"$venv/bin/ruff" check py tests benches
 
 step "pytest"
 # Run from tests/ so that the installed wheel, not the source tree, is imported.

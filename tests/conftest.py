@@ -4,11 +4,15 @@
   importable otherwise, so that an installed package, once there is one, wins.
 - ``shared_data``: the directory of real VPR data that sits next to the repository
   (``<repo>/../shared/data``); tests that need it are skipped when it is missing.
+- ``cli``: the ``qtvpr-cli`` binary, for every test module that runs it.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -27,3 +31,16 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"shared data not found at {SHARED_DATA}")
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def cli() -> Path:
+    """The release binary (built here if need be, or taken from $QTVPR_CLI)."""
+    if "QTVPR_CLI" in os.environ:
+        return Path(os.environ["QTVPR_CLI"])
+    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "qtvpr-cli"], cwd=REPO, check=True)
+    meta = subprocess.run(
+        ["cargo", "metadata", "--format-version", "1", "--no-deps"],
+        cwd=REPO, check=True, capture_output=True, text=True,
+    )
+    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "qtvpr-cli"

@@ -4,6 +4,8 @@ result types, and inputs the binding reads in place."""
 from __future__ import annotations
 
 import inspect
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -56,10 +58,50 @@ def test_transfer_result():
         assert a.dtype == np.float64 and a.shape == (5,), name
     # k = 5 is clipped to the 3 calibration queries.
     assert r.neighbours.dtype == np.int64 and r.neighbours.shape == (5, 3)
-    assert repr(r).startswith("TransferResult(segments=3, queries=5, k=3, thresholds=array(")
+    # Three segments: every threshold shown, to 6 significant digits.
+    t = r.thresholds
+    assert repr(r) == f"TransferResult(segments=3, queries=5, k=3, thresholds=[{t[0]:.6g}, {t[1]:.6g}, {t[2]:.6g}])"
     with pytest.raises(AttributeError):
         r.thresholds = np.zeros(3)
     assert isinstance(r, qtvpr.TransferResult)
+
+
+def test_transfer_result_repr_is_short():
+    # Five segments of one query: the first three thresholds, then "...".
+    r = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, k=5, segment_size=1)
+    t = r.thresholds
+    assert len(t) == 5
+    first = f"{t[0]:.6g}, {t[1]:.6g}, {t[2]:.6g}"
+    assert repr(r) == f"TransferResult(segments=5, queries=5, k=3, thresholds=[{first}, ...])"
+    # Four segments: the "..." would hide one threshold, so all four are shown.
+    r4 = qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL[:, :4], k=5, segment_size=1)
+    assert repr(r4).endswith(", ".join(f"{x:.6g}" for x in r4.thresholds) + "])")
+    # 10000 segments still print on one short line (the old repr printed an array of them).
+    big = qtvpr.quantile_transfer(S_CAL, GT_CAL, np.tile(S_VAL, (1, 2000)), k=5, segment_size=1)
+    assert repr(big) == repr(r).replace("segments=5, queries=5", "segments=10000, queries=10000")
+    assert len(repr(big)) < 120
+
+
+def test_reference_is_imported_on_first_use():
+    # In a fresh interpreter: a bare `import qtvpr` does not load the reference (it
+    # imports NumPy, ten times the cost of `import qtvpr`), and attribute access does.
+    code = """
+import sys, qtvpr
+assert "qtvpr.reference" not in sys.modules
+assert "reference" in dir(qtvpr) and "reference" not in qtvpr.__all__
+f = qtvpr.reference.evaluate
+assert "qtvpr.reference" in sys.modules and qtvpr.reference is sys.modules["qtvpr.reference"]
+try:
+    qtvpr.no_such_name
+except AttributeError as e:
+    assert str(e) == "module 'qtvpr' has no attribute 'no_such_name'", e
+else:
+    raise AssertionError("no AttributeError")
+print(f.__module__)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout == "qtvpr.reference\n"
 
 
 def test_calibration_object():

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import subprocess
 from pathlib import Path
 
@@ -21,19 +20,6 @@ TECHNIQUES = [
     "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
 ]
 DATASETS = ["vprbench-corridor", "vprbench-spedtest"]
-
-
-@pytest.fixture(scope="session")
-def cli() -> Path:
-    """The release binary (built here if need be, or taken from $QTVPR_CLI)."""
-    if "QTVPR_CLI" in os.environ:
-        return Path(os.environ["QTVPR_CLI"])
-    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "qtvpr-cli"], cwd=REPO, check=True)
-    meta = subprocess.run(
-        ["cargo", "metadata", "--format-version", "1", "--no-deps"],
-        cwd=REPO, check=True, capture_output=True, text=True,
-    )
-    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "qtvpr-cli"
 
 
 def run_cli(cli: Path, *args: str) -> subprocess.CompletedProcess:

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 import qtvpr
 from qtvpr import reference as ref
-from test_cli import cli, run_cli  # noqa: F401  (the session fixture that finds the binary)
+from test_cli import run_cli
 
 TECHNIQUES = [
     "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
@@ -82,7 +82,7 @@ def assert_same_run(got: dict, want: dict) -> None:
                     "pooled_precision_lower95"):
             assert same_figure(g[key], w[key]), (name, key, g[key], w[key])
         assert len(g["segments"]) == len(w["segments"]), name
-        for gs, ws in zip(g["segments"], w["segments"]):
+        for gs, ws in zip(g["segments"], w["segments"], strict=True):
             assert list(gs) == SEGMENT_KEYS, name
             for key in ("start", "end", "tp", "fp", "positives", "meets"):
                 assert gs[key] == ws[key], (name, key, gs, ws)

@@ -312,7 +312,8 @@ def test_database_mismatch_between_files(tmp_path, files):
     short = save(tmp_path / "short.npy", S_VAL[:3])
     with pytest.raises(ValueError) as info:
         qtvpr.quantile_transfer(files["s_cal"], files["gt_cal"], short)
-    check(info, ValueError, "s_val", None, "deployment similarity has 3 database images but calibration similarity has 4")
+    check(info, ValueError, "s_val", None,
+          "deployment similarity has 3 database images but calibration similarity has 4")
     with pytest.raises(ValueError, match="^s_val: "):
         qtvpr.ranked_correlation(short, files["s_cal"])
 

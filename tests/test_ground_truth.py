@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import qtvpr
-from test_cli import REPO, cli, run_cli  # noqa: F401  (the `cli` fixture)
+from test_cli import REPO, run_cli
 
 SETTINGS = settings(max_examples=300, deadline=None, derandomize=True)
 

@@ -8,6 +8,8 @@ dtypes, arguments) are covered too.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -83,7 +85,7 @@ def test_raising_tau_never_raises_recall(p):
     for tau in sorted(TAUS + [0.01, 0.3, 0.999]):
         t = qtvpr.best_threshold(p["s_cal"], p["gt"], gt_soft=p["soft"], precision=tau, matching=p["matching"])
         recalls.append(qtvpr.counts(p["s_cal"], p["gt"], t, gt_soft=p["soft"], matching=p["matching"])["recall"])
-    assert all(b <= a for a, b in zip(recalls, recalls[1:])), recalls
+    assert all(b <= a for a, b in itertools.pairwise(recalls)), recalls
 
 
 @SETTINGS

@@ -541,12 +541,17 @@ G2 = np.eye(2, dtype=bool)
 @pytest.mark.parametrize(
     ("call", "exc", "match"),
     [
-        (lambda: best_threshold(np.array([[0.1, np.nan], [0.2, 0.3]]), G2), ValueError, "s contains NaN at row 0, column 1"),
-        (lambda: best_threshold(np.array([[0.1, 0.2], [np.inf, 0.3]]), G2), ValueError, "s contains an infinite value at row 1, column 0"),
-        (lambda: quantile_transfer(np.array([[0.1, 0.2], [-np.inf, 0.3]]), G2, S2), ValueError, "s_cal contains an infinite"),
-        (lambda: quantile_transfer(S2, G2, np.array([[0.1], [np.nan]])), ValueError, "s_val contains NaN at row 1, column 0"),
+        (lambda: best_threshold(np.array([[0.1, np.nan], [0.2, 0.3]]), G2),
+         ValueError, "s contains NaN at row 0, column 1"),
+        (lambda: best_threshold(np.array([[0.1, 0.2], [np.inf, 0.3]]), G2),
+         ValueError, "s contains an infinite value at row 1, column 0"),
+        (lambda: quantile_transfer(np.array([[0.1, 0.2], [-np.inf, 0.3]]), G2, S2),
+         ValueError, "s_cal contains an infinite"),
+        (lambda: quantile_transfer(S2, G2, np.array([[0.1], [np.nan]])),
+         ValueError, "s_val contains NaN at row 1, column 0"),
         (lambda: best_threshold(S2, np.eye(2, 3, dtype=bool)), ValueError, "gt shape 2x3 does not match s shape 2x2"),
-        (lambda: quantile_transfer(S2, np.eye(3, 2, dtype=bool), S2), ValueError, "gt_cal shape 3x2 does not match s_cal shape 2x2"),
+        (lambda: quantile_transfer(S2, np.eye(3, 2, dtype=bool), S2),
+         ValueError, "gt_cal shape 3x2 does not match s_cal shape 2x2"),
         (lambda: best_threshold(S2, G2, gt_soft=np.ones((2, 1), bool)), ValueError, "gt_soft shape 2x1"),
         (lambda: quantile_transfer(S2, G2, np.ones((3, 2))), ValueError, "s_val has |DB| = 3 but s_cal has |DB| = 2"),
         (lambda: quantile_transfer(S2, G2, np.ones((2, 3)), query_major=True), ValueError, "s_val has |DB| = 3"),
@@ -575,7 +580,8 @@ G2 = np.eye(2, dtype=bool)
         (lambda: best_threshold(S2, G2, matching="both"), ValueError, "matching must be"),
         (lambda: counts(S2, G2, float("nan")), ValueError, "threshold"),
         (lambda: quantile_transfer(S2, G2, S2, segment_size=0), ValueError, "segment_size must be >= 1"),
-        (lambda: quantile_transfer(S2, G2, S2, segment_size=3), ValueError, "segment_size must be <= the number of deployment queries"),
+        (lambda: quantile_transfer(S2, G2, S2, segment_size=3),
+         ValueError, "segment_size must be <= the number of deployment queries"),
         (lambda: schubert_threshold(np.array([[np.nan]])), ValueError, "s contains NaN"),
         (lambda: schubert_threshold(np.ones((2, 2), np.int32)), TypeError, "s must be float32"),
         (lambda: schubert_threshold(np.ones(4)), ValueError, "2-D"),
@@ -585,10 +591,13 @@ G2 = np.eye(2, dtype=bool)
         # floor(0.1 * 7) = 0 calibration queries
         (lambda: evaluate(TINY_S, TINY_GT), ValueError, "calibration set"),
         (lambda: evaluate(TINY_S, TINY_GT, cal_fraction=1.5), ValueError, "cal_fraction must be in"),
-        (lambda: evaluate(TINY_S, TINY_GT, cal_queries=2, segment_size=6), ValueError, "segment size 6 is larger than the 5 deployment"),
+        (lambda: evaluate(TINY_S, TINY_GT, cal_queries=2, segment_size=6),
+         ValueError, "segment size 6 is larger than the 5 deployment"),
         (lambda: evaluate(TINY_S, TINY_GT, cal_queries=2, segment_size=0), ValueError, "segment_size must be >= 1"),
-        (lambda: evaluate(TINY_S, TINY_GT, cal_queries=2, segment_fraction=0.0), ValueError, "segment_fraction must be in"),
-        (lambda: evaluate(TINY_S, TINY_GT[:, :6], cal_queries=2), ValueError, "gt shape 3x6 does not match s shape 3x7"),
+        (lambda: evaluate(TINY_S, TINY_GT, cal_queries=2, segment_fraction=0.0),
+         ValueError, "segment_fraction must be in"),
+        (lambda: evaluate(TINY_S, TINY_GT[:, :6], cal_queries=2),
+         ValueError, "gt shape 3x6 does not match s shape 3x7"),
     ],
 )
 def test_bad_input(call, exc, match):
@@ -628,7 +637,7 @@ def test_corridor_quantile_transfer_smoke(corridor, name):
     assert res.neighbours.shape == (100, 10)
     assert all(len(set(row)) == 10 and row.min() >= 0 and row.max() < 11 for row in res.neighbours)
     # every batch quantile is one of its segment's q_j
-    for (a, b), q in zip(res.segments, res.quantiles):
+    for (a, b), q in zip(res.segments, res.quantiles, strict=True):
         assert q in res.query_quantiles[a:b]
     # section 5's round trip: feeding q_j back on its subset's sample returns t_j, except
     # when t_j is reject-all or the subset's maximum (both give q_j = 1)
@@ -654,7 +663,7 @@ def test_corridor_evaluate_smoke(corridor):
         assert 0.0 <= m["pct_segs"] <= 100.0
         assert 0.0 <= m["avg_recall"] <= oracle["avg_recall"]
         assert m["threshold_mse"] is None or m["threshold_mse"] >= 0
-        for r, o in zip(m["segments"], oracle["segments"]):
+        for r, o in zip(m["segments"], oracle["segments"], strict=True):
             assert r["oracle_threshold"] == o["threshold"]
             if r["meets"] and r["positives"] > 0:
                 assert r["recall"] <= o["recall"]

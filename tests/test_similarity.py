@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import qtvpr
-from test_cli import cli, run_cli  # noqa: F401  (the `cli` fixture)
+from test_cli import run_cli
 
 SETTINGS = settings(max_examples=200, deadline=None, derandomize=True)
 

@@ -1,12 +1,31 @@
-"""Type stubs of the compiled module; the docstrings are on the compiled objects."""
+"""Type stubs of the compiled module; the docstrings are on the compiled objects.
 
-from typing import Literal, TypedDict, TypeVar, final
-from collections.abc import Iterable, Sequence
+Checked against the compiled module by ``python -m mypy.stubtest qtvpr._native``
+(scripts/test.sh): every name, parameter and default here is the runtime's.
+"""
+
 import os
-from typing import Literal, TypedDict, final
+from collections.abc import Iterable, Sequence
+from typing import Literal, TypedDict, TypeVar, final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "__version__",
+    "quantile_transfer",
+    "best_threshold",
+    "counts",
+    "ranked_correlation",
+    "cosine_similarity",
+    "sequence_match",
+    "ground_truth_tolerance",
+    "ground_truth_positions",
+    "evaluate",
+    "schubert_threshold",
+    "Calibration",
+    "TransferResult",
+]
 
 __version__: str
 
@@ -16,6 +35,7 @@ _Method = Literal[
 ]
 # A matrix argument: an array, or the path of a .npy file (ground truth: .npy or a
 # VPR_Tutorial .npz with GThard and optional GTsoft), read by the same reader as the CLI.
+# Every matrix argument of the module accepts a path.
 _Matrix = ArrayLike | str | os.PathLike[str]
 
 class _Counts(TypedDict):
@@ -101,15 +121,15 @@ class TransferResult:
 
 @final
 class Calibration:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         s_cal: _Matrix,
         gt_cal: _Matrix,
         *,
         gt_soft: _Matrix | None = None,
         matching: _Matching = "single",
         query_major: bool = False,
-    ) -> None: ...
+    ) -> Calibration: ...
     def transfer(
         self,
         s_val: _Matrix,
@@ -165,25 +185,32 @@ def ranked_correlation(
 _F = TypeVar("_F", np.float32, np.float64)
 
 def cosine_similarity(
-    db: ArrayLike,
-    queries: ArrayLike,
+    db: _Matrix,
+    queries: _Matrix,
     *,
     sequence: int | None = None,
     causal: bool = False,
 ) -> NDArray[np.float32]: ...
+
+# The result has the dtype of `s`: known for an array, not for a path.
+@overload
 def sequence_match(s: NDArray[_F], length: int, *, causal: bool = False) -> NDArray[_F]: ...
+@overload
+def sequence_match(
+    s: _Matrix, length: int, *, causal: bool = False
+) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def ground_truth_tolerance(n_db: int, n_queries: int, tolerance: int) -> NDArray[np.bool_]: ...
 def ground_truth_positions(
-    db_positions: ArrayLike,
-    query_positions: ArrayLike,
+    db_positions: _Matrix,
+    query_positions: _Matrix,
     radius: float,
 ) -> NDArray[np.bool_]: ...
-def schubert_threshold(s: ArrayLike) -> float: ...
+def schubert_threshold(s: _Matrix) -> float: ...
 def evaluate(
-    s: ArrayLike,
-    gt: ArrayLike,
+    s: _Matrix,
+    gt: _Matrix,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     methods: Iterable[_Method] | None = None,
     k: int = 10,
     precision: float = 1.0,

@@ -402,7 +402,7 @@ def _lower_weighted_median(q: np.ndarray, w: np.ndarray) -> float:
         acc += float(weight)
         cumulative.append(acc)
     half = 0.5 * cumulative[-1] - EPS
-    for qi, ci in zip(q_sorted, cumulative):
+    for qi, ci in zip(q_sorted, cumulative, strict=True):
         if ci >= half:
             return float(qi)
     raise AssertionError("unreachable")
@@ -687,7 +687,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
     report = {}
     for name in methods:
         rows = []
-        for (a, b), cand, t, t_oracle in zip(segments, candidates, thresholds[name], oracle):
+        for (a, b), cand, t, t_oracle in zip(segments, candidates, thresholds[name], oracle, strict=True):
             c = _count_at(*cand, t)
             rows.append(
                 {

@@ -173,7 +173,7 @@ fn methods_of(names: &[String]) -> Result<Vec<Method>> {
 }
 
 /// Run `evaluate`.
-pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
+pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
     let methods = methods_of(&args.method).context("--method")?;
     let calibrations: Vec<Split> = if !args.cal_queries.is_empty() {
         args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
@@ -236,24 +236,31 @@ pub fn run(args: &EvaluateArgs, _global: &crate::Global) -> Result<()> {
     };
 
     let base = protocol(args.k[0], calibrations[0]);
+    let bar = crate::progress::bar(global.quiet, methods.len(), "method evaluations");
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
     let runs: Vec<Run> = if ablation {
-        let a = with_scores!(scores, |v| qtvpr::ablation(
+        let a = with_scores!(scores, |v| qtvpr::evaluate::ablation_with_progress(
             v,
             &gt,
             &base,
             &args.k,
             &calibrations,
-            &methods
+            &methods,
+            progress
         ))
         .map_err(|e| e.oriented(query_major))
         .with_context(input)?;
         a.runs.into_iter().map(Run::from).collect()
     } else {
-        let eval = with_scores!(scores, |v| qtvpr::evaluate(v, &gt, &base, &methods))
+        let eval = with_scores!(scores, |v| qtvpr::evaluate_with_progress(v, &gt, &base, &methods, progress))
             .map_err(|e| e.oriented(query_major))
             .with_context(input)?;
         vec![Run::from(eval)]
     };
+    bar.finish_and_clear();
     let ctx = RunContext {
         dataset,
         database_size: gt.dim().0,

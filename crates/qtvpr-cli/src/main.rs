@@ -34,8 +34,13 @@ struct Cli {
     command: Command,
 }
 
-/// Options of every command.
+/// The help heading of [`Global`]'s options.
+const GLOBAL_HEADING: &str = "Global options";
+
+/// Options of every command, listed under their own heading at the end of each
+/// command's help (after the command's own options, which are what a reader looks for).
 #[derive(Debug, clap::Args)]
+#[command(next_help_heading = GLOBAL_HEADING)]
 pub struct Global {
     /// Worker threads (default: RAYON_NUM_THREADS if set, else all cores).
     #[arg(long, global = true, value_name = "N")]
@@ -69,7 +74,7 @@ fn main() -> ExitCode {
     let result = configure_threads(cli.global.threads).and_then(|()| match &cli.command {
         Command::Threshold(args) => threshold::run(args, &cli.global),
         Command::Evaluate(args) => evaluate::run(args, &cli.global),
-        Command::Similarity(args) => similarity::run(args),
+        Command::Similarity(args) => similarity::run(args, &cli.global),
         Command::GroundTruth(args) => ground_truth::run(args),
     });
     match result {

@@ -12,6 +12,7 @@ use qtvpr::{Sequence, with_scores};
 
 use crate::inputs::blame;
 use crate::matrix_io::write_npy;
+use crate::{Global, progress};
 
 /// Arguments of `similarity`.
 #[derive(Debug, Args)]
@@ -39,7 +40,7 @@ pub struct SimilarityArgs {
 }
 
 /// Run `similarity`.
-pub fn run(args: &SimilarityArgs) -> Result<()> {
+pub fn run(args: &SimilarityArgs, global: &Global) -> Result<()> {
     // Check the cheap parameter before reading anything.
     let sequence = args
         .sequence
@@ -62,10 +63,12 @@ pub fn run(args: &SimilarityArgs) -> Result<()> {
         (DB_DESCRIPTORS, format!("--db {}", args.db.display())),
         (QUERY_DESCRIPTORS, format!("--queries {}", args.queries.display())),
     ];
+    let bar = progress::bar(global.quiet, db.view().dim().0, "database rows");
     let s = with_scores!(db.view(), |d| with_scores!(queries.view(), |q| {
-        qtvpr::cosine_similarity(d, q)
+        qtvpr::cosine_similarity_with_progress(d, q, |done, _| bar.set_position(done as u64))
     }))
     .map_err(|e| blame(e, &sources))?;
+    bar.finish_and_clear();
     drop((db, queries));
     let s = match sequence {
         Some(sequence) => qtvpr::sequence_match(s.view(), sequence).context("--sequence")?,

@@ -389,6 +389,37 @@ fn plots_are_written() {
 }
 
 #[test]
+fn plots_name_the_file_and_explain_the_markers() {
+    // The x axis names the similarity file, not the temporary directory it is in.
+    let case = Case::new();
+    let dir = case.path("figs");
+    case.ok(&["--plot", dir.to_str().unwrap()]);
+    let svg = std::fs::read_to_string(dir.join("thresholds.svg")).unwrap();
+    assert!(svg.contains("of 7: S.npy)"), "no file name in the x label");
+    assert!(
+        !svg.contains(case.dir.path().to_str().unwrap()),
+        "the x label carries the whole path"
+    );
+
+    // The embedded data has segments where the oracle rejects all (and none where a
+    // method does): the legend says what the cross means, the axis names the band.
+    let out = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .args(["evaluate", "--plot", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.join("thresholds.svg")).unwrap();
+    assert!(svg.contains("oracle reject-all: no threshold reaches precision 1 in the segment"));
+    // (plotters writes each text on a line of its own.)
+    let texts: Vec<&str> = svg.lines().filter(|l| !l.starts_with('<')).collect();
+    assert!(texts.contains(&"reject-all"), "no reject-all tick label");
+    assert!(
+        !svg.contains("of the method in that colour"),
+        "a legend entry for no marker"
+    );
+}
+
+#[test]
 fn bad_input() {
     let case = Case::new();
     case.fails(&["--method", "oracle,magic"], &["--method", "unknown method 'magic'"]);

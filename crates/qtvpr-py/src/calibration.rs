@@ -1,6 +1,6 @@
 //! `Calibration` and `TransferResult`: calibrate once, transfer many times.
 
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use qtvpr::{Matching, Params};
 
@@ -198,13 +198,31 @@ impl TransferResult {
 
 #[pymethods]
 impl TransferResult {
+    /// ``TransferResult(segments=89, queries=3204, k=10, thresholds=[0.881, 0.878, 0.879, ...])``:
+    /// the counts and the first thresholds, each to 6 significant digits, so that a
+    /// result of thousands of segments prints on one line.
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let thresholds = self.thresholds.bind(py).repr()?;
+        const SHOWN: usize = 3;
+        let thresholds = self.thresholds.bind(py).readonly();
+        let thresholds = thresholds.as_array();
+        let n = thresholds.len();
+        // All of them when the "..." would stand for just one.
+        let shown = if n <= SHOWN + 1 { n } else { SHOWN };
+        let spec = pyo3::intern!(py, "{:.6g}");
+        let mut parts = thresholds
+            .iter()
+            .take(shown)
+            .map(|&t| spec.call_method1("format", (t,))?.extract::<String>())
+            .collect::<PyResult<Vec<String>>>()?;
+        if shown < n {
+            parts.push("...".to_string());
+        }
         let neighbours = self.neighbours.bind(py);
         let (queries, k) = (neighbours.shape()[0], neighbours.shape()[1]);
         Ok(format!(
-            "TransferResult(segments={}, queries={queries}, k={k}, thresholds={thresholds})",
-            self.segments.len()
+            "TransferResult(segments={}, queries={queries}, k={k}, thresholds=[{}])",
+            self.segments.len(),
+            parts.join(", ")
         ))
     }
 }

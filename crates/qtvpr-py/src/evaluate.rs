@@ -281,7 +281,7 @@ pub(crate) fn ablation<'py>(
     let gt = build_ground_truth(py, &gt, query_major)?;
     let s = s.view(query_major);
     let out = py
-        .detach(|| with_scores!(s, s => qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods)))
+        .detach(|| with_scores!(s, |s| qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods)))
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),

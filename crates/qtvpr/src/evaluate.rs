@@ -424,6 +424,22 @@ pub fn evaluate<T: Score>(
     protocol: &Protocol,
     methods: &[Method],
 ) -> Result<Evaluation> {
+    evaluate_with_progress(s, gt, protocol, methods, |_, _| ())
+}
+
+/// [`evaluate`], calling `progress(done, total)` after each method: `done` of the
+/// `total` distinct methods are evaluated (for a progress bar; called from the calling
+/// thread, not at all when the input is rejected).
+///
+/// # Errors
+/// As [`evaluate`].
+pub fn evaluate_with_progress<T: Score>(
+    s: ArrayView2<'_, T>,
+    gt: &GroundTruth,
+    protocol: &Protocol,
+    methods: &[Method],
+    progress: impl Fn(usize, usize),
+) -> Result<Evaluation> {
     protocol.validate()?;
     validate_scores(SIMILARITY, s)?;
     check_gt_shape(gt, SIMILARITY, s.dim())?;
@@ -465,7 +481,7 @@ pub fn evaluate<T: Score>(
         .transpose()?;
 
     let mut results = Vec::with_capacity(unique.len());
-    for method in unique {
+    for &method in &unique {
         let thresholds: Vec<f64> = match method {
             Method::QuantileTransfer => {
                 let params = Params {
@@ -492,6 +508,7 @@ pub fn evaluate<T: Score>(
             Method::Oracle => oracle.clone(),
         };
         results.push(score(method, &deployment, &ranges, &thresholds, &oracle, tau));
+        progress(results.len(), unique.len());
     }
     Ok(Evaluation {
         layout,
@@ -535,6 +552,24 @@ pub fn ablation<T: Score>(
     calibration: &[Split],
     methods: &[Method],
 ) -> Result<Ablation> {
+    ablation_with_progress(s, gt, base, ks, calibration, methods, |_, _| ())
+}
+
+/// [`ablation`], calling `progress(done, total)` after each method of each run: `done`
+/// of the `total` method evaluations of the whole ablation are finished (for a progress
+/// bar; called from the calling thread).
+///
+/// # Errors
+/// As [`ablation`].
+pub fn ablation_with_progress<T: Score>(
+    s: ArrayView2<'_, T>,
+    gt: &GroundTruth,
+    base: &Protocol,
+    ks: &[usize],
+    calibration: &[Split],
+    methods: &[Method],
+    progress: impl Fn(usize, usize),
+) -> Result<Ablation> {
     let ks = if ks.is_empty() {
         std::slice::from_ref(&base.k)
     } else {
@@ -560,9 +595,11 @@ pub fn ablation<T: Score>(
     for p in &protocols {
         p.layout(s.nrows(), s.ncols())?;
     }
+    let n = protocols.len();
     let runs = protocols
         .iter()
-        .map(|p| evaluate(s, gt, p, methods))
+        .enumerate()
+        .map(|(i, p)| evaluate_with_progress(s, gt, p, methods, |done, total| progress(i * total + done, n * total)))
         .collect::<Result<_>>()?;
     Ok(Ablation { runs })
 }
@@ -674,6 +711,29 @@ mod tests {
     fn run(methods: &[Method]) -> Evaluation {
         let (s, gt) = tiny();
         evaluate(s.view(), &gt, &protocol(), methods).unwrap()
+    }
+
+    #[test]
+    fn progress_after_each_distinct_method() {
+        // Schubert, the oracle and Schubert again: two distinct methods, so 1 then 2 of 2;
+        // the results are those of `evaluate`.
+        let (s, gt) = tiny();
+        let methods = [Method::Schubert, Method::Oracle, Method::Schubert];
+        let calls = std::cell::RefCell::new(vec![]);
+        let e = evaluate_with_progress(s.view(), &gt, &protocol(), &methods, |d, t| {
+            calls.borrow_mut().push((d, t))
+        })
+        .unwrap();
+        assert_eq!(calls.into_inner(), [(1, 2), (2, 2)]);
+        assert_eq!(e.methods, run(&methods).methods);
+        // Rejected input (tau = 0): no call.
+        let bad = Protocol {
+            precision: 0.0,
+            ..protocol()
+        };
+        let calls = std::cell::Cell::new(0);
+        assert!(evaluate_with_progress(s.view(), &gt, &bad, &methods, |_, _| calls.set(calls.get() + 1)).is_err());
+        assert_eq!(calls.get(), 0);
     }
 
     #[test]

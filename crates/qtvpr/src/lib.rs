@@ -77,11 +77,11 @@ pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
-pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate};
+pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
 pub use input::{GroundTruth, Label, Score, ScoresView, Truth};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
-pub use similarity::cosine_similarity;
+pub use similarity::{cosine_similarity, cosine_similarity_with_progress};
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
 
 /// Call generic code on the typed view inside a [`ScoresView`]: `$body` is compiled

@@ -51,14 +51,29 @@ const BLOCK_ELEMENTS: usize = 1 << 22;
 ///
 /// Errors in `db` are reported before errors in `queries`.
 pub fn cosine_similarity<T: Score, U: Score>(db: ArrayView2<'_, T>, queries: ArrayView2<'_, U>) -> Result<Array2<f32>> {
-    cosine_in_blocks(db, queries, BLOCK_ELEMENTS)
+    cosine_in_blocks(db, queries, BLOCK_ELEMENTS, |_, _| ())
 }
 
-/// [`cosine_similarity`] with a scratch of `block_elements` (at least one row).
+/// [`cosine_similarity`], calling `progress(done, total)` after each block of database
+/// rows: `done` of the `total` = |DB| rows of the result are finished (for a progress
+/// bar; called from the calling thread, not at all when the input is rejected).
+///
+/// # Errors
+/// As [`cosine_similarity`].
+pub fn cosine_similarity_with_progress<T: Score, U: Score>(
+    db: ArrayView2<'_, T>,
+    queries: ArrayView2<'_, U>,
+    progress: impl Fn(usize, usize),
+) -> Result<Array2<f32>> {
+    cosine_in_blocks(db, queries, BLOCK_ELEMENTS, progress)
+}
+
+/// [`cosine_similarity_with_progress`] with a scratch of `block_elements` (at least one row).
 fn cosine_in_blocks<T: Score, U: Score>(
     db: ArrayView2<'_, T>,
     queries: ArrayView2<'_, U>,
     block_elements: usize,
+    progress: impl Fn(usize, usize),
 ) -> Result<Array2<f32>> {
     check_nonempty(DB_DESCRIPTORS, db.dim())?;
     check_nonempty(QUERY_DESCRIPTORS, queries.dim())?;
@@ -91,6 +106,7 @@ fn cosine_in_blocks<T: Score, U: Score>(
             .par_chunks_mut(n_q)
             .zip(scratch.par_chunks(n_q))
             .for_each(|(o, s)| o.iter_mut().zip(s).for_each(|(o, &s)| *o = s as f32));
+        progress(first + rows, n_db);
     }
     Ok(Array2::from_shape_vec((n_db, n_q), out).expect("shape matches length"))
 }
@@ -193,8 +209,35 @@ mod tests {
             [1.0, -1.0, 1.0]
         ];
         for block in [1, 3, 6, 9, 100] {
-            assert_eq!(cosine_in_blocks(db.view(), q.view(), block).unwrap(), want, "{block}");
+            assert_eq!(
+                cosine_in_blocks(db.view(), q.view(), block, |_, _| ()).unwrap(),
+                want,
+                "{block}"
+            );
         }
+    }
+
+    #[test]
+    fn progress_after_each_block_of_rows() {
+        // 5 database rows, 3 queries: a scratch of 6 elements holds 6 / 3 = 2 rows, so
+        // blocks of rows 0..2, 2..4, 4..5, reported as 2, 4 and 5 of 5 done.
+        let db = array![[2.0f32], [-0.5], [7.0], [-1.0], [3.0]];
+        let q = array![[1.0f64], [-3.0], [0.25]];
+        let calls = std::cell::RefCell::new(vec![]);
+        let s = cosine_in_blocks(db.view(), q.view(), 6, |done, total| {
+            calls.borrow_mut().push((done, total))
+        });
+        assert_eq!(s.unwrap(), cosine_similarity(db.view(), q.view()).unwrap());
+        assert_eq!(calls.into_inner(), [(2, 5), (4, 5), (5, 5)]);
+        // The public one: one block of all 5 rows (the scratch holds 2^22 elements).
+        let calls = std::cell::RefCell::new(vec![]);
+        cosine_similarity_with_progress(db.view(), q.view(), |d, t| calls.borrow_mut().push((d, t))).unwrap();
+        assert_eq!(calls.into_inner(), [(5, 5)]);
+        // Rejected input: no call.
+        let calls = std::cell::Cell::new(0);
+        let zero = array![[0.0f32]];
+        assert!(cosine_similarity_with_progress(zero.view(), q.view(), |_, _| calls.set(calls.get() + 1)).is_err());
+        assert_eq!(calls.get(), 0);
     }
 
     #[test]
