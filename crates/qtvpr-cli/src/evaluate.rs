@@ -14,7 +14,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::evaluate::{Ablation, Evaluation, MethodResult};
 use qtvpr::report::Report;
-use qtvpr::{GroundTruth, Matching, Method, Protocol, ScoresView, Split, with_scores};
+use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
 
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
@@ -255,9 +255,11 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         .with_context(input)?;
         a.runs.into_iter().map(Run::from).collect()
     } else {
-        let eval = with_scores!(scores, |v| qtvpr::evaluate_with_progress(v, &gt, &base, &methods, progress))
-            .map_err(|e| e.oriented(query_major))
-            .with_context(input)?;
+        let eval = with_scores!(scores, |v| qtvpr::evaluate_with_progress(
+            v, &gt, &base, &methods, progress
+        ))
+        .map_err(|e| e.oriented(query_major))
+        .with_context(input)?;
         vec![Run::from(eval)]
     };
     bar.finish_and_clear();
