@@ -121,6 +121,9 @@ macro_rules! gt_source_args {
             /// The source the options name, if any.
             pub fn source(&self) -> Option<$crate::gt_source::GtSource<'_>> {
                 use $crate::gt_source::{GtSource, Kind};
+                if self.gt.is_none() && self.gt_tolerance.is_none() && self.gt_db_positions.is_none() {
+                    return None;
+                }
                 let kind = if let Some(hard) = &self.gt {
                     Kind::File {
                         hard,
@@ -147,7 +150,7 @@ macro_rules! gt_source_args {
 }
 
 gt_source_args!(
-    /// The calibration ground truth of `threshold` (`--cal-gt...`).
+    /// The calibration ground truth of `calibrate` (`--cal-gt...`).
     CalGtSource,
     "cal-gt",
     "--cal",
@@ -161,6 +164,15 @@ gt_source_args!(
     "--similarity",
     required = false,
     requires = "similarity"
+);
+
+gt_source_args!(
+    /// The calibration ground truth of `threshold` (`--cal-gt...`): not needed when
+    /// `--cal` is a calibration file, which holds its own.
+    OptionalCalGtSource,
+    "cal-gt",
+    "--cal",
+    required = false
 );
 
 /// One ground-truth source, as given on the command line.

@@ -49,6 +49,7 @@ const TARGET_DASH: (u32, u32) = (6, 5);
 fn colour(m: Method) -> RGBColor {
     match m {
         Method::QuantileTransfer => RGBColor(31, 119, 180),
+        Method::QuantileTransferOnline => RGBColor(23, 190, 207),
         Method::Schubert => RGBColor(255, 127, 14),
         Method::SchubertCalibrated => RGBColor(148, 103, 189),
         Method::CalibrationThreshold => RGBColor(140, 86, 75),
@@ -86,6 +87,7 @@ fn shape(m: Method) -> Shape {
         Method::SchubertCalibrated => Shape::Square,
         Method::CalibrationThreshold => Shape::Diamond,
         Method::Oracle => Shape::Cross,
+        Method::QuantileTransferOnline => Shape::InvertedTriangle,
     }
 }
 

@@ -22,10 +22,12 @@
 //! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
 //! | 8 evaluation protocol (%Segs, AvgR@tauP), ablations | [`evaluate`](mod@evaluate) |
 //! | 9 machine-readable output (feature `serde`) | [`report`] |
+//! | 11 online thresholds over a causal window | [`online`] |
+//! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
-//! | file input (feature `npy`) | `npy` |
+//! | file input and output (feature `npy`) | `npy` |
 //! | the names of the matrices errors are about | [`names`] |
 //!
 //! The extensions are beyond the paper and are not SPEC sections: they make the
@@ -56,6 +58,7 @@
 
 pub mod baselines;
 pub mod best_threshold;
+pub mod calibration_file;
 pub mod decisions;
 pub mod deployment;
 mod error;
@@ -66,6 +69,7 @@ mod kd_tree;
 pub mod names;
 #[cfg(feature = "npy")]
 pub mod npy;
+pub mod online;
 pub mod ranked_correlation;
 pub mod report;
 pub mod sequence;
@@ -75,10 +79,12 @@ pub mod transfer;
 
 pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
+pub use calibration_file::Defaults;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
-pub use input::{GroundTruth, Label, Score, ScoresView, Truth};
+pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
+pub use online::{Decision, Online, OnlineParams, Outcome};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::{cosine_similarity, cosine_similarity_with_progress};
