@@ -288,8 +288,10 @@ def test_reference_online_bad_input():
         ref.Online(cal)
     with pytest.raises(ValueError, match="window must be >= 1"):
         ref.Online(cal, window=0)
-    with pytest.raises(ValueError, match=r"min_window must be <= window \(2\), got 3"):
+    with pytest.raises(ValueError, match=r"min_window must be between 1 and the window \(2\), got 3"):
         ref.Online(cal, window=2, min_window=3)
+    with pytest.raises(ValueError, match=r"min_window must be between 1 and the window \(2\), got 0"):
+        ref.Online(cal, window=2, min_window=0)
     with pytest.raises(ValueError, match="k must be >= 1"):
         ref.Online(cal, k=0, window=2)
     with pytest.raises(ValueError, match="precision must be in"):

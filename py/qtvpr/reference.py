@@ -842,10 +842,10 @@ class Online:
             if window is None:
                 raise ValueError("window is not given and the calibration sets none")
         self.window = _check_positive_int("window", window)
-        self.min_window = _check_positive_int("min_window", min_window)
-        if self.min_window > self.window:
+        self.min_window = operator.index(min_window)
+        if not (1 <= self.min_window <= self.window):
             raise ValueError(
-                f"min_window must be <= window ({self.window}), got {self.min_window}"
+                f"min_window must be between 1 and the window ({self.window}), got {self.min_window}"
             )
         self._columns: list[np.ndarray] = []  # the window's raw columns (float64)
         self._q: list[float] = []
