@@ -20,8 +20,8 @@ S_VAL = np.array(
 
 def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
-        ["Calibration", "TransferResult", "__version__", "best_threshold", "counts", "evaluate",
-         "quantile_transfer", "ranked_correlation", "schubert_threshold"]
+        ["Calibration", "Online", "OnlineDecision", "OnlineDecisions", "TransferResult", "__version__",
+         "best_threshold", "counts", "evaluate", "quantile_transfer", "ranked_correlation", "schubert_threshold"]
         + ["cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "sequence_match"]  # extensions
     )
     for name in qtvpr.__all__:

@@ -4,12 +4,23 @@ First the NumPy reference alone: hand-computed windows, warm-up and the online m
 of the evaluation protocol, each value worked out in the comment beside it; then the
 reference's own definition (theta_j is the batch transfer of the window's columns) on
 random and real data; then its calibration file.
+
+Then the wheel: ``qtvpr.Online`` held to the reference to 1e-9 on the 20 real VPR-Bench
+matrices and on hypothesis cases (windows of 1 and longer than the traverse, warm-up,
+ties, constant columns, soft ground truth, both matching modes, tau < 1, float32,
+memory layouts, query-major input, pushes one at a time and in blocks); its calibration
+file (bit-identical round trip, read by ``np.load`` and by the reference, every bad
+file refused with the file's name) and pickling; and the online method of
+``qtvpr.evaluate``.
 """
 
 from __future__ import annotations
 
+import functools
+import inspect
 import json
 import math
+import pickle
 import zipfile
 from pathlib import Path
 
@@ -18,6 +29,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import qtvpr
 from qtvpr import reference as ref
 
 T, F = True, False
@@ -365,7 +377,7 @@ def write_npz(path: Path, meta_json=None, **arrays) -> Path:
 
 
 META = {"format": "qtvpr-calibration", "version": 1, "matching": "single",
-        "params": {"k": 10, "precision": 1.0, "window": 28}}
+        "params": {"k": 10, "precision": 1.0, "window": 28}, "qtvpr": "0.1.0"}
 GOOD = dict(s=CAL_S, gt=CAL_GT)
 
 #: Bad calibration files: (what is written, the exception, a part of its message).
@@ -433,3 +445,494 @@ def test_reference_unreadable_calibration_files(tmp_path):
     with pytest.raises(ValueError, match="not an .npz archive"):
         ref.Calibration.load(npy)
     assert zipfile.is_zipfile(good)
+
+
+# =======================================================================================
+# The wheel: qtvpr.Online and the calibration file, held to the reference
+# =======================================================================================
+
+DATASETS = ["vprbench-corridor", "vprbench-spedtest"]
+TECHNIQUES = [
+    "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
+    "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
+]
+
+
+def assert_close(got, want, name=""):
+    """Equal to 1e-9, infinities in the same places."""
+    np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=0, atol=1e-9, err_msg=name)
+
+
+def assert_decisions_equal(got, want):
+    """One OnlineDecisions (wheel) against the reference's: figures to 1e-9, decisions
+    (best, accept, accepted) exactly."""
+    assert len(got) == len(want)
+    np.testing.assert_array_equal(got.queries, want.queries)
+    for name in ("query_quantiles", "weights", "quantiles", "thresholds"):
+        assert getattr(got, name).dtype == np.float64, name
+        assert_close(getattr(got, name), getattr(want, name), name)
+    for name, dtype in (("best", np.int64), ("accept", np.bool_), ("accepted", np.int64)):
+        g, w = getattr(got, name), getattr(want, name)
+        if w is None:
+            assert g is None, name
+        else:
+            assert g.dtype == dtype, name
+            np.testing.assert_array_equal(g, w, err_msg=name)
+    if want.score is None:
+        assert got.score is None
+    else:
+        assert_close(got.score, want.score, "score")
+
+
+def assert_decision_equal(got, want):
+    """One OnlineDecision (wheel) against the reference's."""
+    assert got.query == want.query
+    for name in ("query_quantile", "weight", "quantile", "threshold"):
+        assert_close(getattr(got, name), getattr(want, name), name)
+    assert (got.best, got.accept, got.accepted) == (want.best, want.accept, want.accepted)
+    assert (got.score is None) == (want.score is None)
+    if want.score is not None:
+        assert_close(got.score, want.score)
+    assert got.accepted_indices.dtype == np.int64
+    np.testing.assert_array_equal(got.accepted_indices, want.accepted_indices)
+
+
+def soft_of(gt: np.ndarray) -> np.ndarray:
+    """Every hard match widened by one database image either side."""
+    soft = gt.copy()
+    soft[1:] |= gt[:-1]
+    soft[:-1] |= gt[1:]
+    return soft
+
+
+@functools.cache
+def load_matrix(root: Path, dataset: str, technique: str):
+    d = root / dataset
+    return np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+
+
+#: Real-data configurations: window "size" is the protocol's segment size
+#: ceil(1% |Q|); "more" is 150 over the first 120 deployment queries, a window longer
+#: than the deployment traverse.
+REAL_CONFIGS = {
+    "single-tau1-segment": dict(matching="single", precision=1.0, window="size", min_window=1, soft=False,
+                                query_major=False, one_by_one=False),
+    "multi-tau0.9-window1-soft-qm": dict(matching="multi", precision=0.9, window=1, min_window=1, soft=True,
+                                         query_major=True, one_by_one=True),
+    "single-tau0.9-more-warmup-soft": dict(matching="single", precision=0.9, window="more", min_window=5,
+                                           soft=True, query_major=False, one_by_one=False),
+    "multi-tau1-segment-warmup-qm": dict(matching="multi", precision=1.0, window="size", min_window="size",
+                                         soft=False, query_major=True, one_by_one=False),
+}
+
+
+@pytest.mark.parametrize("config", list(REAL_CONFIGS))
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("dataset", DATASETS)
+def test_wheel_equals_reference_on_real_data(shared_data, dataset, technique, config):
+    c = REAL_CONFIGS[config]
+    s, gt = load_matrix(shared_data, dataset, technique)
+    n_q = s.shape[1]
+    n_cal, size = math.floor(0.1 * n_q), math.ceil(0.01 * n_q)
+    s_cal, gt_cal, s_val = s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:]
+    window = {"size": size, "more": 150}.get(c["window"], c["window"])
+    if c["window"] == "more":
+        s_val = s_val[:, :120]
+    min_window = size if c["min_window"] == "size" else c["min_window"]
+    soft = soft_of(gt_cal) if c["soft"] else None
+    kwargs = dict(k=10, precision=c["precision"], window=window, min_window=min_window)
+    want = ref.Online(ref.Calibration(s_cal, gt_cal, gt_soft=soft, matching=c["matching"]), **kwargs)
+    want = want.push_many(s_val)
+    qm = c["query_major"]
+    orient = (lambda a: None if a is None else a.T) if qm else (lambda a: a)
+    cal = qtvpr.Calibration(orient(s_cal), orient(gt_cal), gt_soft=orient(soft), matching=c["matching"],
+                            query_major=qm)
+    online = qtvpr.Online(cal, **kwargs)
+    if c["one_by_one"]:
+        # Columns one at a time: rows of the query-major array, strided columns otherwise.
+        v = orient(s_val)
+        decisions = [online.push(v[j] if qm else v[:, j]) for j in range(s_val.shape[1])]
+        got = [d.threshold for d in decisions]
+        assert_close(got, want.thresholds)
+        assert [d.accepted for d in decisions] == want.accepted.tolist()
+        assert_close([d.weight for d in decisions], want.weights)
+        assert_close([d.quantile for d in decisions], want.quantiles)
+    else:
+        assert_decisions_equal(online.push_many(orient(s_val), query_major=qm), want)
+    assert online.pushed == s_val.shape[1]
+    assert online.threshold == pytest.approx(want.thresholds[-1], abs=1e-9)
+
+
+# ---------------------------------------------------------------------------------------
+# Hypothesis: small matrices with ties, constant columns, every window
+# ---------------------------------------------------------------------------------------
+
+LAYOUTS = ["C", "F", "strided", "reversed"]
+
+
+def with_layout(a: np.ndarray, layout: str) -> np.ndarray:
+    if layout == "C":
+        return np.ascontiguousarray(a)
+    if layout == "F":
+        return np.asfortranarray(a)
+    if layout == "strided":
+        big = np.zeros((a.shape[0], 2 * a.shape[1]), dtype=a.dtype)
+        big[:, ::2] = a
+        return big[:, ::2]
+    return a[::-1].copy()[::-1]
+
+
+@st.composite
+def wheel_cases(draw):
+    c = draw(online_cases())
+    for name in ("s_cal", "s_val"):
+        c[name] = c[name].astype(draw(st.sampled_from([np.float32, np.float64])))
+    for j in draw(st.sets(st.integers(0, c["s_val"].shape[1] - 1))):
+        c["s_val"][:, j] = c["s_val"][0, j]  # constant deployment columns
+    c["layout"] = draw(st.sampled_from(LAYOUTS))
+    c["query_major"] = draw(st.booleans())
+    # How the deployment queries are pushed: sizes of push_many calls, 0 meaning push.
+    n = c["s_val"].shape[1]
+    pieces, left = [], n
+    while left > 0:
+        p = draw(st.integers(0, left))
+        pieces.append(p)
+        left -= max(p, 1)
+    c["pieces"] = pieces
+    return c
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@given(wheel_cases())
+def test_wheel_equals_reference_on_random_cases(c):
+    qm = c["query_major"]
+    orient = (lambda a: None if a is None else a.T) if qm else (lambda a: a)
+    kwargs = dict(k=c["k"], precision=c["precision"], window=c["window"], min_window=c["min_window"])
+    want = ref.Online(ref.Calibration(c["s_cal"], c["gt"], gt_soft=c["soft"], matching=c["matching"]), **kwargs)
+    cal = qtvpr.Calibration(orient(c["s_cal"]), orient(c["gt"]), gt_soft=orient(c["soft"]),
+                            matching=c["matching"], query_major=qm)
+    got = qtvpr.Online(cal, **kwargs)
+    s_val = c["s_val"]
+    start = 0
+    for p in c["pieces"]:
+        if p == 0:
+            col = with_layout(s_val[:, start : start + 1], c["layout"])
+            assert_decision_equal(got.push(col if start % 2 else col[:, 0]), want.push(s_val[:, start]))
+            start += 1
+        else:
+            block = with_layout(orient(s_val[:, start : start + p]), c["layout"])
+            assert_decisions_equal(got.push_many(block, query_major=qm), want.push_many(s_val[:, start : start + p]))
+            start += p
+        assert got.pushed == want.pushed == start
+        assert got.threshold == pytest.approx(want.threshold, abs=1e-9)
+
+
+# ---------------------------------------------------------------------------------------
+# The wheel's API
+# ---------------------------------------------------------------------------------------
+
+
+def wheel_online(matching="single", **kwargs):
+    return qtvpr.Online(qtvpr.Calibration(CAL_S, CAL_GT, matching=matching), k=10, **kwargs)
+
+
+def test_wheel_hand_computed_windows():
+    # The thresholds of test_window_slides_and_grows_to_its_size: 0.54, 0.6, 0.5, 0.4.
+    o = wheel_online(window=2)
+    assert o.threshold is None and o.pushed == 0
+    d = o.push(DEP_S[:, 0])
+    assert isinstance(d, qtvpr.OnlineDecision)
+    assert (d.query, d.quantile, d.query_quantile) == (0, 4 / 5, 4 / 5)
+    assert d.threshold == pytest.approx(0.54, abs=1e-15)
+    assert (d.best, d.score, d.accept, d.accepted) == (0, 0.7, True, None)
+    assert d.accepted_indices.tolist() == [0]
+    assert repr(d).startswith("OnlineDecision(query=0, quantile=0.8, threshold=0.54")
+    assert repr(d).endswith("best=0, score=0.7, accept=True)")
+    many = o.push_many(DEP_S[:, 1:])
+    assert isinstance(many, qtvpr.OnlineDecisions) and len(many) == 3
+    assert many.queries.tolist() == [1, 2, 3]
+    assert many.thresholds.tolist() == pytest.approx([0.6, 0.5, 0.4], abs=1e-15)
+    assert many.accept.tolist() == [True, False, True]
+    assert many.accepted is None
+    assert o.pushed == 4 and o.threshold == pytest.approx(0.4, abs=1e-15)
+    # warm-up, multi: j = 0, 1 reject-all above 0.7; j = 2 (d0, d1, d3) at 0.64
+    o = wheel_online("multi", window=3, min_window=3)
+    got = [o.push(DEP_S[:, j]) for j in (0, 1, 3)]
+    assert [d.threshold for d in got[:2]] == [np.nextafter(0.7, math.inf)] * 2
+    assert got[2].threshold == pytest.approx(0.64, abs=1e-15)
+    assert [d.accepted for d in got] == [0, 0, 1]
+    assert got[2].accepted_indices.tolist() == [1]
+    assert (got[2].best, got[2].score, got[2].accept) == (None, None, None)
+    assert repr(got[2]).endswith("accepted=1)")
+
+
+def test_wheel_api_shape():
+    def parameters(f):  # without self (positional-only in the wheel's methods)
+        return [p.replace(kind=p.POSITIONAL_OR_KEYWORD) if p.kind == p.POSITIONAL_ONLY else p
+                for p in inspect.signature(f).parameters.values()][1:]
+
+    assert inspect.signature(qtvpr.Online) == inspect.signature(ref.Online)
+    for name in ("push", "push_many"):
+        assert parameters(getattr(qtvpr.Online, name)) == parameters(getattr(ref.Online, name)), name
+        assert getattr(qtvpr.Online, name).__doc__, name
+    assert parameters(qtvpr.Calibration.save) == parameters(ref.Calibration.save)
+    assert qtvpr.Online.__doc__ and qtvpr.Calibration.save.__doc__ and qtvpr.Calibration.load.__doc__
+    cal = qtvpr.Calibration(CAL_S, CAL_GT)
+    assert cal.defaults == {"k": 10, "precision": 1.0, "window": None} == ref.Calibration(CAL_S, CAL_GT).defaults
+    assert cal.db_size == 3
+    o = qtvpr.Online(cal, window=2, min_window=2, precision=0.9)
+    assert (o.k, o.precision, o.window, o.min_window) == (10, 0.9, 2, 2)
+    assert o.calibration is cal
+    assert repr(o) == "Online(k=10, precision=0.9, window=2, min_window=2, matching='single', pushed=0)"
+    # A |DB| x 1 matrix is a column; f32 and f64; any stride.
+    a = qtvpr.Online(cal, window=2).push(DEP_S[:, :1])
+    c = qtvpr.Online(cal, window=2).push(np.asfortranarray(DEP_S)[::-1, 0][::-1])
+    assert a.threshold == c.threshold == pytest.approx(0.54, abs=1e-15)
+    f32 = DEP_S[:, 0].astype(np.float32)  # its own values, widened exactly
+    b = qtvpr.Online(cal, window=2).push(f32)
+    assert b.threshold == ref.Online(ref.Calibration(CAL_S, CAL_GT), window=2).push(f32).threshold
+    assert b.score == float(np.float32(0.7)) != 0.7
+    # Python lists are arrays too.
+    assert qtvpr.Online(cal, window=2).push([0.7, 0.3, 0.2]).threshold == a.threshold
+
+
+def test_wheel_online_bad_input():
+    cal = qtvpr.Calibration(CAL_S, CAL_GT)
+    with pytest.raises(ValueError, match="window is not given and the calibration sets none"):
+        qtvpr.Online(cal)
+    with pytest.raises(ValueError, match="window must be >= 1"):
+        qtvpr.Online(cal, window=0)
+    with pytest.raises(ValueError, match=r"min_window must be between 1 and the window \(2\), got 3"):
+        qtvpr.Online(cal, window=2, min_window=3)
+    with pytest.raises(ValueError, match=r"min_window must be between 1 and the window \(2\), got 0"):
+        qtvpr.Online(cal, window=2, min_window=0)
+    with pytest.raises(ValueError, match="k must be >= 1"):
+        qtvpr.Online(cal, k=0, window=2)
+    with pytest.raises(ValueError, match="k must be >= 1"):
+        qtvpr.Online(cal, k=-1, window=2)
+    with pytest.raises(ValueError, match="precision must be in"):
+        qtvpr.Online(cal, precision=1.5, window=2)
+    with pytest.raises(TypeError):
+        qtvpr.Online(CAL_S, window=2)
+    o = qtvpr.Online(cal, window=2)
+    with pytest.raises(ValueError, match=r"column: deployment query 0 has 4 scores but the calibration has 3"):
+        o.push(np.ones(4))
+    with pytest.raises(ValueError, match=r"column must hold one query's scores.*got shape \(3, 2\)"):
+        o.push(np.ones((3, 2)))
+    with pytest.raises(ValueError, match=r"column must hold one query's scores.*got shape \(\)"):
+        o.push(np.float64(1.0))
+    with pytest.raises(ValueError, match=r"column \(deployment query 0\) contains NaN at row 1"):
+        o.push(np.array([0.1, np.nan, 0.2]))
+    with pytest.raises(TypeError, match="column must be a float32 or float64 array, got int64"):
+        o.push(np.ones(3, dtype=np.int64))
+    assert o.pushed == 0 and o.threshold is None  # errors leave the state unchanged
+    bad = DEP_S.copy()
+    bad[2, 2] = np.inf
+    with pytest.raises(ValueError, match="s_val: deployment similarity contains inf at row 2, column 2"):
+        o.push_many(bad)
+    assert o.pushed == 2  # the queries before the bad one are kept
+    # Positions within the argument, as the caller stored it, on a later call too.
+    with pytest.raises(ValueError, match="s_val: deployment similarity contains inf at row 2, column 2"):
+        o.push_many(bad.T, query_major=True)
+    assert o.pushed == 4
+    with pytest.raises(ValueError, match=r"s_val: deployment query 4 has 2 scores but the calibration has 3"):
+        o.push_many(np.ones((2, 2)))
+    with pytest.raises(TypeError, match="s_val must be a float32 or float64 array"):
+        o.push_many(np.ones((3, 2), dtype=np.int32))
+    assert len(o.push_many(np.ones((3, 0)))) == 0 and o.pushed == 4  # no query, no decision
+    # The reference decides the same 4 queries (d0, d1, then d0, d1 of bad.T) alike.
+    r = ref.Online(ref.Calibration(CAL_S, CAL_GT), window=2)
+    want = r.push_many(np.hstack([DEP_S[:, :2], DEP_S[:, :2]]))
+    assert o.threshold == pytest.approx(want.thresholds[-1], abs=1e-15)
+
+
+# ---------------------------------------------------------------------------------------
+# The calibration file and pickling
+# ---------------------------------------------------------------------------------------
+
+
+def real_calibration(shared_data, technique="CoHOG", dataset="vprbench-spedtest", matching="single"):
+    s, gt = load_matrix(shared_data, dataset, technique)
+    n_cal = s.shape[1] // 10
+    return s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:], matching
+
+
+@pytest.mark.parametrize("technique", ["CoHOG", "NetVLAD", "AMOSNet"])  # float32, float32, float64
+@pytest.mark.parametrize("matching", ["single", "multi"])
+def test_save_load_is_bit_identical(shared_data, tmp_path, technique, matching):
+    s_cal, gt_cal, s_val, _ = real_calibration(shared_data, technique)
+    soft = soft_of(gt_cal)
+    cal = qtvpr.Calibration(s_cal.T, gt_cal.T, gt_soft=soft.T, matching=matching, query_major=True)
+    path = tmp_path / "cal.npz"
+    cal.save(path, k=7, precision=0.9, window=6)
+    loaded = qtvpr.Calibration.load(path)
+    assert loaded.defaults == {"k": 7, "precision": 0.9, "window": 6}
+    assert (loaded.matching, len(loaded), loaded.db_size) == (matching, len(cal), cal.db_size)
+    a = qtvpr.Online(cal, k=7, precision=0.9, window=6).push_many(s_val)
+    b = qtvpr.Online(loaded).push_many(s_val)  # the file's params
+    for name in ("thresholds", "quantiles", "query_quantiles", "weights", "best", "score", "accept", "accepted"):
+        if getattr(a, name) is not None:
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    np.testing.assert_array_equal(cal.transfer(s_val, segment_size=6).thresholds,
+                                  loaded.transfer(s_val, segment_size=6).thresholds)
+    assert cal.threshold(0.9) == loaded.threshold(0.9)
+    # np.load reads it without pickle: the scores in their own dtype, DB x Q.
+    with np.load(path, allow_pickle=False) as z:
+        assert sorted(z.files) == ["gt", "gt_soft", "meta", "s"]
+        assert z["s"].dtype == s_cal.dtype and np.array_equal(z["s"], s_cal)
+        assert z["gt"].dtype == bool and np.array_equal(z["gt"], gt_cal)
+        assert np.array_equal(z["gt_soft"], soft)
+        meta = json.loads(str(z["meta"][()]))
+    assert meta["format"] == "qtvpr-calibration" and meta["version"] == 1
+    assert meta["matching"] == matching
+    assert meta["params"] == {"k": 7, "precision": 0.9, "window": 6}
+    assert meta["qtvpr"] == qtvpr.__version__
+    # The reference reads the wheel's file, and the wheel the reference's, alike.
+    r = ref.Calibration.load(path)
+    assert r.defaults == loaded.defaults
+    assert_decisions_equal(b, ref.Online(r).push_many(s_val))
+    ref.Calibration(s_cal, gt_cal, gt_soft=soft, matching=matching).save(tmp_path / "ref.npz", k=7, precision=0.9,
+                                                                          window=6)
+    c = qtvpr.Online(qtvpr.Calibration.load(tmp_path / "ref.npz")).push_many(s_val)
+    np.testing.assert_array_equal(c.thresholds, b.thresholds)
+
+
+def test_save_details(tmp_path):
+    cal = qtvpr.Calibration(CAL_S, CAL_GT)
+    # The name is kept as given, str or PathLike; no soft ground truth, no gt_soft.
+    cal.save(str(tmp_path / "plain"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain"]
+    with np.load(tmp_path / "plain", allow_pickle=False) as z:
+        assert sorted(z.files) == ["gt", "meta", "s"]
+        assert json.loads(str(z["meta"][()]))["params"] == {"k": 10, "precision": 1.0, "window": None}
+    loaded = qtvpr.Calibration.load(str(tmp_path / "plain"))
+    assert loaded.defaults["window"] is None
+    with pytest.raises(ValueError, match="window is not given and the calibration sets none"):
+        qtvpr.Online(loaded)
+    for kwargs, message in ((dict(k=0), "k must be >= 1"), (dict(precision=0.0), "precision must be in"),
+                            (dict(window=0), "window must be >= 1")):
+        with pytest.raises(ValueError, match=message):
+            cal.save(tmp_path / "bad.npz", **kwargs)
+    with pytest.raises(FileNotFoundError, match="no-such-dir"):
+        cal.save(tmp_path / "no-such-dir" / "cal.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain"]  # nothing half-written
+
+
+def test_pickle_round_trip(shared_data):
+    s_cal, gt_cal, s_val, _ = real_calibration(shared_data, "NetVLAD", matching="multi")
+    cal = qtvpr.Calibration(s_cal, gt_cal, gt_soft=soft_of(gt_cal), matching="multi")
+    back = pickle.loads(pickle.dumps(cal))
+    assert isinstance(back, qtvpr.Calibration) and back is not cal
+    assert (back.matching, len(back), back.db_size, back.defaults) == ("multi", len(cal), cal.db_size, cal.defaults)
+    a = qtvpr.Online(cal, window=6).push_many(s_val)
+    b = qtvpr.Online(back, window=6).push_many(s_val)
+    np.testing.assert_array_equal(a.thresholds, b.thresholds)
+    np.testing.assert_array_equal(a.accepted, b.accepted)
+    # A loaded calibration keeps its file's defaults through pickling.
+    tmp = pickle.loads(pickle.dumps(pickle.loads(pickle.dumps(back))))
+    assert tmp.defaults == cal.defaults
+
+
+def test_pickle_keeps_loaded_defaults(tmp_path):
+    qtvpr.Calibration(CAL_S, CAL_GT, matching="multi").save(tmp_path / "c.npz", k=3, precision=0.75, window=4)
+    back = pickle.loads(pickle.dumps(qtvpr.Calibration.load(tmp_path / "c.npz")))
+    assert back.defaults == {"k": 3, "precision": 0.75, "window": 4}
+    assert qtvpr.Online(back).window == 4
+
+
+#: Wheel messages for BAD_FILES (the exception class is the reference's).
+WHEEL_MESSAGES = {
+    "missing-s": "has no array s; a calibration file holds s, gt and meta",
+    "missing-gt": "has no array gt",
+    "missing-meta": "has no array meta",
+    "gt-shape": "ground truth shape 2x2 does not match calibration similarity shape 3x2",
+    "soft-shape": "soft ground truth shape 3x1 does not match ground truth shape 3x2",
+    "s-1d": r"\(array s\) holds a 1-D array",
+    "s-nan": "calibration similarity contains NaN at row 0, column 0",
+    "s-int": r"\(array s\) has dtype <i8; expected float32 or float64",
+    "gt-int": r"\(array gt\) has dtype \|i1; expected bool",
+    "soft-int": r"\(array gt_soft\) has dtype \|u1; expected bool",
+    "no-params": "malformed meta: missing field `params`",
+    "params-no-k": "malformed meta: missing field `k`",
+    "format": "its meta format is 'other', expected 'qtvpr-calibration'",
+    "version": "has calibration file version 2",
+    "matching": "has meta matching 'both'",
+    "meta-json": "has a meta that is not JSON",
+    "meta-list": "has a meta without a format string",
+    "meta-bytes": r"\(array meta\) holds an array of dtype \|S1",
+    "params-k": "bad meta params: k must be >= 1, got 0",
+    "params-precision": r"bad meta params: precision must be in \(0, 1\]",
+    "params-window": "malformed meta: invalid type",
+}
+
+
+@pytest.mark.parametrize("kind", list(BAD_FILES))
+def test_wheel_bad_calibration_files(tmp_path, kind):
+    arrays, exc, _ = BAD_FILES[kind]
+    arrays = dict(arrays)
+    meta = arrays.pop("meta", None)
+    if kind == "meta-bytes":
+        arrays["meta"] = np.array([b"x"])
+    path = write_npz(tmp_path / f"{kind}.npz", meta, **arrays)
+    with pytest.raises(exc, match=WHEEL_MESSAGES[kind]) as info:
+        qtvpr.Calibration.load(path)
+    assert str(path) in str(info.value)
+
+
+def test_wheel_unreadable_calibration_files(tmp_path):
+    with pytest.raises(FileNotFoundError, match="absent.npz"):
+        qtvpr.Calibration.load(tmp_path / "absent.npz")
+    with pytest.raises(IsADirectoryError):
+        qtvpr.Calibration.load(tmp_path)
+    good = tmp_path / "good.npz"
+    qtvpr.Calibration(CAL_S, CAL_GT).save(good)
+    data = good.read_bytes()
+    corrupt = bytearray(data)
+    for i in range(60, 90):
+        corrupt[i] ^= 0xFF
+    cases = {
+        "truncated.npz": data[: len(data) // 2],
+        "garbage.npz": b"this is not a zip archive at all",
+        "empty.npz": b"",
+        "corrupt.npz": bytes(corrupt),
+    }
+    for name, payload in cases.items():
+        p = tmp_path / name
+        p.write_bytes(payload)
+        with pytest.raises(ValueError, match=str(p)):
+            qtvpr.Calibration.load(p)
+    npy = tmp_path / "single.npy"
+    np.save(npy, CAL_S)
+    with pytest.raises(ValueError, match=str(npy)):
+        qtvpr.Calibration.load(npy)
+    with pytest.raises(ValueError, match="pickled calibration"):
+        qtvpr.Calibration._from_bytes(data[:100])
+    # Every prefix of a good file is refused cleanly, never a crash.
+    for n in range(0, len(data), max(1, len(data) // 40)):
+        p = tmp_path / "prefix.npz"
+        p.write_bytes(data[:n])
+        with pytest.raises(ValueError):
+            qtvpr.Calibration.load(p)
+
+
+@pytest.mark.parametrize("matching", ["single", "multi"])
+@pytest.mark.parametrize("technique", ["CoHOG", "HOG"])
+def test_evaluate_online_method_equals_reference(shared_data, technique, matching):
+    """The online method inside the protocol, with a segment size other than the
+    default and soft ground truth (test_evaluate.py covers the defaults)."""
+    s, gt = load_matrix(shared_data, "vprbench-spedtest", technique)
+    kwargs = dict(methods=["quantile-transfer-online", "oracle"], matching=matching, precision=0.9,
+                  segment_size=11, gt_soft=soft_of(gt))
+    want = ref.evaluate(s, gt, **kwargs)["methods"]
+    got = qtvpr.evaluate(s.T, gt.T, **{**kwargs, "gt_soft": soft_of(gt).T}, query_major=True)["methods"]
+    assert list(got) == list(want)
+    for name in want:
+        g, w = got[name], want[name]
+        for key in ("segments_counted", "segments_skipped"):
+            assert g[key] == w[key]
+        for key in ("pct_segs", "avg_recall", "threshold_mse"):
+            assert g[key] == pytest.approx(w[key], abs=1e-9)
+        for gs, ws in zip(g["segments"], w["segments"], strict=True):
+            assert (gs["tp"], gs["fp"], gs["positives"], gs["meets"]) == (ws["tp"], ws["fp"], ws["positives"],
+                                                                          ws["meets"])
+            assert gs["threshold"] == pytest.approx(ws["threshold"], abs=1e-9)

@@ -29,6 +29,9 @@ NumPy implementation of the same functions, the executable form of the specifica
 
 from qtvpr._native import (
     Calibration,
+    Online,
+    OnlineDecision,
+    OnlineDecisions,
     TransferResult,
     __version__,
     best_threshold,
@@ -49,6 +52,9 @@ from qtvpr._native import (
 
 __all__ = [
     "Calibration",
+    "Online",
+    "OnlineDecision",
+    "OnlineDecisions",
     "TransferResult",
     "__version__",
     "best_threshold",

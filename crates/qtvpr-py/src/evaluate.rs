@@ -17,9 +17,16 @@ use crate::error::Args;
 /// calibration-size ablation: the queries between the two sets are unused). It is cut
 /// into full segments of ``segment_size`` queries (default
 /// ``ceil(segment_fraction * |Q|)``), the remainder dropped. Each of ``methods``
-/// (default all: ``"quantile-transfer"``, ``"schubert"``, ``"schubert-calibrated"``,
-/// ``"calibration-threshold"``, ``"oracle"``) gives every segment a threshold, and the
-/// segment's decisions (``matching``) are counted against its own ground truth.
+/// (default all: ``"quantile-transfer"``, ``"quantile-transfer-online"``,
+/// ``"schubert"``, ``"schubert-calibrated"``, ``"calibration-threshold"``,
+/// ``"oracle"``) gives every segment a threshold, and the segment's decisions
+/// (``matching``) are counted against its own ground truth.
+///
+/// ``"quantile-transfer-online"`` is :class:`Online` inside the protocol: every
+/// deployment query is decided at its own threshold, over a window of the segment size
+/// that starts at the first deployment query and is not reset at segment boundaries; a
+/// segment's counts are the sums of its queries', and its ``threshold`` is its last
+/// query's.
 ///
 /// Returns ``{"methods": {name: {"pct_segs", "avg_recall", "segments_counted",
 /// "segments_skipped", "threshold_mse", "segments": [...]}}}``. A segment meets the
