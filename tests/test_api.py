@@ -97,3 +97,11 @@ def test_ranked_correlation_shape():
     r = qtvpr.ranked_correlation(S_VAL, S_CAL)
     assert r.shape == (5, 3) and r.dtype == np.float64
     np.testing.assert_array_equal(qtvpr.ranked_correlation(S_VAL.T, S_CAL.T, query_major=True), r)
+
+
+def test_module_docstring_examples_run():
+    """The examples of ``help(qtvpr)``, the online one included, run as written."""
+    import doctest
+
+    result = doctest.testmod(qtvpr)
+    assert result.failed == 0 and result.attempted >= 10, result

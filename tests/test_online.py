@@ -16,10 +16,12 @@ file refused with the file's name) and pickling; and the online method of
 
 from __future__ import annotations
 
+import concurrent.futures
 import functools
 import inspect
 import json
 import math
+import multiprocessing
 import pickle
 import zipfile
 from pathlib import Path
@@ -831,6 +833,19 @@ def test_pickle_round_trip(shared_data):
     # A loaded calibration keeps its file's defaults through pickling.
     tmp = pickle.loads(pickle.dumps(pickle.loads(pickle.dumps(back))))
     assert tmp.defaults == cal.defaults
+
+
+def thresholds_in_worker(cal, s_val):
+    """Run in a worker process: the online thresholds of ``s_val`` (window 6)."""
+    return qtvpr.Online(cal, window=6).push_many(s_val).thresholds
+
+
+def test_calibration_goes_to_a_worker_process(shared_data):
+    s_cal, gt_cal, s_val, _ = real_calibration(shared_data, "HOG")
+    cal = qtvpr.Calibration(s_cal, gt_cal)
+    with concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        got = pool.submit(thresholds_in_worker, cal, s_val[:, :40]).result(timeout=120)
+    np.testing.assert_array_equal(got, thresholds_in_worker(cal, s_val[:, :40]))
 
 
 def test_pickle_keeps_loaded_defaults(tmp_path):

@@ -104,7 +104,11 @@ impl PyOnline {
         let decisions = py
             .detach(|| with_scores!(view, s => online.push_many(s)))
             .map_err(|e| matrix_error(e, first, query_major))?;
-        Ok(OnlineDecisions::new(py, &decisions, self.inner.calibration().matching()))
+        Ok(OnlineDecisions::new(
+            py,
+            &decisions,
+            self.inner.calibration().matching(),
+        ))
     }
 
     /// The threshold of the last decision (``None`` before the first push).
@@ -193,7 +197,7 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
         .error(Error::NotFinite {
             what,
             row,
-            col: col - first,
+            col: col.saturating_sub(first),
             value,
         }),
         err @ Error::ColumnLength { .. } => input_error("s_val", err),
@@ -276,11 +280,14 @@ impl OnlineDecision {
 #[pymethods]
 impl OnlineDecision {
     fn __repr__(&self) -> String {
-        let decided = match (self.best, self.score, self.accept, self.accepted) {
-            (Some(best), Some(score), Some(accept), _) => {
-                format!("best={best}, score={score:?}, accept={}", if accept { "True" } else { "False" })
+        let decided = match (self.best, self.score, self.accept) {
+            (Some(best), Some(score), Some(accept)) => {
+                format!(
+                    "best={best}, score={score:?}, accept={}",
+                    if accept { "True" } else { "False" }
+                )
             }
-            (_, _, _, accepted) => format!("accepted={}", accepted.unwrap_or(0)),
+            _ => format!("accepted={}", self.accepted.unwrap_or(0)),
         };
         format!(
             "OnlineDecision(query={}, quantile={:?}, threshold={:?}, {decided})",
@@ -372,6 +379,9 @@ impl OnlineDecisions {
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
         let thresholds = self.thresholds.bind(py).repr()?;
-        Ok(format!("OnlineDecisions(queries={}, thresholds={thresholds})", self.len))
+        Ok(format!(
+            "OnlineDecisions(queries={}, thresholds={thresholds})",
+            self.len
+        ))
     }
 }
