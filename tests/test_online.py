@@ -33,6 +33,7 @@ from hypothesis import strategies as st
 
 import qtvpr
 from qtvpr import reference as ref
+from test_cli import cli, run_cli  # noqa: F401  (the session fixture that finds the binary)
 
 T, F = True, False
 
@@ -951,3 +952,70 @@ def test_evaluate_online_method_equals_reference(shared_data, technique, matchin
             assert (gs["tp"], gs["fp"], gs["positives"], gs["meets"]) == (ws["tp"], ws["fp"], ws["positives"],
                                                                           ws["meets"])
             assert gs["threshold"] == pytest.approx(ws["threshold"], abs=1e-9)
+
+
+# ---------------------------------------------------------------------------------------
+# qtvpr-cli calibrate + stream, held to the reference
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def stream_cli(cli):
+    """The CLI, if it has the online commands (they come with the core's online branch)."""
+    if run_cli(cli, "stream", "--help").returncode != 0:
+        pytest.skip("this qtvpr-cli has no stream command")
+    return cli
+
+
+@pytest.mark.parametrize(
+    ("dataset", "technique", "matching", "precision", "window", "min_window", "soft", "query_major"),
+    [
+        ("vprbench-corridor", "AMOSNet", "single", 1.0, 2, 1, False, False),
+        ("vprbench-corridor", "CoHOG", "multi", 0.9, 150, 3, True, True),  # window > |Qval|
+        ("vprbench-spedtest", "NetVLAD", "single", 0.9, 1, 1, True, True),
+        ("vprbench-spedtest", "HOG", "multi", 1.0, 7, 7, False, False),
+    ],
+)
+def test_cli_stream_equals_reference(stream_cli, shared_data, tmp_path, dataset, technique, matching,
+                                     precision, window, min_window, soft, query_major):
+    s, gt = load_matrix(shared_data, dataset, technique)
+    n_cal = s.shape[1] // 10
+    s_cal, gt_cal, s_val = s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:]
+    gt_soft = soft_of(gt_cal) if soft else None
+    orient = (lambda a: a.T) if query_major else (lambda a: a)
+    files = {}
+    for name, a in (("cal", s_cal), ("val", s_val)):
+        files[name] = tmp_path / f"{name}.npy"
+        np.save(files[name], orient(a))
+    gt_file = tmp_path / "gt.npz"
+    np.savez(gt_file, **{"GThard": orient(gt_cal), **({"GTsoft": orient(gt_soft)} if soft else {})})
+    cal_file = tmp_path / "cal.npz"
+    qm = ["--query-major"] if query_major else []
+    res = run_cli(stream_cli, "calibrate", "--cal", files["cal"], "--cal-gt", gt_file, "--matching", matching,
+                  "--k", 10, "--precision", precision, "--window", window, *qm, "--output", cal_file)
+    assert res.returncode == 0, res.stderr
+    # Options left out take the file's params (here: all but min_window).
+    res = run_cli(stream_cli, "stream", "--calibration", cal_file, "--val", files["val"], "--min-window", min_window,
+                  *qm, "--quiet")
+    assert res.returncode == 0, res.stderr
+    lines = [json.loads(line) for line in res.stdout.splitlines()]
+    want = ref.Online(ref.Calibration(s_cal, gt_cal, gt_soft=gt_soft, matching=matching), k=10, precision=precision,
+                      window=window, min_window=min_window).push_many(s_val)
+    assert len(lines) == len(want) == s_val.shape[1]
+    assert [line["query"] for line in lines] == want.queries.tolist()
+    for key, name in (("threshold", "thresholds"), ("quantile", "quantiles"),
+                      ("query_quantile", "query_quantiles"), ("weight", "weights")):
+        assert_close([line[key] for line in lines], getattr(want, name), key)
+    if matching == "single":
+        assert [line["best"] for line in lines] == want.best.tolist()
+        assert [line["accept"] for line in lines] == want.accept.tolist()
+        assert_close([line["score"] for line in lines], want.score, "score")
+        assert all("accepted" not in line for line in lines)
+    else:
+        assert [line["accepted"] for line in lines] == want.accepted.tolist()
+        assert [line["accept"] for line in lines] == (want.accepted > 0).tolist()
+        assert all("best" not in line and "score" not in line for line in lines)
+    # The CLI's file is the wheel's and the reference's too.
+    assert ref.Calibration.load(cal_file).defaults == {"k": 10, "precision": precision, "window": window}
+    got = qtvpr.Online(qtvpr.Calibration.load(cal_file), min_window=min_window).push_many(s_val)
+    np.testing.assert_array_equal(got.thresholds, [line["threshold"] for line in lines])
