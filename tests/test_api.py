@@ -22,8 +22,8 @@ S_VAL = np.array(
 
 def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
-        ["Calibration", "TransferResult", "__version__", "ablation", "best_threshold", "counts", "evaluate",
-         "quantile_transfer", "ranked_correlation", "schubert_threshold"]
+        ["Calibration", "Online", "OnlineDecision", "OnlineDecisions", "TransferResult", "__version__", "ablation",
+         "best_threshold", "counts", "evaluate", "quantile_transfer", "ranked_correlation", "schubert_threshold"]
         + ["cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "sequence_match"]  # extensions
     )
     for name in qtvpr.__all__:
@@ -139,3 +139,11 @@ def test_ranked_correlation_shape():
     r = qtvpr.ranked_correlation(S_VAL, S_CAL)
     assert r.shape == (5, 3) and r.dtype == np.float64
     np.testing.assert_array_equal(qtvpr.ranked_correlation(S_VAL.T, S_CAL.T, query_major=True), r)
+
+
+def test_module_docstring_examples_run():
+    """The examples of ``help(qtvpr)``, the online one included, run as written."""
+    import doctest
+
+    result = doctest.testmod(qtvpr)
+    assert result.failed == 0 and result.attempted >= 10, result

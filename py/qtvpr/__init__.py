@@ -23,6 +23,18 @@ read), with a message naming the argument, the file and what is wrong.
 >>> result.segments
 [(0, 3)]
 
+A robot decides each query as it arrives: calibrate once, offline, save the
+calibration file, and decide every deployment query at the threshold of its last
+``window`` queries (docs/semantics.md):
+
+>>> import os, tempfile
+>>> path = os.path.join(tempfile.mkdtemp(), "cal.npz")
+>>> qtvpr.Calibration(s_cal, gt_cal).save(path, k=1, window=2)
+>>> online = qtvpr.Online(qtvpr.Calibration.load(path))  # k and window from the file
+>>> decision = online.push(s_val[:, 0])  # one query's |DB| scores
+>>> decision.query, decision.best
+(0, 0)
+
 The functions are compiled (module ``qtvpr._native``); ``qtvpr.reference`` is a plain
 NumPy implementation of the same functions, the executable form of the specification,
 imported on first use (``qtvpr.reference.evaluate`` works after a bare ``import qtvpr``).
@@ -37,6 +49,9 @@ from typing import TYPE_CHECKING, Any
 # (cosine_similarity, sequence_match, ground_truth_*: descriptors, positions, tolerance).
 from qtvpr._native import (
     Calibration,
+    Online,
+    OnlineDecision,
+    OnlineDecisions,
     TransferResult,
     __version__,
     ablation,
@@ -54,6 +69,9 @@ from qtvpr._native import (
 
 __all__ = [
     "Calibration",
+    "Online",
+    "OnlineDecision",
+    "OnlineDecisions",
     "TransferResult",
     "__version__",
     "ablation",

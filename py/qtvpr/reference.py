@@ -26,15 +26,22 @@ summation order. See ``_calibration_neighbours``.
 from __future__ import annotations
 
 import functools
+import importlib.metadata
+import json
 import math
 import numbers
 import operator
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = [
     "METHODS",
+    "Calibration",
+    "Online",
+    "OnlineDecision",
+    "OnlineDecisions",
     "TransferResult",
     "ablation",
     "best_threshold",
@@ -57,6 +64,7 @@ CORRELATION_GRID = 2.0**40
 #: Every method of the evaluation protocol, in report order (SPEC sections 7 and 8).
 METHODS = (
     "quantile-transfer",
+    "quantile-transfer-online",
     "schubert",
     "schubert-calibrated",
     "calibration-threshold",
@@ -202,6 +210,12 @@ def _count_at(scores: np.ndarray, correct: np.ndarray, positives: int, threshold
     accepted = scores >= threshold
     tp = int(np.count_nonzero(accepted & correct))
     fp = int(np.count_nonzero(accepted & ~correct))
+    return _counts_of(tp, fp, positives)
+
+
+def _counts_of(tp: int, fp: int, positives: int) -> dict:
+    """The counts dict, with precision 1 when nothing is accepted and recall 0 without
+    positives."""
     precision = tp / (tp + fp) if tp + fp > 0 else 1.0
     recall = tp / positives if positives > 0 else 0.0
     return {"tp": tp, "fp": fp, "positives": positives, "precision": precision, "recall": recall}
@@ -443,6 +457,28 @@ def _segments(n_queries: int, segment_size: int | None) -> list[tuple[int, int]]
     ]
 
 
+def _query_quantiles(s_cal64, gt, ignored, s_val64, k: int, tau: float, matching: str):
+    """Per deployment query (sections 4 and 5): ``(q, t, w, neighbours)``, its subset
+    quantile q_j, subset threshold t_j, weight w_j and calibration neighbours."""
+    _, neighbours, weights = _calibration_neighbours(s_cal64, s_val64, k)
+    n_val = s_val64.shape[1]
+    q_query = np.empty(n_val, dtype=np.float64)
+    t_query = np.empty(n_val, dtype=np.float64)
+    for j in range(n_val):
+        cols = neighbours[j]
+        t = _best_threshold(s_cal64[:, cols], gt[:, cols], ignored[:, cols], tau, matching)
+        t_query[j] = t
+        q_query[j] = _subset_quantile(s_cal64[:, cols], t)
+    return q_query, t_query, weights, neighbours
+
+
+def _batch_threshold(s_batch: np.ndarray, q_batch: np.ndarray, w_batch: np.ndarray):
+    """Section 6 for one batch: ``(q, threshold)``, the lower weighted median of the
+    batch's q_j and the linear-interpolation quantile at q of its raw scores."""
+    q = _lower_weighted_median(q_batch, w_batch)
+    return q, _linear_quantile(s_batch, q)
+
+
 @dataclass
 class TransferResult:
     """Output of :func:`quantile_transfer`.
@@ -504,23 +540,17 @@ def quantile_transfer(
                 f"got {segment_size}"
             )
 
-    _, neighbours, weights = _calibration_neighbours(s_cal64, s_val64, k)
-
-    q_query = np.empty(n_val, dtype=np.float64)
-    t_query = np.empty(n_val, dtype=np.float64)
-    for j in range(n_val):
-        cols = neighbours[j]
-        t = _best_threshold(s_cal64[:, cols], gt[:, cols], ignored[:, cols], tau, matching)
-        t_query[j] = t
-        q_query[j] = _subset_quantile(s_cal64[:, cols], t)
+    q_query, t_query, weights, neighbours = _query_quantiles(
+        s_cal64, gt, ignored, s_val64, k, tau, matching
+    )
 
     segments = _segments(n_val, segment_size)
     quantiles = np.empty(len(segments), dtype=np.float64)
     thresholds = np.empty(len(segments), dtype=np.float64)
     for i, (start, end) in enumerate(segments):
-        q = _lower_weighted_median(q_query[start:end], weights[start:end])
-        quantiles[i] = q
-        thresholds[i] = _linear_quantile(s_val64[:, start:end], q)
+        quantiles[i], thresholds[i] = _batch_threshold(
+            s_val64[:, start:end], q_query[start:end], weights[start:end]
+        )
 
     return TransferResult(
         thresholds=thresholds,
@@ -661,8 +691,21 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
     oracle = [_sweep(*c, tau) for c in candidates]
 
     thresholds = {}
+    per_query = {}  # methods that decide each query at its own threshold: theta_j
     for name in methods:
-        if name == "quantile-transfer":
+        if name == "quantile-transfer-online":
+            # Section 11: the window (m = segment size) runs over the deployment queries
+            # from the first one, not reset at segment boundaries.
+            online = Online(
+                Calibration(s_cal, gt_cal, gt_soft=gt_cal | ign_cal, matching=matching),
+                k=k,
+                precision=tau,
+                window=size,
+            )
+            theta = online.push_many(s_dep[:, : segments[-1][1]]).thresholds
+            per_query[name] = theta
+            thresholds[name] = [float(theta[b - 1]) for _, b in segments]  # its last query's
+        elif name == "quantile-transfer":
             transfer = quantile_transfer(
                 s_cal,
                 gt_cal,
@@ -688,7 +731,18 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
     for name in methods:
         rows = []
         for (a, b), cand, t, t_oracle in zip(segments, candidates, thresholds[name], oracle, strict=True):
-            c = _count_at(*cand, t)
+            if name in per_query:
+                # The segment's counts are the sums of its queries' counts.
+                tp = fp = positives = 0
+                for j in range(a, b):
+                    cj = _count_at(
+                        *_candidates(s_dep[:, j : j + 1], gt_dep[:, j : j + 1], ign_dep[:, j : j + 1], matching),
+                        float(per_query[name][j]),
+                    )
+                    tp, fp, positives = tp + cj["tp"], fp + cj["fp"], positives + cj["positives"]
+                c = _counts_of(tp, fp, positives)
+            else:
+                c = _count_at(*cand, t)
             rows.append(
                 {
                     "start": a,
@@ -858,3 +912,367 @@ def ablation(
     ]
     runs = [_run(s, gt, ignored, methods, kk, tau, matching, layout) for layout in layouts for kk in ks]
     return {"dataset": None, "ablation": runs}
+
+
+# ---------------------------------------------------------------------------------------
+# Section 11: online thresholds, a causal window
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class OnlineDecision:
+    """One deployment query decided by :class:`Online` (SPEC section 11).
+
+    ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
+    its own q_j and w_j (sections 4 and 5); ``quantile`` and ``threshold`` its window's
+    weighted-median quantile and threshold theta_j (section 6 on the window; 1 and the
+    next float above the window's maximum during warm-up). In single matching ``best``
+    is the first maximum of the column, ``score`` its score and ``accept`` whether
+    ``score >= threshold``, and ``accepted`` is None; in multi matching ``accepted`` is
+    the number of scores ``>= threshold`` and the single-matching fields are None.
+    ``accepted_indices`` are the accepted database indices, ascending, in both modes.
+    """
+
+    query: int
+    query_quantile: float
+    weight: float
+    quantile: float
+    threshold: float
+    best: int | None
+    score: float | None
+    accept: bool | None
+    accepted: int | None
+    accepted_indices: np.ndarray
+
+
+@dataclass
+class OnlineDecisions:
+    """The decisions of :meth:`Online.push_many`, one entry per pushed query: the
+    fields of :class:`OnlineDecision` as arrays (``queries``, ``query_quantiles``,
+    ``weights``, ``quantiles``, ``thresholds``; single matching: ``best``, ``score``,
+    ``accept``; multi matching: ``accepted`` counts; the other mode's fields None)."""
+
+    queries: np.ndarray
+    query_quantiles: np.ndarray
+    weights: np.ndarray
+    quantiles: np.ndarray
+    thresholds: np.ndarray
+    best: np.ndarray | None
+    score: np.ndarray | None
+    accept: np.ndarray | None
+    accepted: np.ndarray | None
+
+    def __len__(self) -> int:
+        return len(self.queries)
+
+
+def _non_finite(name: str, a: np.ndarray, where) -> None:
+    """Raise the section-10 error for the first non-finite entry of the 1-D ``a``;
+    ``where(i)`` says where entry i is."""
+    bad = np.flatnonzero(~np.isfinite(a))
+    if len(bad) > 0:
+        i = int(bad[0])
+        what = "NaN" if np.isnan(a[i]) else "an infinite value"
+        raise ValueError(f"{name} contains {what} at {where(i)}")
+
+
+def _check_float_dtype(name: str, a: np.ndarray) -> None:
+    if a.dtype.kind != "f" or a.dtype.itemsize not in (4, 8):
+        raise TypeError(f"{name} must be float32 or float64, got dtype {a.dtype}")
+
+
+class Online:
+    """Online thresholds for queries that arrive one at a time (SPEC section 11).
+
+    ``Online(calibration, *, k=None, precision=None, window=None, min_window=1)``: each
+    of ``k``, ``precision`` and ``window`` left as None takes the calibration's default
+    (:attr:`Calibration.defaults`, from its file); a window is required from one or the
+    other. Query j is thresholded on the batch of its last ``min(window, j + 1)``
+    queries (itself included) exactly as section 6 thresholds a batch, and decided at
+    that threshold (section 2). Queries with ``j + 1 < min_window`` are reject-all
+    (warm-up).
+
+    Written the plain way: each query's q_j and w_j are computed from its own column and
+    the calibration; the window keeps its raw columns and their q, w.
+    """
+
+    def __init__(self, calibration, *, k=None, precision=None, window=None, min_window=1):
+        if not isinstance(calibration, Calibration):
+            raise TypeError(
+                f"calibration must be a qtvpr.reference.Calibration, got {type(calibration).__name__}"
+            )
+        defaults = calibration.defaults
+        self.calibration = calibration
+        self.k = _check_positive_int("k", defaults["k"] if k is None else k)
+        self.precision = _check_precision(defaults["precision"] if precision is None else precision)
+        if window is None:
+            window = defaults["window"]
+            if window is None:
+                raise ValueError("window is not given and the calibration sets none")
+        self.window = _check_positive_int("window", window)
+        self.min_window = operator.index(min_window)
+        if not (1 <= self.min_window <= self.window):
+            raise ValueError(
+                f"min_window must be between 1 and the window ({self.window}), got {self.min_window}"
+            )
+        self._columns: list[np.ndarray] = []  # the window's raw columns (float64)
+        self._q: list[float] = []
+        self._w: list[float] = []
+        self.pushed = 0  # queries decided so far
+        self.threshold: float | None = None  # theta of the last decision
+
+    def _decide(self, column: np.ndarray) -> OnlineDecision:
+        """Decide one validated float64 column of |DB| scores."""
+        cal = self.calibration
+        q_j, _, w_j, _ = _query_quantiles(
+            cal._s64, cal._gt, cal._ignored, column[:, None], self.k, self.precision, cal.matching
+        )
+        self._columns.append(column)
+        self._q.append(float(q_j[0]))
+        self._w.append(float(w_j[0]))
+        if len(self._columns) > self.window:  # keep the last min(m, j + 1) queries
+            del self._columns[0], self._q[0], self._w[0]
+        j = self.pushed
+        batch = np.stack(self._columns, axis=1)
+        if j + 1 < self.min_window:  # warm-up: reject-all, as section 6 writes it
+            quantile = 1.0
+            threshold = _linear_quantile(batch, quantile)
+        else:
+            quantile, threshold = _batch_threshold(batch, np.array(self._q), np.array(self._w))
+        self.pushed += 1
+        self.threshold = threshold
+        indices = np.flatnonzero(column >= threshold)
+        if cal.matching == "single":
+            b = int(np.argmax(column))  # first maximum on ties
+            accept = bool(column[b] >= threshold)
+            return OnlineDecision(
+                query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
+                threshold=threshold, best=b, score=float(column[b]), accept=accept, accepted=None,
+                accepted_indices=np.array([b] if accept else [], dtype=np.int64),
+            )
+        return OnlineDecision(
+            query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
+            threshold=threshold, best=None, score=None, accept=None, accepted=len(indices),
+            accepted_indices=indices.astype(np.int64),
+        )
+
+    def push(self, column) -> OnlineDecision:
+        """Decide one deployment query from its |DB| scores: a 1-D array, or a |DB| x 1
+        matrix; float32 or float64. Bad input raises and leaves the state unchanged."""
+        a = np.asarray(column)
+        _check_float_dtype("column", a)
+        n_db = self.calibration.db_size
+        if a.ndim == 2 and a.shape[1] == 1:
+            a = a[:, 0]
+        if a.ndim != 1 or a.shape[0] != n_db:
+            raise ValueError(
+                f"column must hold the |DB| = {n_db} scores of one query (a 1-D array or a "
+                f"{n_db} x 1 matrix), got shape {a.shape}"
+            )
+        _non_finite("column", a, lambda i: f"row {i}")
+        return self._decide(a.astype(np.float64))
+
+    def push_many(self, s_val, *, query_major=False) -> OnlineDecisions:
+        """Decide every query of ``s_val`` (|DB| x n, columns in arrival order; n x |DB|
+        with ``query_major=True``), as :meth:`push` one by one. On a bad column the
+        queries before it stay pushed. No query (n = 0) is no decision."""
+        a = np.asarray(s_val)
+        _check_float_dtype("s_val", a)
+        if a.ndim != 2:
+            raise ValueError(f"s_val must be a 2-D matrix, got a {a.ndim}-D array of shape {a.shape}")
+        s = a.T if query_major else a
+        n_db = self.calibration.db_size
+        if s.shape[1] > 0 and s.shape[0] != n_db:
+            raise ValueError(f"s_val has |DB| = {s.shape[0]} but the calibration has |DB| = {n_db}")
+        decisions = []
+        for j in range(s.shape[1]):
+            col = s[:, j]
+            where = (lambda i, j=j: f"row {j}, column {i}") if query_major else (lambda i, j=j: f"row {i}, column {j}")
+            _non_finite("s_val", col, where)
+            decisions.append(self._decide(col.astype(np.float64)))
+        single = self.calibration.matching == "single"
+
+        def field(name, dtype):
+            return np.array([getattr(d, name) for d in decisions], dtype=dtype)
+
+        return OnlineDecisions(
+            queries=field("query", np.int64),
+            query_quantiles=field("query_quantile", np.float64),
+            weights=field("weight", np.float64),
+            quantiles=field("quantile", np.float64),
+            thresholds=field("threshold", np.float64),
+            best=field("best", np.int64) if single else None,
+            score=field("score", np.float64) if single else None,
+            accept=field("accept", bool) if single else None,
+            accepted=None if single else field("accepted", np.int64),
+        )
+
+
+# ---------------------------------------------------------------------------------------
+# Section 12: the calibration file
+# ---------------------------------------------------------------------------------------
+
+#: ``meta["format"]`` of a calibration file, and the one version this module knows.
+CALIBRATION_FORMAT = "qtvpr-calibration"
+CALIBRATION_VERSION = 1
+
+
+def _package_version() -> str:
+    try:
+        return importlib.metadata.version("qtvpr")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+class Calibration:
+    """A calibration traverse with ground truth: what :class:`Online` and a calibration
+    file (SPEC section 12) hold.
+
+    ``Calibration(s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False)``
+    validates its input as :func:`quantile_transfer` does and keeps the raw scores in
+    their own dtype, |DB| x |Qcal|, with the hard and the optional soft ground truth.
+    ``defaults`` are the parameters a calibration file stores for its users
+    (``{"k": 10, "precision": 1.0, "window": None}`` for one built here).
+    """
+
+    def __init__(self, s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False):
+        self._init("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, matching, query_major)
+        self.defaults = {"k": 10, "precision": 1.0, "window": None}
+
+    def _init(self, s_name, s, gt_name, gt, soft_name, gt_soft, matching, query_major):
+        self.matching = _check_matching(matching)
+        self._s64, self._gt, self._ignored = _inputs(
+            s_name, s, gt_name, gt, soft_name, gt_soft, query_major
+        )
+        raw = np.asarray(s)
+        self._s = np.array(raw.T if query_major else raw)  # own dtype, a copy
+        # Soft ground truth as a superset of the hard one, kept only when some entry is
+        # soft but not hard: only those ignored entries matter.
+        self._soft = self._gt | self._ignored if self._ignored.any() else None
+
+    def __len__(self) -> int:
+        return self._s.shape[1]
+
+    @property
+    def db_size(self) -> int:
+        """|DB| of the calibration."""
+        return self._s.shape[0]
+
+    def transfer(self, s_val, *, k=10, precision=1.0, segment_size=None, query_major=False):
+        """:func:`quantile_transfer` from this calibration."""
+        def oriented(a):
+            return None if a is None else (a.T if query_major else a)
+
+        return quantile_transfer(
+            oriented(self._s), oriented(self._gt), s_val, gt_soft=oriented(self._soft), k=k,
+            precision=precision, matching=self.matching, segment_size=segment_size,
+            query_major=query_major,
+        )
+
+    def threshold(self, precision=1.0) -> float:
+        """The best threshold of the whole calibration (section 3)."""
+        return _best_threshold(self._s64, self._gt, self._ignored, _check_precision(precision), self.matching)
+
+    def save(self, path, *, k=10, precision=1.0, window=None) -> None:
+        """Write the SPEC section-12 ``.npz`` to ``path`` (the name is used as given):
+        ``s``, ``gt``, ``gt_soft`` when there is one, and ``meta``, a 0-d string array of
+        JSON whose ``params`` are ``k``, ``precision`` and ``window``."""
+        params = {
+            "k": _check_positive_int("k", k),
+            "precision": _check_precision(precision),
+            "window": None if window is None else _check_positive_int("window", window),
+        }
+        meta = {
+            "format": CALIBRATION_FORMAT,
+            "version": CALIBRATION_VERSION,
+            "matching": self.matching,
+            "params": params,
+            "qtvpr": _package_version(),
+        }
+        arrays = {"s": self._s, "gt": self._gt}
+        if self._soft is not None:
+            arrays["gt_soft"] = self._soft
+        with open(path, "wb") as f:  # a file object: np.savez would append ".npz" to a name
+            np.savez(f, **arrays, meta=np.array(json.dumps(meta)))
+
+    @staticmethod
+    def load(path) -> Calibration:
+        """Read a calibration file written by :meth:`save` (or by ``qtvpr``).
+
+        Raises ``FileNotFoundError`` (or another ``OSError``) when the file cannot be
+        opened, and ``ValueError`` naming the file for anything wrong inside it: not an
+        ``.npz``, a missing or unreadable array, ``meta`` that is not a 0-d string of
+        JSON, an unknown ``format`` or ``version``, bad ``matching`` or ``params`` (``k``
+        and ``precision`` required, ``window`` optional), and every section-10 error of
+        the arrays themselves (``TypeError`` for a dtype: scores float32 or float64,
+        ground truth bool).
+        """
+        name = os.fspath(path)
+
+        def bad(what: str) -> ValueError:
+            return ValueError(f"{name}: {what}")
+
+        try:
+            npz = np.load(path, allow_pickle=False)
+        except (FileNotFoundError, IsADirectoryError, PermissionError):
+            raise
+        except Exception as e:  # not an archive, a corrupt zip, pickled data, ...
+            raise bad(f"not a readable .npz archive ({e})") from None
+        if not isinstance(npz, np.lib.npyio.NpzFile):
+            raise bad("not an .npz archive (it holds a single array)")
+        arrays = {}
+        with npz:
+            for key in ("s", "gt", "gt_soft", "meta"):
+                if key in npz.files:
+                    try:
+                        arrays[key] = npz[key]
+                    except Exception as e:  # a corrupt member
+                        raise bad(f"array {key!r} cannot be read ({e})") from None
+        for key in ("s", "gt", "meta"):
+            if key not in arrays:
+                raise bad(f"missing array {key!r}")
+        meta = arrays["meta"]
+        if meta.shape != () or meta.dtype.kind != "U":
+            raise bad(f"meta must be a 0-d string array, got dtype {meta.dtype} and shape {meta.shape}")
+        try:
+            meta = json.loads(str(meta))
+        except json.JSONDecodeError as e:
+            raise bad(f"meta is not valid JSON ({e})") from None
+        if not isinstance(meta, dict):
+            raise bad("meta must be a JSON object")
+        if meta.get("format") != CALIBRATION_FORMAT:
+            raise bad(f"unknown format {meta.get('format')!r}, expected {CALIBRATION_FORMAT!r}")
+        version = meta.get("version")
+        if type(version) is not int or version != CALIBRATION_VERSION:
+            raise bad(f"unknown version {version!r}, expected {CALIBRATION_VERSION}")
+        params = meta.get("params")
+        if not isinstance(params, dict):
+            raise bad("meta params must be a JSON object")
+        for key in ("k", "precision"):
+            if key not in params:
+                raise bad(f"meta params has no {key}")
+        defaults = {"window": None, **params}
+        try:
+            for key in ("k", "window"):
+                v = defaults[key]
+                if isinstance(v, bool) or not (v is None and key == "window" or isinstance(v, int)):
+                    raise TypeError(f"{key} must be an integer, got {v!r}")
+            defaults["k"] = _check_positive_int("k", defaults["k"])
+            if isinstance(defaults["precision"], bool):
+                raise TypeError("precision must be a real number, got bool")
+            defaults["precision"] = _check_precision(defaults["precision"])
+            if defaults["window"] is not None:
+                defaults["window"] = _check_positive_int("window", defaults["window"])
+        except (TypeError, ValueError) as e:
+            raise bad(f"meta params: {e}") from None
+        for key in ("gt", "gt_soft"):
+            if key in arrays and arrays[key].dtype != bool:
+                raise TypeError(f"{name}: {key} must be bool, got dtype {arrays[key].dtype}")
+        cal = Calibration.__new__(Calibration)
+        try:
+            cal._init("s", arrays["s"], "gt", arrays["gt"], "gt_soft", arrays.get("gt_soft"),
+                      meta.get("matching"), False)
+        except (TypeError, ValueError) as e:  # a dtype stays a TypeError
+            raise type(e)(f"{name}: {e}") from None
+        cal.defaults = {key: defaults[key] for key in ("k", "precision", "window")}
+        return cal

@@ -1,8 +1,12 @@
 //! `Calibration` and `TransferResult`: calibrate once, transfer many times.
 
+use std::path::PathBuf;
+use std::sync::Arc;
+
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use qtvpr::{Matching, Params};
+use pyo3::types::{PyBytes, PyDict};
+use qtvpr::{Defaults, Matching, Params};
 
 use crate::convert::{GroundTruthArgs, Scores, count};
 use crate::error::Args;
@@ -30,6 +34,11 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// candidates) is computed here, once; each :meth:`transfer` reuses it. Arrays are read
 /// in place and the GIL is released while the work runs.
 ///
+/// A calibration can be saved as a calibration file (:meth:`save`), a NumPy ``.npz``
+/// that :meth:`load` reads back with bit-identical results, so that calibration is done
+/// once, offline; it pickles (as the bytes of that file), so it can be sent to worker
+/// processes. :class:`Online` decides deployment queries one at a time from it.
+///
 /// Raises ``TypeError`` for an unsupported dtype (of an array or a file),
 /// ``ValueError`` for bad input (shape mismatch, empty matrix, NaN or infinite score,
 /// label other than 0/1, truncated or corrupt file, unknown ``matching``), and for a
@@ -38,8 +47,22 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// offending shape or value (positions as the caller stored the matrix).
 #[pyclass(frozen, module = "qtvpr", name = "Calibration")]
 pub(crate) struct PyCalibration {
-    inner: qtvpr::Calibration,
+    /// Shared with every :class:`Online` built from it.
+    inner: Arc<qtvpr::Calibration>,
 }
+
+impl PyCalibration {
+    /// The core calibration, to share.
+    pub(crate) fn inner(&self) -> &Arc<qtvpr::Calibration> {
+        &self.inner
+    }
+}
+
+/// How calibration-file calls name their arguments (no matrix is transposed).
+const FILE_ARGS: Args = Args {
+    gt: "gt",
+    query_major: false,
+};
 
 #[pymethods]
 impl PyCalibration {
@@ -65,7 +88,92 @@ impl PyCalibration {
         let inner = py
             .detach(|| with_scores!(s, |s| qtvpr::Calibration::new(s, &gt, matching)))
             .map_err(|e| args.error(e))?;
-        Ok(Self { inner })
+        Ok(Self { inner: Arc::new(inner) })
+    }
+
+    /// Write this calibration to ``path`` as a calibration file, atomically.
+    ///
+    /// The file is a NumPy ``.npz`` (``np.load(path, allow_pickle=False)`` reads it)
+    /// holding ``s``, the calibration similarity as given (float32 or float64,
+    /// |DB| x |Qcal| whatever the input's orientation), ``gt``, the hard ground truth
+    /// (bool), ``gt_soft``, the soft ground truth (bool; only when some entry is soft
+    /// but not hard), and ``meta``, a 0-d string array of JSON: ``{"format":
+    /// "qtvpr-calibration", "version": 1, "matching": ..., "params": {"k": ...,
+    /// "precision": ..., "window": ...}, "qtvpr": ...}``. ``k``, ``precision`` and
+    /// ``window`` (``None``: none) are stored as the defaults of whoever uses the file
+    /// (:class:`Online`, ``qtvpr-cli stream``); each can be overridden there. The name
+    /// is used as given (no ``.npz`` is appended).
+    ///
+    /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1] or
+    /// ``window < 1``, and ``OSError`` (``FileNotFoundError``, ``PermissionError``,
+    /// ...) naming the file when it cannot be written; a failed save leaves no file
+    /// behind.
+    #[pyo3(signature = (path, *, k = 10, precision = 1.0, window = None))]
+    fn save(&self, py: Python<'_>, path: PathBuf, k: i64, precision: f64, window: Option<i64>) -> PyResult<()> {
+        let defaults = Defaults {
+            k: count("k", k)?,
+            precision,
+            window: window.map(|m| count("window", m)).transpose()?,
+        };
+        py.detach(|| self.inner.save(&path, &defaults))
+            .map_err(|e| FILE_ARGS.error(e))
+    }
+
+    /// Read a calibration file written by :meth:`save` (or ``qtvpr-cli calibrate``).
+    ///
+    /// The loaded calibration gives bit-identical results to the one saved; its
+    /// :attr:`defaults` are the file's ``params``. Raises ``FileNotFoundError`` (or
+    /// another ``OSError``) when the file cannot be read, and ``ValueError`` naming the
+    /// file for anything wrong inside it: not an ``.npz``, a missing or corrupt array,
+    /// arrays of the wrong shape, a NaN or infinite score, an unknown ``format`` or
+    /// ``version``, a bad ``meta``; ``TypeError`` for an array of the wrong dtype
+    /// (scores must be float32 or float64, ground truth bool).
+    #[staticmethod]
+    #[pyo3(signature = (path))]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let inner = py
+            .detach(|| qtvpr::Calibration::load(&path))
+            .map_err(|e| FILE_ARGS.error(e))?;
+        Ok(Self { inner: Arc::new(inner) })
+    }
+
+    /// A calibration from the bytes of a calibration file (what pickling uses).
+    #[staticmethod]
+    #[pyo3(signature = (data))]
+    fn _from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<Self> {
+        let inner = py
+            .detach(|| qtvpr::Calibration::from_bytes(data, "pickled calibration"))
+            .map_err(|e| FILE_ARGS.error(e))?;
+        Ok(Self { inner: Arc::new(inner) })
+    }
+
+    /// Pickled as the bytes of its calibration file, defaults included.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
+        let py = slf.py();
+        let inner = &slf.get().inner;
+        let bytes = py
+            .detach(|| inner.to_bytes(inner.defaults()))
+            .map_err(|e| FILE_ARGS.error(e))?;
+        Ok((slf.get_type().getattr("_from_bytes")?, (PyBytes::new(py, &bytes),)))
+    }
+
+    /// The defaults of a calibration file's ``params``: ``{"k", "precision",
+    /// "window"}`` (``{"k": 10, "precision": 1.0, "window": None}`` for a calibration
+    /// built from arrays). :class:`Online` takes each one it is not given from here.
+    #[getter]
+    fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = self.inner.defaults();
+        let out = PyDict::new(py);
+        out.set_item("k", d.k)?;
+        out.set_item("precision", d.precision)?;
+        out.set_item("window", d.window)?;
+        Ok(out)
+    }
+
+    /// |DB|, the number of database images (rows) of the calibration.
+    #[getter]
+    fn db_size(&self) -> usize {
+        self.inner.db_size()
     }
 
     /// Transfer thresholds to the deployment similarity ``s_val`` (|DB| x |Qval|).

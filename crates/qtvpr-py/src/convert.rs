@@ -27,10 +27,10 @@
 
 use std::path::{Path, PathBuf};
 
-use ndarray::ArrayView2;
+use ndarray::{ArrayView1, ArrayView2, Axis, Dimension, Ix2};
 use numpy::{
-    Element, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
-    dtype,
+    Element, PyArray, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArray, PyUntypedArrayMethods, dtype,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -64,18 +64,33 @@ fn ndarray<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyUntypedArray>>
     Ok(asarray(obj.py())?.call1((obj,))?.cast_into::<PyUntypedArray>()?)
 }
 
+/// The shape of `array` as Python writes it: `(3,)`, `(3, 2)`.
+fn shape_of(array: &Bound<'_, PyUntypedArray>) -> String {
+    let shape: Vec<String> = array.shape().iter().map(ToString::to_string).collect();
+    let trailing = if shape.len() == 1 { "," } else { "" };
+    format!("({}{trailing})", shape.join(", "))
+}
+
 /// A 2-D array of element type `T`, borrowed read-only. `array`'s dtype must already
 /// be known to be a (possibly byte-swapped) form of `T`.
 fn borrow<'py, T: Element>(name: &str, array: Bound<'py, PyUntypedArray>) -> PyResult<PyReadonlyArray2<'py, T>> {
     if array.ndim() != 2 {
-        let shape: Vec<String> = array.shape().iter().map(ToString::to_string).collect();
-        let trailing = if shape.len() == 1 { "," } else { "" };
         return Err(PyValueError::new_err(format!(
-            "{name} must be a 2-D matrix, got a {}-D array of shape ({}{trailing})",
+            "{name} must be a 2-D matrix, got a {}-D array of shape {}",
             array.ndim(),
-            shape.join(", ")
+            shape_of(&array)
         )));
     }
+    borrow_as::<T, Ix2>(name, array)
+}
+
+/// `array` borrowed read-only as an array of element type `T` and dimension `D`, which
+/// the caller has checked; converted to the native type first if it is byte-swapped or
+/// misaligned.
+fn borrow_as<'py, T: Element, D: Dimension>(
+    name: &str,
+    array: Bound<'py, PyUntypedArray>,
+) -> PyResult<PyReadonlyArray<'py, T, D>> {
     let py = array.py();
     let array = if array.is_aligned() && array.dtype().is_native_byteorder() != Some(false) {
         array
@@ -84,10 +99,66 @@ fn borrow<'py, T: Element>(name: &str, array: Bound<'py, PyUntypedArray>) -> PyR
             .call_method1("astype", (dtype::<T>(py),))?
             .cast_into::<PyUntypedArray>()?
     };
-    let array = array.cast_into::<PyArray2<T>>()?;
+    let array = array.cast_into::<PyArray<T, D>>()?;
     array
         .try_readonly()
         .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
+}
+
+/// One query's scores (`Online.push`): a 1-D array, or a |DB| x 1 matrix read as its
+/// only column; float32 or float64, any strides, borrowed in place.
+pub(crate) enum Column<'py> {
+    /// float32 scores.
+    F32(PyReadonlyArray1<'py, f32>),
+    /// float64 scores.
+    F64(PyReadonlyArray1<'py, f64>),
+    /// A |DB| x 1 float32 matrix.
+    F32Matrix(PyReadonlyArray2<'py, f32>),
+    /// A |DB| x 1 float64 matrix.
+    F64Matrix(PyReadonlyArray2<'py, f64>),
+}
+
+impl<'py> Column<'py> {
+    /// Borrow argument `name` as one query's scores.
+    ///
+    /// # Errors
+    /// `TypeError` for a dtype other than float32 and float64, `ValueError` for an
+    /// array that is neither 1-D nor a one-column matrix (its length is the core's to
+    /// check).
+    pub(crate) fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        let array = ndarray(obj)?;
+        let descr = array.dtype();
+        let float = match (descr.kind(), descr.itemsize()) {
+            (b'f', 4) => false,
+            (b'f', 8) => true,
+            _ => {
+                return Err(PyTypeError::new_err(format!(
+                    "{name} must be a float32 or float64 array, got {descr}"
+                )));
+            }
+        };
+        match (array.ndim(), array.shape().get(1), float) {
+            (1, _, false) => Ok(Self::F32(borrow_as(name, array)?)),
+            (1, _, true) => Ok(Self::F64(borrow_as(name, array)?)),
+            (2, Some(1), false) => Ok(Self::F32Matrix(borrow_as(name, array)?)),
+            (2, Some(1), true) => Ok(Self::F64Matrix(borrow_as(name, array)?)),
+            _ => Err(PyValueError::new_err(format!(
+                "{name} must hold one query's scores, a 1-D array or a |DB| x 1 matrix, got shape {}",
+                shape_of(&array)
+            ))),
+        }
+    }
+
+    /// The scores as a |DB| x 1 view: the core's one f32/f64 dispatch
+    /// ([`qtvpr::with_scores!`]) then serves a column too.
+    pub(crate) fn view(&self) -> ScoresView<'_> {
+        match self {
+            Self::F32(a) => ScoresView::F32(a.as_array().insert_axis(Axis(1))),
+            Self::F64(a) => ScoresView::F64(a.as_array().insert_axis(Axis(1))),
+            Self::F32Matrix(a) => ScoresView::F32(a.as_array()),
+            Self::F64Matrix(a) => ScoresView::F64(a.as_array()),
+        }
+    }
 }
 
 /// A similarity-matrix argument.

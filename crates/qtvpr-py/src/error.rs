@@ -1,12 +1,12 @@
 //! Core errors as Python exceptions.
 //!
 //! Every [`qtvpr::Error`] is bad input. Its variant chooses the exception a Python user
-//! expects ([`exception`]): a file that cannot be opened is the `OSError` subclass of its
-//! kind (`FileNotFoundError`, `IsADirectoryError`, `PermissionError`), a wrong dtype is a
-//! `TypeError`, anything else a `ValueError`. The message is the core's, prefixed by the
-//! Python argument it is about: the core says which matrices an error is about
-//! ([`qtvpr::Error::inputs`]), and each call maps those names to its arguments
-//! ([`named_error`]).
+//! expects ([`exception`]): a file that cannot be opened or written is the `OSError`
+//! subclass of its kind (`FileNotFoundError`, `IsADirectoryError`, `PermissionError`), a
+//! wrong dtype is a `TypeError`, anything else a `ValueError`. The message is the
+//! core's, prefixed by the Python argument it is about: the core says which matrices
+//! an error is about ([`qtvpr::Error::inputs`]), and each call maps those names to its
+//! arguments ([`named_error`]).
 //!
 //! Positions and shapes are given in the caller's orientation: the core computes on
 //! |DB| x |Q| views, so for query-major input its errors are transposed back
@@ -78,7 +78,7 @@ pub(crate) fn input_error(argument: &str, err: Error) -> PyErr {
 fn exception(err: &Error, message: String) -> PyErr {
     use std::io::ErrorKind;
     match err {
-        Error::Io { kind, .. } => match kind {
+        Error::Io { kind, .. } | Error::Write { kind, .. } => match kind {
             ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
             ErrorKind::IsADirectory => PyIsADirectoryError::new_err(message),
             ErrorKind::PermissionDenied => PyPermissionError::new_err(message),

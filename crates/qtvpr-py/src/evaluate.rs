@@ -113,12 +113,19 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 /// ``gt_soft``) for every query. The first ``cal_queries`` queries (default
 /// ``floor(cal_fraction * |Q|)``) calibrate. The deployment set is every later query,
 /// or with ``deploy_fraction`` the last ``floor(deploy_fraction * |Q|)`` queries (the
-/// queries between the two sets are unused). It is cut into full segments of
-/// ``segment_size`` queries (default ``ceil(segment_fraction * |Q|)``), the remainder
-/// dropped. Each of ``methods`` (default all: ``"quantile-transfer"``, ``"schubert"``,
-/// ``"schubert-calibrated"``, ``"calibration-threshold"``, ``"oracle"``) gives every
-/// segment a threshold, and the segment's decisions (``matching``) are counted against
-/// its own ground truth.
+/// calibration-size ablation: the queries between the two sets are unused). It is cut
+/// into full segments of ``segment_size`` queries (default
+/// ``ceil(segment_fraction * |Q|)``), the remainder dropped. Each of ``methods``
+/// (default all: ``"quantile-transfer"``, ``"quantile-transfer-online"``,
+/// ``"schubert"``, ``"schubert-calibrated"``, ``"calibration-threshold"``,
+/// ``"oracle"``) gives every segment a threshold, and the segment's decisions
+/// (``matching``) are counted against its own ground truth.
+///
+/// ``"quantile-transfer-online"`` is :class:`Online` inside the protocol: every
+/// deployment query is decided at its own threshold, over a window of the segment size
+/// that starts at the first deployment query and is not reset at segment boundaries; a
+/// segment's counts are the sums of its queries', and its ``threshold`` is its last
+/// query's.
 ///
 /// Returns a dict with the keys of ``qtvpr-cli evaluate --format json``:
 /// ``dataset`` (``s``'s path if it is one, else ``None``), ``params`` (the parameters

@@ -15,6 +15,7 @@ mod convert;
 mod error;
 mod evaluate;
 mod ground_truth;
+mod online;
 mod similarity;
 
 use pyo3::prelude::*;
@@ -221,5 +222,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(schubert_threshold, m)?)?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
+    m.add_class::<online::PyOnline>()?;
+    m.add_class::<online::OnlineDecision>()?;
+    m.add_class::<online::OnlineDecisions>()?;
     Ok(())
 }

@@ -1,0 +1,387 @@
+//! `Online`, `OnlineDecision` and `OnlineDecisions`: deciding deployment queries one at a
+//! time, as they arrive, from a calibration (the core's [`qtvpr::Online`]).
+
+use std::sync::Arc;
+
+use numpy::PyArray1;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use qtvpr::{Decision, Error, OnlineParams, Outcome};
+
+use crate::calibration::PyCalibration;
+use crate::convert::{Column, Scores, count, with_column, with_scores};
+use crate::error::{Args, input_error};
+
+/// Online thresholds for deployment queries that arrive one at a time.
+///
+/// ``calibration`` is a :class:`Calibration` (built from arrays, or loaded from a
+/// calibration file). Query j is thresholded on its *window*, its last
+/// ``min(window, j + 1)`` queries (itself included), exactly as
+/// :meth:`Calibration.transfer` thresholds one batch: the lower weighted median of the
+/// window's query quantiles, read off all the window's scores. So its threshold is what
+/// ``calibration.transfer(window_columns, k=k, precision=precision)`` returns, and it
+/// depends on no later query. The query is then decided at that threshold: in
+/// ``"single"`` matching its best match (the first maximum) is accepted when its score
+/// is ``>=`` the threshold; in ``"multi"`` matching every score ``>=`` it is.
+///
+/// ``k``, ``precision`` and ``window`` left as ``None`` take the calibration's
+/// :attr:`Calibration.defaults` (the ``params`` of its file); a window must come from
+/// one or the other. ``min_window`` (in ``1..=window``) is a warm-up: the first
+/// ``min_window - 1`` queries are rejected (quantile 1, a threshold just above their
+/// window's highest score), so that no decision rests on fewer queries.
+///
+/// The state keeps only the window (its sorted columns with their quantiles and
+/// weights): memory ``8 * window * |DB|`` bytes. The GIL is released while a query is
+/// decided. One ``Online`` is one stream: calls on it from several threads at once
+/// raise ``RuntimeError`` (already borrowed); give each stream its own.
+///
+/// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1], ``window < 1``,
+/// no window at all, or ``min_window`` outside ``1..=window``.
+#[pyclass(module = "qtvpr", name = "Online")]
+pub(crate) struct PyOnline {
+    inner: qtvpr::Online,
+    calibration: Py<PyCalibration>,
+}
+
+#[pymethods]
+impl PyOnline {
+    #[new]
+    #[pyo3(signature = (calibration, *, k = None, precision = None, window = None, min_window = 1))]
+    fn new(
+        calibration: Bound<'_, PyCalibration>,
+        k: Option<i64>,
+        precision: Option<f64>,
+        window: Option<i64>,
+        min_window: i64,
+    ) -> PyResult<Self> {
+        let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
+        let params = OnlineParams::resolve(
+            cal.defaults(),
+            k.map(|k| count("k", k)).transpose()?,
+            precision,
+            window.map(|m| count("window", m)).transpose()?,
+            Some(count("min_window", min_window)?),
+        )
+        .map_err(|e| ARGS.error(e))?;
+        let inner = qtvpr::Online::new(Arc::clone(cal), params).map_err(|e| ARGS.error(e))?;
+        Ok(Self {
+            inner,
+            calibration: calibration.unbind(),
+        })
+    }
+
+    /// Decide one deployment query from its |DB| scores.
+    ///
+    /// ``column`` is a 1-D array (or a |DB| x 1 matrix) of float32 or float64 scores,
+    /// any strides, read in place. Returns an :class:`OnlineDecision`. Raises
+    /// ``TypeError`` for another dtype and ``ValueError`` for a column of another length
+    /// than |DB| or with a NaN or infinite score; the state is then unchanged.
+    #[pyo3(signature = (column))]
+    fn push(&mut self, py: Python<'_>, column: &Bound<'_, PyAny>) -> PyResult<OnlineDecision> {
+        let column = Column::extract("column", column)?;
+        let view = column.view();
+        let online = &mut self.inner;
+        let decision = py
+            .detach(|| with_column!(view, c => online.push(c)))
+            .map_err(column_error)?;
+        Ok(OnlineDecision::new(py, &decision, self.inner.accepted()))
+    }
+
+    /// Decide several deployment queries, in order: the columns of ``s_val``
+    /// (|DB| x n, float32 or float64, any strides; n x |DB| with ``query_major=True``;
+    /// or the path of a ``.npy`` file, memory-mapped).
+    ///
+    /// The same as pushing the columns one by one (the window carries over between
+    /// calls), faster. Returns an :class:`OnlineDecisions` of arrays over the n
+    /// queries. Raises as :meth:`push`; on a bad column the queries before it are kept
+    /// (decided and in the window), the bad one and those after it are not.
+    #[pyo3(signature = (s_val, *, query_major = false))]
+    fn push_many(&mut self, py: Python<'_>, s_val: &Bound<'_, PyAny>, query_major: bool) -> PyResult<OnlineDecisions> {
+        let s = Scores::extract("s_val", s_val)?;
+        let view = s.view(query_major);
+        let first = self.inner.pushed();
+        let online = &mut self.inner;
+        let decisions = py
+            .detach(|| with_scores!(view, s => online.push_many(s)))
+            .map_err(|e| matrix_error(e, first, query_major))?;
+        Ok(OnlineDecisions::new(
+            py,
+            &decisions,
+            self.inner.calibration().matching(),
+        ))
+    }
+
+    /// The threshold of the last decision (``None`` before the first push).
+    #[getter]
+    fn threshold(&self) -> Option<f64> {
+        self.inner.threshold()
+    }
+
+    /// The number of queries decided so far.
+    #[getter]
+    fn pushed(&self) -> usize {
+        self.inner.pushed()
+    }
+
+    /// Calibration queries sampled per deployment query.
+    #[getter]
+    fn k(&self) -> usize {
+        self.inner.params().k
+    }
+
+    /// The precision target.
+    #[getter]
+    fn precision(&self) -> f64 {
+        self.inner.params().precision
+    }
+
+    /// The window size.
+    #[getter]
+    fn window(&self) -> usize {
+        self.inner.params().window
+    }
+
+    /// The warm-up: queries before the ``min_window``-th are rejected.
+    #[getter]
+    fn min_window(&self) -> usize {
+        self.inner.params().min_window
+    }
+
+    /// The :class:`Calibration` this state decides from.
+    #[getter]
+    fn calibration(&self, py: Python<'_>) -> Py<PyCalibration> {
+        self.calibration.clone_ref(py)
+    }
+
+    fn __repr__(&self) -> String {
+        let p = self.inner.params();
+        format!(
+            "Online(k={}, precision={:?}, window={}, min_window={}, matching='{}', pushed={})",
+            p.k,
+            p.precision,
+            p.window,
+            p.min_window,
+            self.inner.calibration().matching().as_str(),
+            self.inner.pushed()
+        )
+    }
+}
+
+/// How `Online` names its arguments: calibration errors cannot occur here, and a
+/// parameter keeps its name.
+const ARGS: Args = Args {
+    gt: "gt_cal",
+    query_major: false,
+};
+
+/// The exception for an error of `Online.push(column)`: positions are rows of the
+/// column, and the query is its index in arrival order.
+fn column_error(err: Error) -> PyErr {
+    match err {
+        Error::NotFinite { row, col, value, .. } => PyValueError::new_err(format!(
+            "column (deployment query {col}) contains {value} at row {row}; scores must be finite"
+        )),
+        err @ Error::ColumnLength { .. } => input_error("column", err),
+        err => ARGS.error(err),
+    }
+}
+
+/// The exception for an error of `Online.push_many(s_val)` whose first column was
+/// deployment query `first`: positions are given within `s_val`, as the caller stored it.
+fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
+    match err {
+        Error::NotFinite { what, row, col, value } => Args {
+            gt: "gt_cal",
+            query_major,
+        }
+        .error(Error::NotFinite {
+            what,
+            row,
+            col: col.saturating_sub(first),
+            value,
+        }),
+        err @ Error::ColumnLength { .. } => input_error("s_val", err),
+        err => Args {
+            gt: "gt_cal",
+            query_major,
+        }
+        .error(err),
+    }
+}
+
+/// One deployment query decided by :meth:`Online.push`.
+///
+/// ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
+/// its own quantile and weight (from its calibration neighbours, as in
+/// :class:`TransferResult`); ``quantile`` and ``threshold`` its window's weighted-median
+/// quantile and the threshold read off the window's scores (1 and a threshold above
+/// every score during warm-up). In ``"single"`` matching, ``best`` is its best match
+/// (the first maximum), ``score`` that score and ``accept`` whether ``score >=
+/// threshold``; ``accepted`` is ``None``. In ``"multi"`` matching, ``accepted`` is the
+/// number of database images with a score ``>= threshold``, and ``best``, ``score`` and
+/// ``accept`` are ``None``. ``accepted_indices`` are the accepted database indices,
+/// ascending (int64), in both modes.
+#[pyclass(frozen, module = "qtvpr", name = "OnlineDecision")]
+pub(crate) struct OnlineDecision {
+    /// The query's index in arrival order, from 0.
+    #[pyo3(get)]
+    query: usize,
+    /// Its own quantile q_j.
+    #[pyo3(get)]
+    query_quantile: f64,
+    /// Its weight w_j.
+    #[pyo3(get)]
+    weight: f64,
+    /// The window's quantile (1 during warm-up).
+    #[pyo3(get)]
+    quantile: f64,
+    /// The window's threshold: accept a score ``>=`` it.
+    #[pyo3(get)]
+    threshold: f64,
+    /// Single matching: the best match's database index.
+    #[pyo3(get)]
+    best: Option<usize>,
+    /// Single matching: the best match's score.
+    #[pyo3(get)]
+    score: Option<f64>,
+    /// Single matching: whether the best match is accepted.
+    #[pyo3(get)]
+    accept: Option<bool>,
+    /// Multi matching: the number of accepted database images.
+    #[pyo3(get)]
+    accepted: Option<usize>,
+    /// The accepted database indices, ascending (int64).
+    #[pyo3(get)]
+    accepted_indices: Py<PyArray1<i64>>,
+}
+
+impl OnlineDecision {
+    fn new(py: Python<'_>, d: &Decision, accepted: &[usize]) -> Self {
+        let (best, score, accept, count) = match d.outcome {
+            Outcome::Single { best, score, accept } => (Some(best), Some(score), Some(accept), None),
+            Outcome::Multi { accepted } => (None, None, None, Some(accepted)),
+        };
+        Self {
+            query: d.query,
+            query_quantile: d.query_quantile,
+            weight: d.weight,
+            quantile: d.quantile,
+            threshold: d.threshold,
+            best,
+            score,
+            accept,
+            accepted: count,
+            // Indices are below |DB|, so they fit in an i64.
+            accepted_indices: PyArray1::from_iter(py, accepted.iter().map(|&i| i as i64)).unbind(),
+        }
+    }
+}
+
+#[pymethods]
+impl OnlineDecision {
+    fn __repr__(&self) -> String {
+        let decided = match (self.best, self.score, self.accept) {
+            (Some(best), Some(score), Some(accept)) => {
+                format!(
+                    "best={best}, score={score:?}, accept={}",
+                    if accept { "True" } else { "False" }
+                )
+            }
+            _ => format!("accepted={}", self.accepted.unwrap_or(0)),
+        };
+        format!(
+            "OnlineDecision(query={}, quantile={:?}, threshold={:?}, {decided})",
+            self.query, self.quantile, self.threshold
+        )
+    }
+}
+
+/// The decisions of :meth:`Online.push_many`, one entry per pushed query, in order.
+///
+/// ``queries`` (int64, their indices in arrival order), ``query_quantiles``,
+/// ``weights``, ``quantiles`` and ``thresholds`` (float64) are the fields of
+/// :class:`OnlineDecision` as arrays. In ``"single"`` matching ``best`` (int64),
+/// ``score`` (float64) and ``accept`` (bool) are arrays and ``accepted`` is ``None``;
+/// in ``"multi"`` matching ``accepted`` (int64 counts) is, and the other three are
+/// ``None``.
+#[pyclass(frozen, module = "qtvpr", name = "OnlineDecisions")]
+pub(crate) struct OnlineDecisions {
+    /// Each query's index in arrival order (int64).
+    #[pyo3(get)]
+    queries: Py<PyArray1<i64>>,
+    /// Each query's own quantile q_j.
+    #[pyo3(get)]
+    query_quantiles: Py<PyArray1<f64>>,
+    /// Each query's weight w_j.
+    #[pyo3(get)]
+    weights: Py<PyArray1<f64>>,
+    /// Each query's window quantile.
+    #[pyo3(get)]
+    quantiles: Py<PyArray1<f64>>,
+    /// Each query's threshold.
+    #[pyo3(get)]
+    thresholds: Py<PyArray1<f64>>,
+    /// Single matching: each query's best match (int64).
+    #[pyo3(get)]
+    best: Option<Py<PyArray1<i64>>>,
+    /// Single matching: each best match's score.
+    #[pyo3(get)]
+    score: Option<Py<PyArray1<f64>>>,
+    /// Single matching: whether each best match is accepted.
+    #[pyo3(get)]
+    accept: Option<Py<PyArray1<bool>>>,
+    /// Multi matching: each query's number of accepted database images (int64).
+    #[pyo3(get)]
+    accepted: Option<Py<PyArray1<i64>>>,
+    len: usize,
+}
+
+impl OnlineDecisions {
+    fn new(py: Python<'_>, decisions: &[Decision], matching: qtvpr::Matching) -> Self {
+        let f64s = |f: fn(&Decision) -> f64| PyArray1::from_iter(py, decisions.iter().map(f)).unbind();
+        // Indices and counts are below |DB| and the number of queries: they fit in an i64.
+        let (mut best, mut score, mut accept, mut accepted) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for d in decisions {
+            match d.outcome {
+                Outcome::Single {
+                    best: b,
+                    score: s,
+                    accept: a,
+                } => {
+                    best.push(b as i64);
+                    score.push(s);
+                    accept.push(a);
+                }
+                Outcome::Multi { accepted: n } => accepted.push(n as i64),
+            }
+        }
+        let single = matching == qtvpr::Matching::Single;
+        Self {
+            queries: PyArray1::from_iter(py, decisions.iter().map(|d| d.query as i64)).unbind(),
+            query_quantiles: f64s(|d| d.query_quantile),
+            weights: f64s(|d| d.weight),
+            quantiles: f64s(|d| d.quantile),
+            thresholds: f64s(|d| d.threshold),
+            best: single.then(|| PyArray1::from_vec(py, best).unbind()),
+            score: single.then(|| PyArray1::from_vec(py, score).unbind()),
+            accept: single.then(|| PyArray1::from_vec(py, accept).unbind()),
+            accepted: (!single).then(|| PyArray1::from_vec(py, accepted).unbind()),
+            len: decisions.len(),
+        }
+    }
+}
+
+#[pymethods]
+impl OnlineDecisions {
+    fn __len__(&self) -> usize {
+        self.len
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let thresholds = self.thresholds.bind(py).repr()?;
+        Ok(format!(
+            "OnlineDecisions(queries={}, thresholds={thresholds})",
+            self.len
+        ))
+    }
+}
