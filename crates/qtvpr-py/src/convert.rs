@@ -27,7 +27,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ndarray::{ArrayView1, ArrayView2, Axis, Dimension, Ix2};
+use ndarray::{ArrayView2, Axis, Dimension, Ix2};
 use numpy::{
     Element, PyArray, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
     PyUntypedArray, PyUntypedArrayMethods, dtype,

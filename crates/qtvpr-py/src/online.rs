@@ -9,8 +9,9 @@ use pyo3::prelude::*;
 use qtvpr::{Decision, Error, OnlineParams, Outcome};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{Column, Scores, count, with_column, with_scores};
+use crate::convert::{Column, Scores, count};
 use crate::error::{Args, input_error};
+use qtvpr::with_scores;
 
 /// Online thresholds for deployment queries that arrive one at a time.
 ///
@@ -82,7 +83,7 @@ impl PyOnline {
         let view = column.view();
         let online = &mut self.inner;
         let decision = py
-            .detach(|| with_column!(view, c => online.push(c)))
+            .detach(|| with_scores!(view, |c| online.push(c.column(0))))
             .map_err(column_error)?;
         Ok(OnlineDecision::new(py, &decision, self.inner.accepted()))
     }
@@ -102,7 +103,7 @@ impl PyOnline {
         let first = self.inner.pushed();
         let online = &mut self.inner;
         let decisions = py
-            .detach(|| with_scores!(view, s => online.push_many(s)))
+            .detach(|| with_scores!(view, |s| online.push_many(s)))
             .map_err(|e| matrix_error(e, first, query_major))?;
         Ok(OnlineDecisions::new(
             py,
