@@ -433,7 +433,7 @@ pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<Scores> {
             ),
         ));
     }
-    let aligned = (map.as_ptr() as usize + offset) % size as usize == 0;
+    let aligned = (map.as_ptr() as usize + offset).is_multiple_of(size as usize);
     if !(little && cfg!(target_endian = "little") && aligned) {
         return read_unmapped(io::BufReader::new(open_file(path)?), path, what);
     }

@@ -78,7 +78,7 @@ impl Sequence {
     /// # Errors
     /// [`Error::InvalidParameter`] named `sequence`.
     pub fn validate(&self) -> Result<()> {
-        if self.length == 0 || self.length % 2 == 0 {
+        if self.length == 0 || self.length.is_multiple_of(2) {
             return Err(Error::param(
                 "sequence",
                 format!("length must be odd and >= 1, got {}", self.length),

@@ -24,7 +24,7 @@ pub fn npy_raw(path: &Path, descr: &str, fortran: bool, shape: &[usize], payload
 /// whatever `dict` says (so tests can also write malformed headers).
 pub fn npy_header(dict: &str) -> Vec<u8> {
     let mut header = dict.to_string();
-    while (10 + header.len() + 1) % 64 != 0 {
+    while !(10 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
     header.push('\n');
