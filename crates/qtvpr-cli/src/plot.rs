@@ -35,6 +35,7 @@ const FN_COLOUR: RGBColor = RGBColor(170, 170, 170);
 fn colour(m: Method) -> RGBColor {
     match m {
         Method::QuantileTransfer => RGBColor(31, 119, 180),
+        Method::QuantileTransferOnline => RGBColor(23, 190, 207),
         Method::Schubert => RGBColor(255, 127, 14),
         Method::SchubertCalibrated => RGBColor(148, 103, 189),
         Method::CalibrationThreshold => RGBColor(140, 86, 75),

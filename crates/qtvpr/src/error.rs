@@ -64,6 +64,20 @@ pub enum Error {
         /// |DB| of the deployment matrix.
         deployment: usize,
     },
+    /// A deployment column pushed to an online state does not hold one score per
+    /// database image.
+    #[error(
+        "deployment query {query} has {len} scores but the calibration has {db} database images; \
+         a query's column holds one score per database image"
+    )]
+    ColumnLength {
+        /// The query's index in arrival order.
+        query: usize,
+        /// Its number of scores.
+        len: usize,
+        /// |DB| of the calibration.
+        db: usize,
+    },
     /// A ground-truth entry is neither 0 nor 1 (nor false/true).
     #[error("{what} has value {value} at row {row}, column {col}; ground truth must be 0/1 or bool")]
     BadLabel {
@@ -82,6 +96,16 @@ pub enum Error {
         /// The file.
         path: String,
         /// The kind of I/O error, for front ends that map it (e.g. to FileNotFoundError).
+        kind: std::io::ErrorKind,
+        /// What the operating system said.
+        message: String,
+    },
+    /// A file cannot be written (no such directory, no permission, disk full, ...).
+    #[error("cannot write {path}: {message}")]
+    Write {
+        /// The file.
+        path: String,
+        /// The kind of I/O error.
         kind: std::io::ErrorKind,
         /// What the operating system said.
         message: String,
@@ -114,8 +138,8 @@ pub enum Error {
     },
     /// A method name the evaluation protocol does not know.
     #[error(
-        "unknown method '{name}'; expected one of quantile-transfer, schubert, schubert-calibrated, \
-         calibration-threshold, oracle"
+        "unknown method '{name}'; expected one of quantile-transfer, quantile-transfer-online, schubert, \
+         schubert-calibrated, calibration-threshold, oracle"
     )]
     UnknownMethod {
         /// The name as given.

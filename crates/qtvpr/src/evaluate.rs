@@ -19,6 +19,7 @@
 //! Fig. 5 ablation).
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};
 use rayon::prelude::*;
@@ -28,6 +29,7 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
+use crate::online::{Online, OnlineParams};
 use crate::transfer::{Calibration, DEFAULT_K, Params};
 
 /// Tolerance of the "meets the target" test (SPEC section 8.3).
@@ -38,6 +40,9 @@ const EPS: f64 = 1e-12;
 pub enum Method {
     /// Quantile transfer (sections 4-6), each segment its own batch.
     QuantileTransfer,
+    /// Online quantile transfer (section 11): every deployment query decided at the
+    /// threshold of its causal window of one segment size.
+    QuantileTransferOnline,
     /// Schubert et al.'s threshold fitted to each segment's raw scores.
     Schubert,
     /// Schubert et al.'s threshold fitted once to the calibration scores.
@@ -51,8 +56,9 @@ pub enum Method {
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
         Method::QuantileTransfer,
+        Method::QuantileTransferOnline,
         Method::Schubert,
         Method::SchubertCalibrated,
         Method::CalibrationThreshold,
@@ -63,6 +69,7 @@ impl Method {
     pub fn as_str(self) -> &'static str {
         match self {
             Method::QuantileTransfer => "quantile-transfer",
+            Method::QuantileTransferOnline => "quantile-transfer-online",
             Method::Schubert => "schubert",
             Method::SchubertCalibrated => "schubert-calibrated",
             Method::CalibrationThreshold => "calibration-threshold",
@@ -419,11 +426,14 @@ pub fn evaluate<T: Score>(
         .par_iter()
         .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
         .collect();
-    let needs_calibration = unique
-        .iter()
-        .any(|m| matches!(m, Method::QuantileTransfer | Method::CalibrationThreshold));
+    let needs_calibration = unique.iter().any(|m| {
+        matches!(
+            m,
+            Method::QuantileTransfer | Method::QuantileTransferOnline | Method::CalibrationThreshold
+        )
+    });
     let calibration = needs_calibration
-        .then(|| Calibration::with_labels(s_cal, gt_cal, protocol.matching))
+        .then(|| Calibration::with_labels(s_cal, gt_cal, protocol.matching).map(Arc::new))
         .transpose()?;
 
     let mut results = Vec::with_capacity(unique.len());
@@ -452,6 +462,12 @@ pub fn evaluate<T: Score>(
                 vec![cal.threshold(tau)?; ranges.len()]
             }
             Method::Oracle => oracle.clone(),
+            Method::QuantileTransferOnline => {
+                let cal = calibration.as_ref().expect("built for online quantile transfer");
+                let segments = online_segments(cal, s_dep, &deployment, &ranges, &oracle, protocol)?;
+                results.push(summarise(method, segments));
+                continue;
+            }
         };
         results.push(score(method, &deployment, &ranges, &thresholds, &oracle, tau));
     }
@@ -486,6 +502,62 @@ fn score(
             }
         })
         .collect();
+    summarise(method, segments)
+}
+
+/// Online quantile transfer in the protocol (SPEC section 11): one window of the
+/// segment size over the deployment queries (not reset at segment boundaries); every
+/// query decided at its own threshold; a segment's counts are the sums over its
+/// queries, and its threshold that of its last query.
+fn online_segments<T: Score>(
+    cal: &Arc<Calibration>,
+    s_dep: ArrayView2<'_, T>,
+    deployment: &Candidates,
+    ranges: &[Range<usize>],
+    oracle: &[f64],
+    protocol: &Protocol,
+) -> Result<Vec<SegmentResult>> {
+    let params = OnlineParams {
+        k: protocol.k,
+        precision: protocol.precision,
+        window: ranges[0].len(),
+        min_window: 1,
+    };
+    let decisions = Online::new(Arc::clone(cal), params)?.push_many(s_dep)?;
+    let segments = ranges
+        .iter()
+        .zip(oracle)
+        .map(|(r, &oracle_threshold)| {
+            let counts = r.clone().fold(
+                Counts {
+                    tp: 0,
+                    fp: 0,
+                    positives: 0,
+                },
+                |a, j| {
+                    let c = deployment.counts(j..j + 1, decisions[j].threshold);
+                    Counts {
+                        tp: a.tp + c.tp,
+                        fp: a.fp + c.fp,
+                        positives: a.positives + c.positives,
+                    }
+                },
+            );
+            SegmentResult {
+                start: r.start,
+                end: r.end,
+                threshold: decisions[r.end - 1].threshold,
+                oracle_threshold,
+                counts,
+                meets: counts.precision() >= protocol.precision - EPS,
+            }
+        })
+        .collect();
+    Ok(segments)
+}
+
+/// %Segs, AvgR@tauP and the threshold MSE of a method's segments (SPEC sections 8.3-8.6).
+fn summarise(method: Method, segments: Vec<SegmentResult>) -> MethodResult {
     let counted: Vec<&SegmentResult> = segments.iter().filter(|g| g.counts.positives > 0).collect();
     let n = counted.len();
     let (pct_segs, avg_recall) = if n == 0 {
@@ -519,6 +591,7 @@ fn score(
 mod tests {
     use super::*;
     use crate::baselines::SCHUBERT_Z;
+    use crate::online::Outcome;
     use ndarray::{Array2, array};
 
     /// |DB| = 3, |Q| = 7 (the reference's TINY case): calibration c0, c1, then
@@ -630,6 +703,104 @@ mod tests {
         assert_eq!((q.segments[0].counts.tp, q.segments[0].counts.fp), (1, 1));
         assert_eq!((q.pct_segs, q.avg_recall), (Some(100.0), Some(0.5)));
         assert!((q.threshold_mse.unwrap() - 0.01).abs() < 1e-15);
+    }
+
+    #[test]
+    fn quantile_transfer_online_per_query() {
+        // Every query's subset is {c0, c1} (k clipped to 2): q = 4/5, as above. Window 2,
+        // over the deployment queries only:
+        // d0: {d0} ascending (0.2, 0.3, 0.7): h = 2 * 0.8 = 1.6 -> 0.3 + 0.6 * 0.4 = 0.54;
+        //     its best 0.7 (T) is accepted.
+        // d1: {d0, d1} (0.1, 0.2, 0.3, 0.5, 0.6, 0.7): h = 4 -> 0.6; best 0.6 (F) accepted.
+        // Segment 0: TP 1, FP 1, positives 2: precision 1/2 meets, recall 1/2; its
+        //     threshold is d1's, 0.6.
+        // d2: {d1, d2} (0.1, 0.3, 0.4, 0.5, 0.5, 0.6) -> 0.5: best 0.5 (F) accepted.
+        // d3: {d2, d3} (0.1, 0.2, 0.3, 0.4, 0.5, 0.9) -> 0.5: best 0.9 (F) accepted.
+        // Segment 1: FP 2, no positives: skipped. %Segs 100, AvgR 0.5, MSE (0.6 - 0.7)^2.
+        let e = run(&[Method::QuantileTransferOnline]);
+        let o = &e.methods[0];
+        assert_eq!(o.method.as_str(), "quantile-transfer-online");
+        let t: Vec<f64> = o.segments.iter().map(|g| g.threshold).collect();
+        assert!((t[0] - 0.6).abs() < 1e-15 && (t[1] - 0.5).abs() < 1e-15, "{t:?}");
+        let c: Vec<(usize, usize, usize)> = o
+            .segments
+            .iter()
+            .map(|g| (g.counts.tp, g.counts.fp, g.counts.positives))
+            .collect();
+        assert_eq!(c, vec![(1, 1, 2), (0, 2, 0)]);
+        assert_eq!((o.pct_segs, o.avg_recall), (Some(100.0), Some(0.5)));
+        assert_eq!((o.segments_counted, o.segments_skipped), (1, 1));
+        assert!((o.threshold_mse.unwrap() - 0.01).abs() < 1e-15);
+    }
+
+    #[test]
+    fn quantile_transfer_online_is_online_over_the_deployment_queries() {
+        // A fixed LCG matrix of 8 x 50: 5 calibration queries, segments of 6 from column 8
+        // (columns 5..8 unused, deploy fraction 0.84): 7 full segments, 42 queries.
+        let mut x = 7u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 100) as f64 / 100.0
+        };
+        let s = Array2::from_shape_fn((8, 50), |_| next());
+        let gt = GroundTruth::new(Array2::from_shape_fn((8, 50), |(i, j)| i == j % 8).view()).unwrap();
+        for matching in [Matching::Single, Matching::Multi] {
+            let p = Protocol {
+                calibration: Split::Count(5),
+                deploy_fraction: Some(0.84),
+                segment: Split::Count(6),
+                k: 3,
+                precision: 0.9,
+                matching,
+            };
+            let e = evaluate(s.view(), &gt, &p, &[Method::QuantileTransferOnline]).unwrap();
+            assert_eq!((e.layout.deployment_start, e.layout.segments), (8, 7));
+            let cal = Calibration::new(
+                s.slice(s![.., ..5]),
+                &GroundTruth::from_truth(gt.view().slice(s![.., ..5]).to_owned()),
+                matching,
+            )
+            .unwrap();
+            let params = OnlineParams {
+                k: 3,
+                precision: 0.9,
+                window: 6,
+                min_window: 1,
+            };
+            let decisions = Online::new(Arc::new(cal), params)
+                .unwrap()
+                .push_many(s.slice(s![.., 8..50]))
+                .unwrap();
+            for (g, segment) in e.methods[0].segments.iter().zip(0..) {
+                let queries = &decisions[6 * segment..6 * (segment + 1)];
+                assert_eq!(g.threshold.to_bits(), queries[5].threshold.to_bits());
+                // Counts by hand from the decisions and the ground truth.
+                let (mut tp, mut fp, mut positives) = (0, 0, 0);
+                for d in queries {
+                    let col = 8 + d.query;
+                    match (matching, d.outcome) {
+                        (Matching::Single, Outcome::Single { best, accept, .. }) => {
+                            positives += 1; // every column has its match, row j % 8
+                            if accept {
+                                if best == col % 8 { tp += 1 } else { fp += 1 }
+                            }
+                        }
+                        (Matching::Multi, Outcome::Multi { accepted }) => {
+                            positives += 1;
+                            let hit = usize::from(s[[col % 8, col]] >= d.threshold);
+                            tp += hit;
+                            fp += accepted - hit;
+                        }
+                        _ => unreachable!("the outcome is of the calibration's matching"),
+                    }
+                }
+                assert_eq!(
+                    (g.counts.tp, g.counts.fp, g.counts.positives),
+                    (tp, fp, positives),
+                    "{matching:?} {segment}"
+                );
+            }
+        }
     }
 
     #[test]
@@ -764,8 +935,8 @@ mod tests {
         );
         assert_eq!(
             "magic".parse::<Method>().unwrap_err().to_string(),
-            "unknown method 'magic'; expected one of quantile-transfer, schubert, schubert-calibrated, \
-             calibration-threshold, oracle"
+            "unknown method 'magic'; expected one of quantile-transfer, quantile-transfer-online, schubert, \
+             schubert-calibrated, calibration-threshold, oracle"
         );
         assert_eq!(
             "schubert-calibrated".parse::<Method>().unwrap(),

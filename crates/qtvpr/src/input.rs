@@ -22,6 +22,36 @@ pub trait Score: Copy + Default + Send + Sync + PartialOrd + sealed::Sealed + 's
     fn to_f64(self) -> f64;
     /// Sort ascending in total order (a radix sort on the native width).
     fn sort_ascending(v: &mut [Self]);
+    /// An owned copy of `s` in its own type.
+    fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix;
+}
+
+/// An owned score matrix in its own type: what a [`crate::Calibration`] keeps of its
+/// input so that it can be saved.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScoreMatrix {
+    /// float32 scores.
+    F32(Array2<f32>),
+    /// float64 scores.
+    F64(Array2<f64>),
+}
+
+impl ScoreMatrix {
+    /// Shape (rows, columns).
+    pub fn dim(&self) -> (usize, usize) {
+        match self {
+            ScoreMatrix::F32(m) => m.dim(),
+            ScoreMatrix::F64(m) => m.dim(),
+        }
+    }
+
+    /// The NumPy name of the element type (`float32` or `float64`).
+    pub fn dtype(&self) -> &'static str {
+        match self {
+            ScoreMatrix::F32(_) => f32::DTYPE,
+            ScoreMatrix::F64(_) => f64::DTYPE,
+        }
+    }
 }
 
 impl sealed::Sealed for f32 {}
@@ -31,6 +61,9 @@ impl Score for f32 {
     const DTYPE: &'static str = "float32";
     fn sort_ascending(v: &mut [Self]) {
         radsort::sort(v);
+    }
+    fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix {
+        ScoreMatrix::F32(s.to_owned())
     }
     #[inline(always)]
     fn to_f64(self) -> f64 {
@@ -42,6 +75,9 @@ impl Score for f64 {
     const DTYPE: &'static str = "float64";
     fn sort_ascending(v: &mut [Self]) {
         radsort::sort(v);
+    }
+    fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix {
+        ScoreMatrix::F64(s.to_owned())
     }
     #[inline(always)]
     fn to_f64(self) -> f64 {

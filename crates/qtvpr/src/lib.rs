@@ -21,10 +21,12 @@
 //! | 4-6 together | [`transfer`] |
 //! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
 //! | 8 evaluation protocol (%Segs, AvgR@tauP) | [`evaluate`](mod@evaluate) |
+//! | 11 online thresholds over a causal window | [`online`] |
+//! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
-//! | file input (feature `npy`) | `npy` |
+//! | file input and output (feature `npy`) | `npy` |
 //!
 //! The extensions are beyond the paper and are not SPEC sections: they make the
 //! similarity and ground-truth matrices the method takes from what users have
@@ -54,6 +56,7 @@
 
 pub mod baselines;
 pub mod best_threshold;
+pub mod calibration_file;
 pub mod decisions;
 pub mod deployment;
 mod error;
@@ -63,6 +66,7 @@ pub mod input;
 mod kd_tree;
 #[cfg(feature = "npy")]
 pub mod npy;
+pub mod online;
 pub mod ranked_correlation;
 pub mod sequence;
 pub mod similarity;
@@ -71,10 +75,12 @@ pub mod transfer;
 
 pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
+pub use calibration_file::Defaults;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Evaluation, Method, Protocol, Split, evaluate};
-pub use input::{GroundTruth, Label, Score, Truth};
+pub use input::{GroundTruth, Label, Score, ScoreMatrix, Truth};
+pub use online::{Decision, Online, OnlineParams, Outcome};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::cosine_similarity;

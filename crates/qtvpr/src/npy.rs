@@ -8,19 +8,24 @@
 //! truth (bool or integer 0/1) is read by npyz and turned into a [`GroundTruth`] at once;
 //! an `.npz` in the VPR_Tutorial convention (`GThard`, optional `GTsoft`) is accepted.
 //!
+//! Writing ([`write_npy`], [`write_npz`], [`write_atomically`]) is atomic: a temporary
+//! file next to the target is filled and renamed over it, so an error never leaves a
+//! half-written file, and the file gets the mode a plain create would give it under the
+//! user's umask (0644 under umask 022), not a temporary file's 0600.
+//!
 //! Every error names the file and says what is wrong with it. A header is checked before
 //! npyz parses it (at most 10000 bytes, as NumPy's `max_header_size`, and brackets at
 //! most 6 deep), and a shape is checked against the largest possible array, so that a
 //! corrupt or hostile file can neither hang the parser nor make the reader panic.
 
 use std::fs::File;
-use std::io::{self, Cursor, Read};
-use std::path::Path;
+use std::io::{self, BufWriter, Cursor, Read, Seek, Write};
+use std::path::{Path, PathBuf};
 
 use memmap2::Mmap;
 use ndarray::{ArrayView2, ShapeBuilder};
 use npyz::npz::NpzArchive;
-use npyz::{DType, NpyFile, Order, TypeChar};
+use npyz::{DType, NpyFile, Order, TypeChar, WriterBuilder};
 
 use crate::error::{Error, Result};
 use crate::input::GroundTruth;
@@ -483,4 +488,269 @@ fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<io::BufReader<Fil
         .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
     let gt = ground_truth_of(npy, path, None)?;
     Ok((gt, npz))
+}
+
+/// Array `name` of an `.npz` archive: `Ok(None)` if there is none; errors name it in
+/// the file (`FILE (array NAME)`).
+pub(crate) fn npz_member<'a, R: Read + Seek>(
+    npz: &'a mut NpzArchive<R>,
+    name: &str,
+    path: &Path,
+) -> Result<Option<(NpyFile<impl Read + 'a>, PathBuf)>> {
+    let member = PathBuf::from(format!("{} (array {name})", path.display()));
+    Ok(npz_array(npz, name, path)?.map(|npy| (npy, member)))
+}
+
+/// Open an `.npz` archive, naming `path` if it is not one.
+pub(crate) fn open_npz<R: Read + Seek>(reader: R, path: &Path) -> Result<NpzArchive<R>> {
+    NpzArchive::new(reader).map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))
+}
+
+/// Open the `.npz` archive `path`.
+pub(crate) fn open_npz_file(path: &Path) -> Result<NpzArchive<io::BufReader<File>>> {
+    open_npz(io::BufReader::new(open_file(path)?), path)
+}
+
+/// A float32/float64 matrix read into memory from `npy` (`path` names it).
+pub(crate) fn read_owned_scores<R: Read>(npy: NpyFile<R>, path: &Path) -> Result<crate::input::ScoreMatrix> {
+    use crate::input::ScoreMatrix;
+    match plain_dtype(&npy, path)? {
+        (TypeChar::Float, 4, _) => Ok(ScoreMatrix::F32(read_matrix(npy, path)?.into_array())),
+        (TypeChar::Float, 8, _) => Ok(ScoreMatrix::F64(read_matrix(npy, path)?.into_array())),
+        _ => Err(Error::Dtype {
+            path: path.display().to_string(),
+            dtype: dtype_name(&npy),
+            expected: "float32 or float64 similarity scores",
+        }),
+    }
+}
+
+/// A bool matrix read from `npy` (`path` names it); other dtypes are refused.
+pub(crate) fn read_bool_matrix<R: Read>(npy: NpyFile<R>, path: &Path) -> Result<ndarray::Array2<bool>> {
+    match plain_dtype(&npy, path)? {
+        (TypeChar::Bool, 1, _) => Ok(read_matrix(npy, path)?.into_array()),
+        _ => Err(Error::Dtype {
+            path: path.display().to_string(),
+            dtype: dtype_name(&npy),
+            expected: "bool",
+        }),
+    }
+}
+
+/// A 0-d unicode string (`<U{n}`, shape `()`) read from `npy` (`path` names it).
+pub(crate) fn read_string<R: Read>(npy: NpyFile<R>, path: &Path) -> Result<String> {
+    let (kind, _, _) = plain_dtype(&npy, path).map_err(|_| not_a_string(&npy, path))?;
+    if kind != TypeChar::UnicodeStr || !npy.shape().is_empty() {
+        return Err(not_a_string(&npy, path));
+    }
+    let mut values: Vec<String> = npy
+        .into_vec()
+        .map_err(|e| file_error(path, format!("is truncated or corrupt: {e}")))?;
+    match values.len() {
+        1 => Ok(values.pop().expect("one value")),
+        _ => Err(file_error(path, "is truncated or corrupt: a 0-d array holds one value")),
+    }
+}
+
+fn not_a_string<R: Read>(npy: &NpyFile<R>, path: &Path) -> Error {
+    file_error(
+        path,
+        format!(
+            "holds an array of dtype {} and shape {:?}, expected a 0-d unicode string",
+            dtype_name(npy),
+            npy.shape()
+        ),
+    )
+}
+
+/// An array to write: a matrix of float32, float64 or bool, or a 0-d unicode string
+/// (NumPy dtype `<U{n}`, UTF-32LE, shape `()`; `np.load(...)["meta"][()]` gives the
+/// `str` back).
+#[derive(Debug, Clone, Copy)]
+pub enum NpyArray<'a> {
+    /// float32 matrix (`<f4`).
+    F32(ArrayView2<'a, f32>),
+    /// float64 matrix (`<f8`).
+    F64(ArrayView2<'a, f64>),
+    /// bool matrix (`|b1`).
+    Bool(ArrayView2<'a, bool>),
+    /// 0-d unicode string.
+    Str(&'a str),
+}
+
+impl<'a> From<ArrayView2<'a, f32>> for NpyArray<'a> {
+    fn from(m: ArrayView2<'a, f32>) -> Self {
+        NpyArray::F32(m)
+    }
+}
+
+impl<'a> From<ArrayView2<'a, f64>> for NpyArray<'a> {
+    fn from(m: ArrayView2<'a, f64>) -> Self {
+        NpyArray::F64(m)
+    }
+}
+
+impl<'a> From<ArrayView2<'a, bool>> for NpyArray<'a> {
+    fn from(m: ArrayView2<'a, bool>) -> Self {
+        NpyArray::Bool(m)
+    }
+}
+
+impl<'a> From<&'a str> for NpyArray<'a> {
+    fn from(s: &'a str) -> Self {
+        NpyArray::Str(s)
+    }
+}
+
+impl<'a> From<ScoresView<'a>> for NpyArray<'a> {
+    fn from(s: ScoresView<'a>) -> Self {
+        match s {
+            ScoresView::F32(m) => NpyArray::F32(m),
+            ScoresView::F64(m) => NpyArray::F64(m),
+        }
+    }
+}
+
+impl NpyArray<'_> {
+    /// Bytes of data (for the zip64 decision).
+    fn data_bytes(&self) -> u64 {
+        match self {
+            NpyArray::F32(m) => 4 * m.len() as u64,
+            NpyArray::F64(m) => 8 * m.len() as u64,
+            NpyArray::Bool(m) => m.len() as u64,
+            NpyArray::Str(s) => 4 * s.chars().count() as u64,
+        }
+    }
+
+    /// The array as one `.npy` stream: header, then data in C order.
+    pub(crate) fn write_to(&self, w: &mut impl Write) -> io::Result<()> {
+        match *self {
+            NpyArray::F32(m) => write_matrix(w, m),
+            NpyArray::F64(m) => write_matrix(w, m),
+            NpyArray::Bool(m) => write_matrix(w, m),
+            NpyArray::Str(s) => {
+                let n = s.chars().count().max(1);
+                let dtype = DType::new_scalar(format!("<U{n}").parse().expect("a valid unicode type string"));
+                npyz::WriteOptions::new_header_only()
+                    .dtype(dtype)
+                    .shape(&[])
+                    .writer(&mut *w)
+                    .write_header_only()?;
+                let mut data: Vec<u8> = s.chars().flat_map(|c| u32::from(c).to_le_bytes()).collect();
+                data.resize(4 * n, 0);
+                w.write_all(&data)
+            }
+        }
+    }
+}
+
+/// A matrix element written as raw little-endian bytes after an `.npy` header.
+trait NpyElement: Copy + npyz::AutoSerialize {
+    /// Append the element's bytes.
+    fn put(self, out: &mut Vec<u8>);
+}
+
+impl NpyElement for f32 {
+    fn put(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+}
+
+impl NpyElement for f64 {
+    fn put(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+}
+
+impl NpyElement for bool {
+    fn put(self, out: &mut Vec<u8>) {
+        out.push(u8::from(self));
+    }
+}
+
+/// A C-order `.npy` stream of `m`, any strides, a row at a time.
+fn write_matrix<T: NpyElement>(w: &mut impl Write, m: ArrayView2<'_, T>) -> io::Result<()> {
+    npyz::WriteOptions::<T>::new()
+        .default_dtype()
+        .shape(&[m.nrows() as u64, m.ncols() as u64])
+        .writer(&mut *w)
+        .write_header_only()?;
+    let mut buf = Vec::new();
+    for row in m.rows() {
+        buf.clear();
+        row.iter().for_each(|v| v.put(&mut buf));
+        w.write_all(&buf)?;
+    }
+    Ok(())
+}
+
+/// An uncompressed `.npz` archive of `arrays` (as `numpy.savez` writes) into `w`.
+pub(crate) fn write_npz_to<W: Write + Seek>(w: W, arrays: &[(&str, NpyArray<'_>)]) -> io::Result<()> {
+    let mut zip = npyz::zip::ZipWriter::new(w);
+    for (name, array) in arrays {
+        let options = npyz::zip::write::FileOptions::default()
+            .compression_method(npyz::zip::CompressionMethod::Stored)
+            .large_file(array.data_bytes() >= u64::from(u32::MAX) / 2);
+        zip.start_file(npyz::npz::file_name_from_array_name(name), options)?;
+        array.write_to(&mut zip)?;
+    }
+    zip.finish()?;
+    Ok(())
+}
+
+fn write_error(path: &Path, e: &io::Error) -> Error {
+    Error::Write {
+        path: path.display().to_string(),
+        kind: e.kind(),
+        message: e.to_string(),
+    }
+}
+
+/// Write `path` atomically: `write` fills a temporary file next to it (buffered), which
+/// then replaces `path`. On any error nothing is left behind and `path` is untouched.
+/// The file gets the mode a plain create gives (`0666` less the umask), not a
+/// temporary file's `0600`.
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".qtvpr-tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // open(2) applies the umask to this mode, exactly as for a plain create.
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder.tempfile_in(dir).map_err(|e| write_error(path, &e))?;
+    {
+        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
+        write(&mut w)
+            .and_then(|()| w.flush())
+            .map_err(|e| write_error(path, &e))?;
+    }
+    tmp.persist(path).map_err(|e| write_error(path, &e.error))?;
+    Ok(())
+}
+
+/// Write one array as an `.npy` file (C order), atomically.
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+pub fn write_npy<'a>(path: &Path, array: impl Into<NpyArray<'a>>) -> Result<()> {
+    let array = array.into();
+    write_atomically(path, |w| array.write_to(w))
+}
+
+/// Write arrays into one uncompressed `.npz` archive (as `numpy.savez`), atomically;
+/// `np.load` reads it without pickle.
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+pub fn write_npz(path: &Path, arrays: &[(&str, NpyArray<'_>)]) -> Result<()> {
+    write_atomically(path, |w| write_npz_to(w, arrays))
 }

@@ -18,10 +18,11 @@ use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
 use crate::best_threshold::subset_threshold;
+use crate::calibration_file::Defaults;
 use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
-use crate::input::{GroundTruth, Score, Truth, check_gt_shape, check_nonempty, check_precision};
+use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
 use crate::subset_quantile::subset_quantile;
 
@@ -91,6 +92,13 @@ pub struct Transfer {
 }
 
 /// A calibration traverse with ground truth, ready to transfer thresholds.
+///
+/// Besides what the transfer needs, it keeps its input (the raw scores in their own
+/// type and the ground truth) so that it can be saved as a calibration file
+/// ([`Calibration::save`], feature `npy`) and loaded with bit-identical results. That
+/// costs one more copy of the calibration matrix (|DB| x |Qcal| scores of 4 or 8
+/// bytes) and one byte per entry for the ground truth, beside the ranked profiles
+/// (the same size again, plus 4 bytes a score for their screen).
 pub struct Calibration {
     matching: Matching,
     /// The ranked profiles, ascending, in the input's own type, with their standardised
@@ -98,8 +106,28 @@ pub struct Calibration {
     profiles: Box<dyn Profiles>,
     /// The mean calibration profile, which screens are taken against.
     reference: Reference,
+    /// The largest spread of a calibration profile from the reference (for screen bounds).
+    cal_spread: f64,
     candidates: Candidates,
     n_db: usize,
+    /// The input, kept to be saved.
+    scores: ScoreMatrix,
+    gt: GroundTruth,
+    /// The defaults of a calibration file's `params`.
+    defaults: Defaults,
+}
+
+/// What the calibration gives one deployment query (SPEC sections 4 and 5).
+#[derive(Debug, Clone)]
+pub(crate) struct QueryTransfer {
+    /// Its calibration neighbours, most correlated first.
+    pub(crate) neighbours: Vec<usize>,
+    /// Its weight `w_j`.
+    pub(crate) weight: f64,
+    /// Its subset threshold `t_j` (`inf` for reject-all).
+    pub(crate) threshold: f64,
+    /// The quantile `q_j` of that threshold.
+    pub(crate) quantile: f64,
 }
 
 /// What the transfer asks of the calibration profiles, whatever their score type.
@@ -132,7 +160,7 @@ impl Calibration {
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         let ranked = Ranked::new("calibration similarity", s, 0, &Reference::zero(s.nrows()))?;
         check_gt_shape(gt, "calibration similarity", s.dim())?;
-        Ok(Self::from_ranked(ranked, s, gt.view(), matching))
+        Ok(Self::from_ranked(ranked, s, gt.clone(), matching))
     }
 
     /// [`Calibration::new`] on labels already known to have the shape of `s`.
@@ -144,27 +172,106 @@ impl Calibration {
         Ok(Self::from_ranked(
             Ranked::new("calibration similarity", s, 0, &Reference::zero(s.nrows()))?,
             s,
-            gt,
+            GroundTruth::from_truth(gt.to_owned()),
             matching,
         ))
     }
 
     /// Screen `ranked` (screened against zero) against its own mean profile.
-    fn from_ranked<T: Score>(
-        mut ranked: Ranked<T>,
-        s: ArrayView2<'_, T>,
-        gt: ArrayView2<'_, Truth>,
-        matching: Matching,
-    ) -> Self {
+    fn from_ranked<T: Score>(mut ranked: Ranked<T>, s: ArrayView2<'_, T>, gt: GroundTruth, matching: Matching) -> Self {
         let reference = Reference::mean_of(&ranked);
         ranked.rescreen(&reference);
         Self {
             matching,
+            cal_spread: ranked.screen().max_spread(),
             profiles: Box::new(ranked),
             reference,
-            candidates: Candidates::new(s, gt, matching),
+            candidates: Candidates::new(s, gt.view(), matching),
             n_db: s.nrows(),
+            scores: T::to_matrix(s),
+            gt,
+            defaults: Defaults::default(),
         }
+    }
+
+    /// The same calibration with the defaults a calibration file stores in its
+    /// `params` (what [`Calibration::load`] gives a loaded one).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1] or a window of 0.
+    pub fn with_defaults(mut self, defaults: Defaults) -> Result<Self> {
+        defaults.validate()?;
+        self.defaults = defaults;
+        Ok(self)
+    }
+
+    /// The defaults this calibration was loaded with ([`Defaults::default`] for one built
+    /// by [`Calibration::new`]).
+    pub fn defaults(&self) -> &Defaults {
+        &self.defaults
+    }
+
+    /// |DB|: the number of database images (rows) of the calibration.
+    pub fn db_size(&self) -> usize {
+        self.n_db
+    }
+
+    /// The calibration similarity as given, |DB| x |Qcal|, in its own type.
+    pub fn scores(&self) -> &ScoreMatrix {
+        &self.scores
+    }
+
+    /// The calibration ground truth as given (hard, with soft entries as ignored).
+    pub fn ground_truth(&self) -> &GroundTruth {
+        &self.gt
+    }
+
+    /// Gather, check, sort and screen the deployment columns `s` into `ranked`, and screen
+    /// their correlations with the calibration profiles: a column-major |Qcal| x n
+    /// matrix. `first_col` is the deployment index of `s`'s first column, for errors.
+    pub(crate) fn rank<T: Score>(
+        &self,
+        ranked: &mut Ranked<T>,
+        s: ArrayView2<'_, T>,
+        first_col: usize,
+    ) -> Result<Vec<f64>> {
+        ranked.refill("deployment similarity", s, first_col, &self.reference)?;
+        Ok(ranked.screen().correlations(self.profiles.screen(), &self.reference))
+    }
+
+    /// SPEC sections 4 and 5 for every column of a block ranked by
+    /// [`Calibration::rank`] (`screen` is what it returned): each query's `k`
+    /// neighbours (re-scored in `f64` where the screen leaves doubt) and weight, their
+    /// subset threshold at `precision`, and its quantile. The one place a deployment
+    /// query's `q_j` and `w_j` are computed, for the batch transfer and for
+    /// [`crate::Online`] alike; in parallel over the block.
+    pub(crate) fn queries<T: Score>(
+        &self,
+        ranked: &Ranked<T>,
+        screen: &[f64],
+        k: usize,
+        precision: f64,
+    ) -> Vec<QueryTransfer> {
+        screen
+            .par_chunks(self.len())
+            .enumerate()
+            .map_init(
+                || vec![0.0; self.n_db],
+                |u, (j, row)| {
+                    ranked.profile(j, u);
+                    let error = ranked.screen().error(j, self.cal_spread);
+                    let (neighbours, weight) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
+                    let threshold = subset_threshold(&self.candidates, &neighbours, precision);
+                    let quantile = self.profiles.quantile(&neighbours, threshold);
+                    QueryTransfer {
+                        neighbours,
+                        weight,
+                        threshold,
+                        quantile,
+                    }
+                },
+            )
+            .collect()
     }
 
     /// Number of calibration queries.
@@ -255,28 +362,14 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             let chunk = s.slice(ndarray::s![.., start..end]);
-            ranked.refill("deployment similarity", chunk, start, &self.reference)?;
-            let cal = self.profiles.screen();
-            let screen = ranked.screen().correlations(cal, &self.reference);
-            let cal_spread = cal.max_spread();
-            let per_query: Vec<(Vec<usize>, f64, f64, f64)> = screen
-                .par_chunks(self.len())
-                .enumerate()
-                .map_init(
-                    || vec![0.0; self.n_db],
-                    |u, (j, row)| {
-                        ranked.profile(j, u);
-                        let error = ranked.screen().error(j, cal_spread);
-                        let (nb, w) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
-                        let t = subset_threshold(&self.candidates, &nb, params.precision);
-                        let q = self.profiles.quantile(&nb, t);
-                        (nb, w, t, q)
-                    },
-                )
-                .collect();
-            for (j, (nb, w, t, q)) in (start..end).zip(per_query) {
-                neighbours.row_mut(j).iter_mut().zip(nb).for_each(|(d, i)| *d = i);
-                (query_weights[j], query_thresholds[j], query_quantiles[j]) = (w, t, q);
+            let screen = self.rank(&mut ranked, chunk, start)?;
+            for (j, r) in (start..end).zip(self.queries(&ranked, &screen, k, params.precision)) {
+                neighbours
+                    .row_mut(j)
+                    .iter_mut()
+                    .zip(r.neighbours)
+                    .for_each(|(d, i)| *d = i);
+                (query_weights[j], query_thresholds[j], query_quantiles[j]) = (r.weight, r.threshold, r.quantile);
             }
             if in_chunks {
                 let sorted = ranked.view();
@@ -310,7 +403,7 @@ impl Calibration {
 }
 
 /// Deployment scores per chunk (32 MB of f64 working memory).
-const CHUNK_SCORES: usize = 1 << 22;
+pub(crate) const CHUNK_SCORES: usize = 1 << 22;
 
 /// The segment `r` of deployment queries, given the threshold of a quantile of its scores.
 fn segment(r: Range<usize>, q: &[f64], w: &[f64], threshold: impl FnOnce(f64) -> f64) -> Segment {

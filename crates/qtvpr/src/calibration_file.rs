@@ -1,0 +1,746 @@
+//! SPEC section 12: the calibration file, so that calibration is done once, offline, and
+//! a deployed system loads it.
+//!
+//! A NumPy `.npz` archive (uncompressed, no pickle: `np.load` reads it) of:
+//!
+//! | array | dtype, shape | holds |
+//! |---|---|---|
+//! | `s` | float32 or float64 (the input's own), \|DB\| x \|Qcal\| | the calibration similarity, DB x Q whatever the input's orientation |
+//! | `gt` | bool, the same shape | the hard ground truth |
+//! | `gt_soft` | bool, the same shape | the soft ground truth (hard or soft); only when some entry is soft but not hard |
+//! | `meta` | `<U{n}`, shape `()` | JSON, below |
+//!
+//! ```json
+//! {"format": "qtvpr-calibration", "version": 1, "matching": "single",
+//!  "params": {"k": 10, "precision": 1.0, "window": 28}, "qtvpr": "0.1.0"}
+//! ```
+//!
+//! `params` are [`Defaults`] for whoever uses the file (`window` is `null` when none is
+//! set); each can be overridden there. `qtvpr` is the version of the crate that wrote
+//! it. Keys beyond these are ignored on load.
+//!
+//! Loading checks everything the same arrays are checked for as input (finite, non-empty
+//! scores; bool ground truth of the same shape), the `format` and `version`, the
+//! `matching` and `params`; every error names the file. A loaded calibration is built
+//! from the same scores and labels as the one saved, so its results are bit-identical.
+
+use crate::error::{Error, Result};
+use crate::input::check_precision;
+use crate::transfer::DEFAULT_K;
+
+/// Defaults stored in a calibration file's `meta` `params`; each can be overridden by
+/// its user.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Defaults {
+    /// Calibration queries sampled per deployment query.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Window (or segment) size; `None` when the file sets none.
+    pub window: Option<usize>,
+}
+
+impl Default for Defaults {
+    fn default() -> Self {
+        Self {
+            k: DEFAULT_K,
+            precision: 1.0,
+            window: None,
+        }
+    }
+}
+
+impl Defaults {
+    /// Check `k >= 1`, tau in (0, 1] and a window, if any, of at least 1.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        if self.k < 1 {
+            return Err(Error::param("k", format!("must be >= 1, got {}", self.k)));
+        }
+        check_precision(self.precision)?;
+        if self.window == Some(0) {
+            return Err(Error::param("window", "must be >= 1, got 0"));
+        }
+        Ok(())
+    }
+}
+
+/// The `format` of a calibration file's `meta`.
+pub const FORMAT: &str = "qtvpr-calibration";
+
+/// The calibration file version this crate writes and reads.
+pub const VERSION: u64 = 1;
+
+#[cfg(feature = "npy")]
+mod file {
+    use std::io::{Cursor, Read, Seek};
+    use std::path::Path;
+
+    use ndarray::Array2;
+    use serde::{Deserialize, Serialize};
+
+    use super::{Defaults, FORMAT, VERSION};
+    use crate::decisions::Matching;
+    use crate::error::{Error, Result};
+    use crate::input::{GroundTruth, ScoreMatrix, Truth};
+    use crate::npy::{self, NpyArray};
+    use crate::transfer::Calibration;
+
+    /// The `meta` JSON.
+    #[derive(Serialize, Deserialize)]
+    struct Meta {
+        format: String,
+        version: u64,
+        matching: String,
+        params: Params,
+        qtvpr: String,
+    }
+
+    #[derive(Serialize, Deserialize)]
+    struct Params {
+        k: usize,
+        precision: f64,
+        window: Option<usize>,
+    }
+
+    fn file_error(path: &Path, message: impl Into<String>) -> Error {
+        Error::File {
+            path: path.display().to_string(),
+            message: message.into(),
+        }
+    }
+
+    fn in_file(path: &Path, e: Error) -> Error {
+        Error::InFile {
+            path: path.display().to_string(),
+            source: Box::new(e),
+        }
+    }
+
+    impl Calibration {
+        /// Write this calibration as a calibration file (an `.npz`; see
+        /// [`crate::calibration_file`]) with `defaults` as its `params`, atomically
+        /// (temporary file and rename; the file gets the mode a plain create gives).
+        ///
+        /// # Errors
+        /// [`Error::InvalidParameter`] for bad `defaults`; [`Error::Write`] naming `path`.
+        pub fn save(&self, path: &Path, defaults: &Defaults) -> Result<()> {
+            defaults.validate()?;
+            let (meta, gt, soft) = self.file_arrays(defaults);
+            npy::write_npz(path, &self.members(&meta, &gt, soft.as_ref()))
+        }
+
+        /// The calibration file as bytes (for sending it elsewhere, e.g. pickling).
+        ///
+        /// # Errors
+        /// [`Error::InvalidParameter`] for bad `defaults`.
+        pub fn to_bytes(&self, defaults: &Defaults) -> Result<Vec<u8>> {
+            defaults.validate()?;
+            let (meta, gt, soft) = self.file_arrays(defaults);
+            let mut out = Cursor::new(Vec::new());
+            npy::write_npz_to(&mut out, &self.members(&meta, &gt, soft.as_ref())).map_err(|e| Error::Write {
+                path: "memory".into(),
+                kind: e.kind(),
+                message: e.to_string(),
+            })?;
+            Ok(out.into_inner())
+        }
+
+        /// Load a calibration file written by [`Calibration::save`]; its `params` become
+        /// [`Calibration::defaults`].
+        ///
+        /// # Errors
+        /// [`Error::Io`] if the file cannot be read; [`Error::File`], [`Error::Dtype`] or
+        /// [`Error::InFile`] naming it for anything wrong inside (not an `.npz`, a missing
+        /// or malformed array, shapes that disagree, a non-finite score, non-bool ground
+        /// truth, an unknown format or version, bad `meta`).
+        pub fn load(path: &Path) -> Result<Calibration> {
+            read(npy::open_npz_file(path)?, path)
+        }
+
+        /// [`Calibration::load`] from the bytes of a calibration file; `name` stands for
+        /// the file in errors.
+        ///
+        /// # Errors
+        /// As [`Calibration::load`].
+        pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Calibration> {
+            let path = Path::new(name);
+            read(npy::open_npz(Cursor::new(bytes), path)?, path)
+        }
+
+        /// The `meta` JSON and the hard and (if any entry is ignored) soft ground truth.
+        fn file_arrays(&self, defaults: &Defaults) -> (String, Array2<bool>, Option<Array2<bool>>) {
+            let meta = Meta {
+                format: FORMAT.into(),
+                version: VERSION,
+                matching: self.matching().as_str().into(),
+                params: Params {
+                    k: defaults.k,
+                    precision: defaults.precision,
+                    window: defaults.window,
+                },
+                qtvpr: env!("CARGO_PKG_VERSION").into(),
+            };
+            let meta = serde_json::to_string(&meta).expect("meta serialises");
+            let labels = self.ground_truth().view();
+            let gt = labels.mapv(|t| t == Truth::True);
+            let soft = labels
+                .iter()
+                .any(|&t| t == Truth::Ignored)
+                .then(|| labels.mapv(|t| t != Truth::False));
+            (meta, gt, soft)
+        }
+
+        fn members<'a>(
+            &'a self,
+            meta: &'a str,
+            gt: &'a Array2<bool>,
+            soft: Option<&'a Array2<bool>>,
+        ) -> Vec<(&'static str, NpyArray<'a>)> {
+            let s = match self.scores() {
+                ScoreMatrix::F32(m) => NpyArray::F32(m.view()),
+                ScoreMatrix::F64(m) => NpyArray::F64(m.view()),
+            };
+            let mut members = vec![("s", s), ("gt", NpyArray::Bool(gt.view()))];
+            if let Some(soft) = soft {
+                members.push(("gt_soft", NpyArray::Bool(soft.view())));
+            }
+            members.push(("meta", NpyArray::Str(meta)));
+            members
+        }
+    }
+
+    /// A calibration from an opened archive; `path` names it in errors.
+    fn read<R: Read + Seek>(mut npz: npyz::npz::NpzArchive<R>, path: &Path) -> Result<Calibration> {
+        let (matching, defaults) = {
+            let (npy, member) = npy::npz_member(&mut npz, "meta", path)?
+                .ok_or_else(|| file_error(path, "has no array meta: it is not a qtvpr calibration file"))?;
+            read_meta(&npy::read_string(npy, &member)?, path)?
+        };
+        let missing = |name: &str| {
+            file_error(
+                path,
+                format!("has no array {name}; a calibration file holds s, gt and meta (and optionally gt_soft)"),
+            )
+        };
+        let s = {
+            let (npy, member) = npy::npz_member(&mut npz, "s", path)?.ok_or_else(|| missing("s"))?;
+            npy::read_owned_scores(npy, &member)?
+        };
+        let hard = {
+            let (npy, member) = npy::npz_member(&mut npz, "gt", path)?.ok_or_else(|| missing("gt"))?;
+            npy::read_bool_matrix(npy, &member)?
+        };
+        let mut gt = GroundTruth::new(hard.view()).map_err(|e| in_file(path, e))?;
+        if let Some((npy, member)) = npy::npz_member(&mut npz, "gt_soft", path)? {
+            let soft = npy::read_bool_matrix(npy, &member)?;
+            gt = gt.with_soft(soft.view()).map_err(|e| in_file(path, e))?;
+        }
+        let calibration = match &s {
+            ScoreMatrix::F32(m) => Calibration::new(m.view(), &gt, matching),
+            ScoreMatrix::F64(m) => Calibration::new(m.view(), &gt, matching),
+        }
+        .map_err(|e| in_file(path, e))?;
+        calibration.with_defaults(defaults).map_err(|e| in_file(path, e))
+    }
+
+    /// The matching mode and defaults of a `meta` JSON text.
+    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults)> {
+        let bad = |message: String| file_error(path, message);
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| bad(format!("has a meta that is not JSON: {e}")))?;
+        match value.get("format").and_then(|f| f.as_str()) {
+            Some(FORMAT) => {}
+            Some(other) => {
+                return Err(bad(format!(
+                    "is not a qtvpr calibration file: its meta format is '{other}', expected '{FORMAT}'"
+                )));
+            }
+            None => return Err(bad(format!("has a meta without a format string; expected '{FORMAT}'"))),
+        }
+        match value.get("version") {
+            Some(v) if v.as_u64() == Some(VERSION) => {}
+            Some(v) => {
+                return Err(bad(format!(
+                    "has calibration file version {v}; this qtvpr ({}) reads version {VERSION}",
+                    env!("CARGO_PKG_VERSION")
+                )));
+            }
+            None => return Err(bad("has a meta without a version".into())),
+        }
+        let meta: Meta = serde_json::from_value(value).map_err(|e| bad(format!("has a malformed meta: {e}")))?;
+        let matching = meta.matching.parse().map_err(|_| {
+            bad(format!(
+                "has meta matching '{}'; expected 'single' or 'multi'",
+                meta.matching
+            ))
+        })?;
+        let defaults = Defaults {
+            k: meta.params.k,
+            precision: meta.params.precision,
+            window: meta.params.window,
+        };
+        defaults
+            .validate()
+            .map_err(|e| bad(format!("has bad meta params: {e}")))?;
+        Ok((matching, defaults))
+    }
+}
+
+#[cfg(all(test, feature = "npy"))]
+mod tests {
+    use std::io::{Cursor, Read};
+    use std::path::{Path, PathBuf};
+    use std::sync::Arc;
+
+    use ndarray::{Array2, array};
+
+    use super::*;
+    use crate::npy::{NpyArray, write_npz};
+    use crate::{Calibration, GroundTruth, Matching, Online, OnlineParams, Params};
+
+    /// A fixed LCG matrix with ties, and GT i == j % 6 with a soft neighbour row.
+    fn calibration(matching: Matching, f32: bool) -> Calibration {
+        let mut x = 3u64;
+        let s = Array2::from_shape_fn((6, 9), |_| {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 50) as f64 / 50.0 - 0.3
+        });
+        let gt = GroundTruth::new(Array2::from_shape_fn((6, 9), |(i, j)| i == j % 6).view())
+            .unwrap()
+            .with_soft(Array2::from_shape_fn((6, 9), |(i, j)| i == j % 6 || i == (j + 1) % 6).view())
+            .unwrap();
+        if f32 {
+            Calibration::new(s.mapv(|v| v as f32).view(), &gt, matching).unwrap()
+        } else {
+            Calibration::new(s.t().to_owned().t(), &gt, matching).unwrap()
+        }
+    }
+
+    fn deployment() -> Array2<f64> {
+        let mut x = 11u64;
+        Array2::from_shape_fn((6, 20), |_| {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 40) as f64 / 40.0 - 0.3
+        })
+    }
+
+    fn dir() -> tempfile::TempDir {
+        tempfile::tempdir().unwrap()
+    }
+
+    const DEFAULTS: Defaults = Defaults {
+        k: 3,
+        precision: 0.9,
+        window: Some(4),
+    };
+
+    fn same_results(a: &Calibration, b: &Calibration) {
+        let s = deployment();
+        for segment_size in [None, Some(3)] {
+            let p = Params {
+                k: 3,
+                precision: 0.9,
+                segment_size,
+            };
+            assert_eq!(a.transfer(s.view(), &p).unwrap(), b.transfer(s.view(), &p).unwrap());
+        }
+        let p = OnlineParams {
+            k: 3,
+            precision: 0.9,
+            window: 4,
+            min_window: 2,
+        };
+        let run = |c: &Calibration| {
+            let c = Arc::new(Calibration::from_bytes(&c.to_bytes(&DEFAULTS).unwrap(), "x").unwrap());
+            Online::new(c, p).unwrap().push_many(s.view()).unwrap()
+        };
+        assert_eq!(run(a), run(b));
+        assert_eq!(a.threshold(0.9).unwrap().to_bits(), b.threshold(0.9).unwrap().to_bits());
+    }
+
+    /// Member names of an archive, and each member's header text.
+    fn members(bytes: &[u8]) -> Vec<(String, String)> {
+        let mut zip = npyz::zip::ZipArchive::new(Cursor::new(bytes)).unwrap();
+        (0..zip.len())
+            .map(|i| {
+                let mut f = zip.by_index(i).unwrap();
+                let mut data = Vec::new();
+                f.read_to_end(&mut data).unwrap();
+                let len = u16::from_le_bytes([data[8], data[9]]) as usize;
+                (
+                    f.name().to_string(),
+                    String::from_utf8(data[10..10 + len].to_vec()).unwrap(),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn saved_and_loaded_gives_identical_results() {
+        let d = dir();
+        for matching in [Matching::Single, Matching::Multi] {
+            for f32 in [false, true] {
+                let cal = calibration(matching, f32);
+                let path = d.path().join("cal.npz");
+                cal.save(&path, &DEFAULTS).unwrap();
+                let loaded = Calibration::load(&path).unwrap();
+                assert_eq!(loaded.defaults(), &DEFAULTS);
+                assert_eq!(loaded.matching(), matching);
+                assert_eq!((loaded.db_size(), loaded.len()), (6, 9));
+                assert_eq!(loaded.scores(), cal.scores());
+                assert_eq!(loaded.ground_truth(), cal.ground_truth());
+                same_results(&cal, &loaded);
+                let from_bytes = Calibration::from_bytes(&std::fs::read(&path).unwrap(), "cal.npz").unwrap();
+                same_results(&cal, &from_bytes);
+                assert_eq!(cal.to_bytes(&DEFAULTS).unwrap(), std::fs::read(&path).unwrap());
+            }
+        }
+        assert_eq!(calibration(Matching::Single, false).defaults(), &Defaults::default());
+    }
+
+    #[test]
+    fn members_and_dtypes_are_numpys() {
+        let cal = calibration(Matching::Multi, true);
+        let bytes = cal.to_bytes(&Defaults::default()).unwrap();
+        let m = members(&bytes);
+        let names: Vec<&str> = m.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["s.npy", "gt.npy", "gt_soft.npy", "meta.npy"]);
+        assert!(
+            m[0].1.contains("'descr': '<f4'") && m[0].1.contains("'shape': (6, 9, )"),
+            "{}",
+            m[0].1
+        );
+        assert!(
+            m[1].1.contains("'descr': '|b1'") && m[1].1.contains("'shape': (6, 9, )"),
+            "{}",
+            m[1].1
+        );
+        assert!(
+            m[3].1.contains("'descr': '<U") && m[3].1.contains("'shape': ()"),
+            "{}",
+            m[3].1
+        );
+        let meta = format!(
+            r#"{{"format":"qtvpr-calibration","version":1,"matching":"multi","params":{{"k":10,"precision":1.0,"window":null}},"qtvpr":"{}"}}"#,
+            env!("CARGO_PKG_VERSION")
+        );
+        assert!(m[3].1.contains(&format!("'<U{}'", meta.len())), "{}", m[3].1);
+        // The meta payload is UTF-32LE of the JSON.
+        let mut zip = npyz::zip::ZipArchive::new(Cursor::new(&bytes[..])).unwrap();
+        let mut data = Vec::new();
+        zip.by_name("meta.npy").unwrap().read_to_end(&mut data).unwrap();
+        let payload: Vec<u8> = meta.chars().flat_map(|c| u32::from(c).to_le_bytes()).collect();
+        assert!(data.ends_with(&payload));
+        // Hard GT only: no gt_soft member.
+        let s = array![[0.9, 0.1], [0.2, 0.8]];
+        let hard = GroundTruth::new(array![[true, false], [false, true]].view()).unwrap();
+        let cal = Calibration::new(s.view(), &hard, Matching::Single).unwrap();
+        let names: Vec<String> = members(&cal.to_bytes(&DEFAULTS).unwrap())
+            .into_iter()
+            .map(|m| m.0)
+            .collect();
+        assert_eq!(names, ["s.npy", "gt.npy", "meta.npy"]);
+        assert!(members(&cal.to_bytes(&DEFAULTS).unwrap())[0].1.contains("'<f8'"));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_saved_file_has_the_mode_of_a_plain_create() {
+        use std::os::unix::fs::PermissionsExt;
+        let d = dir();
+        let plain = d.path().join("plain");
+        std::fs::File::create(&plain).unwrap();
+        let path = d.path().join("cal.npz");
+        calibration(Matching::Single, false).save(&path, &DEFAULTS).unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&path), mode(&plain));
+        assert_ne!(mode(&path), 0o600, "a tempfile's mode");
+        // Nothing else is left in the directory.
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn bad_defaults_are_refused_when_saving() {
+        let cal = calibration(Matching::Single, false);
+        let err = |d: Defaults| cal.to_bytes(&d).unwrap_err().to_string();
+        assert_eq!(err(Defaults { k: 0, ..DEFAULTS }), "k must be >= 1, got 0");
+        assert_eq!(
+            err(Defaults {
+                precision: 1.5,
+                ..DEFAULTS
+            }),
+            "precision must be in (0, 1], got 1.5"
+        );
+        assert_eq!(
+            err(Defaults {
+                window: Some(0),
+                ..DEFAULTS
+            }),
+            "window must be >= 1, got 0"
+        );
+        let d = dir();
+        let err = cal.save(&d.path().join("no/such/dir/cal.npz"), &DEFAULTS).unwrap_err();
+        assert!(err.to_string().starts_with("cannot write "), "{err}");
+        assert!(err.to_string().contains("cal.npz"), "{err}");
+    }
+
+    fn meta(format: &str, version: &str, matching: &str, params: &str) -> String {
+        format!(
+            r#"{{"format": "{format}", "version": {version}, "matching": "{matching}", "params": {params}, "qtvpr": "0.1.0"}}"#
+        )
+    }
+
+    const PARAMS: &str = r#"{"k": 10, "precision": 1.0, "window": null}"#;
+
+    /// Write an archive of `arrays` to `name` in `dir`, and the error of loading it.
+    fn load_error(dir: &Path, name: &str, arrays: &[(&str, NpyArray<'_>)]) -> String {
+        let path: PathBuf = dir.join(name);
+        write_npz(&path, arrays).unwrap();
+        let from_file = Calibration::load(&path).err().expect("a bad file").to_string();
+        let from_bytes = Calibration::from_bytes(&std::fs::read(&path).unwrap(), &path.display().to_string())
+            .err()
+            .expect("a bad file")
+            .to_string();
+        assert_eq!(from_file, from_bytes);
+        assert!(from_file.contains(&path.display().to_string()), "{from_file}");
+        from_file
+    }
+
+    #[test]
+    fn every_bad_file_is_named() {
+        let d = dir();
+        let p = d.path();
+        let s = array![[0.9, 0.1], [0.2, 0.8]];
+        let gt = array![[true, false], [false, true]];
+        let good = meta("qtvpr-calibration", "1", "single", PARAMS);
+        let f = |name: &str| p.join(name).display().to_string();
+        let (sv, gv) = (NpyArray::F64(s.view()), NpyArray::Bool(gt.view()));
+        let m = |text: &str| NpyArray::Str(Box::leak(text.to_string().into_boxed_str()));
+
+        // The good file loads.
+        write_npz(&p.join("good.npz"), &[("s", sv), ("gt", gv), ("meta", m(&good))]).unwrap();
+        assert!(Calibration::load(&p.join("good.npz")).is_ok());
+
+        type Case<'a> = (&'a str, Vec<(&'a str, NpyArray<'a>)>, String);
+        let cases: Vec<Case<'_>> = vec![
+            (
+                "no_meta.npz",
+                vec![("s", sv), ("gt", gv)],
+                "has no array meta: it is not a qtvpr calibration file".into(),
+            ),
+            (
+                "no_s.npz",
+                vec![("gt", gv), ("meta", m(&good))],
+                "has no array s; a calibration file holds s, gt and meta (and optionally gt_soft)".into(),
+            ),
+            (
+                "no_gt.npz",
+                vec![("s", sv), ("meta", m(&good))],
+                "has no array gt;".into(),
+            ),
+            (
+                "shape.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", NpyArray::Bool(gt.slice(ndarray::s![.., ..1]))),
+                    ("meta", m(&good)),
+                ],
+                ": ground truth shape 2x1 does not match calibration similarity shape 2x2".into(),
+            ),
+            (
+                "soft_shape.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    ("gt_soft", NpyArray::Bool(gt.slice(ndarray::s![..1, ..]))),
+                    ("meta", m(&good)),
+                ],
+                ": soft ground truth shape 1x2 does not match ground truth shape 2x2".into(),
+            ),
+            (
+                "format.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    ("meta", m(&meta("other", "1", "single", PARAMS))),
+                ],
+                "is not a qtvpr calibration file: its meta format is 'other', expected 'qtvpr-calibration'".into(),
+            ),
+            (
+                "version.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    ("meta", m(&meta("qtvpr-calibration", "2", "single", PARAMS))),
+                ],
+                format!(
+                    "has calibration file version 2; this qtvpr ({}) reads version 1",
+                    env!("CARGO_PKG_VERSION")
+                ),
+            ),
+            (
+                "json.npz",
+                vec![("s", sv), ("gt", gv), ("meta", m("{not json"))],
+                "has a meta that is not JSON: ".into(),
+            ),
+            (
+                "keys.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    ("meta", m(r#"{"format": "qtvpr-calibration", "version": 1}"#)),
+                ],
+                "has a malformed meta: missing field `matching`".into(),
+            ),
+            (
+                "matching.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    ("meta", m(&meta("qtvpr-calibration", "1", "best", PARAMS))),
+                ],
+                "has meta matching 'best'; expected 'single' or 'multi'".into(),
+            ),
+            (
+                "k.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    (
+                        "meta",
+                        m(&meta(
+                            "qtvpr-calibration",
+                            "1",
+                            "single",
+                            r#"{"k": 0, "precision": 1.0, "window": null}"#,
+                        )),
+                    ),
+                ],
+                "has bad meta params: k must be >= 1, got 0".into(),
+            ),
+            (
+                "precision.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    (
+                        "meta",
+                        m(&meta(
+                            "qtvpr-calibration",
+                            "1",
+                            "single",
+                            r#"{"k": 1, "precision": 1.5, "window": 3}"#,
+                        )),
+                    ),
+                ],
+                "has bad meta params: precision must be in (0, 1], got 1.5".into(),
+            ),
+            (
+                "window.npz",
+                vec![
+                    ("s", sv),
+                    ("gt", gv),
+                    (
+                        "meta",
+                        m(&meta(
+                            "qtvpr-calibration",
+                            "1",
+                            "single",
+                            r#"{"k": 1, "precision": 1.0, "window": 0}"#,
+                        )),
+                    ),
+                ],
+                "has bad meta params: window must be >= 1, got 0".into(),
+            ),
+            (
+                "meta_matrix.npz",
+                vec![("s", sv), ("gt", gv), ("meta", sv)],
+                "(array meta) holds an array of dtype <f8 and shape [2, 2], expected a 0-d unicode string".into(),
+            ),
+            (
+                "s_bool.npz",
+                vec![("s", gv), ("gt", gv), ("meta", m(&good))],
+                "(array s) has dtype |b1; expected float32 or float64 similarity scores".into(),
+            ),
+            (
+                "gt_float.npz",
+                vec![("s", sv), ("gt", sv), ("meta", m(&good))],
+                "(array gt) has dtype <f8; expected bool".into(),
+            ),
+        ];
+        for (name, arrays, needle) in cases {
+            let e = load_error(p, name, &arrays);
+            assert!(e.starts_with(&f(name)), "{name}: {e}");
+            assert!(e.contains(&needle), "{name}: {e}\n  expected {needle}");
+        }
+
+        // NaN in s.
+        let nan = array![[0.9, f64::NAN], [0.2, 0.8]];
+        let e = load_error(
+            p,
+            "nan.npz",
+            &[("s", NpyArray::F64(nan.view())), ("gt", gv), ("meta", m(&good))],
+        );
+        assert_eq!(
+            e,
+            format!(
+                "{}: calibration similarity contains NaN at row 0, column 1; scores must be finite",
+                f("nan.npz")
+            )
+        );
+
+        // Ground truth of uint8 (0/1 is fine as input, but the file format says bool).
+        let path = p.join("gt_u8.npz");
+        {
+            let file = std::fs::File::create(&path).unwrap();
+            let mut zip = npyz::zip::ZipWriter::new(file);
+            let opts =
+                npyz::zip::write::FileOptions::default().compression_method(npyz::zip::CompressionMethod::Stored);
+            zip.start_file("s.npy", opts).unwrap();
+            sv.write_to(&mut zip).unwrap();
+            zip.start_file("gt.npy", opts).unwrap();
+            use npyz::WriterBuilder;
+            let mut w = npyz::WriteOptions::<u8>::new()
+                .default_dtype()
+                .shape(&[2, 2])
+                .writer(&mut zip)
+                .begin_nd()
+                .unwrap();
+            w.extend([1u8, 0, 0, 1]).unwrap();
+            w.finish().unwrap();
+            zip.start_file("meta.npy", opts).unwrap();
+            m(&good).write_to(&mut zip).unwrap();
+            zip.finish().unwrap();
+        }
+        let e = Calibration::load(&path).err().unwrap().to_string();
+        assert_eq!(e, format!("{} (array gt) has dtype |u1; expected bool", f("gt_u8.npz")));
+
+        // Not a zip at all, a truncated one, and a missing file.
+        std::fs::write(p.join("junk.npz"), b"PK\x03\x04 this is not a zip").unwrap();
+        let e = Calibration::load(&p.join("junk.npz")).err().unwrap().to_string();
+        assert!(
+            e.starts_with(&format!("{} is not a valid .npz archive", f("junk.npz"))),
+            "{e}"
+        );
+        let whole = std::fs::read(p.join("good.npz")).unwrap();
+        for cut in [whole.len() / 2, whole.len() - 10] {
+            std::fs::write(p.join("cut.npz"), &whole[..cut]).unwrap();
+            let e = Calibration::load(&p.join("cut.npz")).err().unwrap().to_string();
+            assert!(e.starts_with(&f("cut.npz")), "{e}");
+        }
+        let e = Calibration::load(&p.join("missing.npz")).err().unwrap();
+        assert!(
+            matches!(
+                e,
+                Error::Io {
+                    kind: std::io::ErrorKind::NotFound,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+    }
+}

@@ -1,0 +1,724 @@
+//! SPEC section 11: online thresholds over a causal window, for a system that decides
+//! each query as it arrives.
+//!
+//! Deployment query `j` gets its quantile `q_j` and weight `w_j` from the calibration
+//! alone, exactly as in a batch transfer (the same function computes them). Its
+//! threshold `theta_j` is section 6 applied to its *window*, its last `min(m, j + 1)`
+//! queries (itself included): the lower weighted median of their `q` with weights `w`,
+//! read off all their raw scores. So `theta_j` equals what
+//! [`Calibration::transfer`](crate::Calibration::transfer) returns, with no segment
+//! size, for the matrix of just the window's columns. Query `j` is then decided at
+//! `theta_j`: in single matching its best match (the first maximum) is accepted when
+//! its score is `>= theta_j`; in multi matching every score `>= theta_j` is.
+//!
+//! *Warm-up*: with `min_window = w`, a query with `j + 1 < w` is reject-all (quantile 1,
+//! threshold the next `f64` above the window's highest score), so that no decision rests
+//! on fewer than `w` queries.
+//!
+//! [`Online`] keeps only what the window needs: a ring of the last `m` columns, each
+//! sorted once when it arrives, with their `q` and `w`. Memory is `8 m |DB|` bytes (the
+//! columns are kept as `f64`, whatever the type pushed, so that one state takes `f32`
+//! and `f64` columns alike; widening is exact, so thresholds are those of the input's
+//! own type). A push sorts its column, correlates it with the calibration profiles (one
+//! matrix-vector product in `f32`, re-scored in `f64` where it leaves doubt), and finds
+//! the window's threshold by bisection over the sorted columns, so no column is ever
+//! sorted twice and no score copied again.
+
+use std::sync::Arc;
+
+use ndarray::{ArrayView1, ArrayView2, Axis, ShapeBuilder, s};
+
+use crate::calibration_file::Defaults;
+use crate::decisions::{Matching, best_match};
+use crate::deployment::{sorted_columns_threshold, weighted_median};
+use crate::error::{Error, Result};
+use crate::input::{Score, check_precision};
+use crate::ranked_correlation::Ranked;
+use crate::transfer::{CHUNK_SCORES, Calibration, QueryTransfer};
+
+/// Parameters of an [`Online`] state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OnlineParams {
+    /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Window size `m`: each query is thresholded on its last `m` queries; at least 1.
+    pub window: usize,
+    /// Warm-up: queries before the `min_window`-th are reject-all; in `1..=window`.
+    pub min_window: usize,
+}
+
+impl OnlineParams {
+    /// Check `k >= 1`, precision in (0, 1], `window >= 1` and `1 <= min_window <= window`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        if self.k < 1 {
+            return Err(Error::param("k", format!("must be >= 1, got {}", self.k)));
+        }
+        check_precision(self.precision)?;
+        if self.window < 1 {
+            return Err(Error::param("window", format!("must be >= 1, got {}", self.window)));
+        }
+        if !(1..=self.window).contains(&self.min_window) {
+            return Err(Error::param(
+                "min window",
+                format!(
+                    "must be between 1 and the window ({}), got {}",
+                    self.window, self.min_window
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Parameters from those given, each `None` taking the calibration's default
+    /// (`min_window`: 1), validated.
+    ///
+    /// # Errors
+    /// No window given and none in `defaults` ([`Error::InvalidParameter`]: "window is
+    /// not given and the calibration sets none"), or [`OnlineParams::validate`].
+    pub fn resolve(
+        defaults: &Defaults,
+        k: Option<usize>,
+        precision: Option<f64>,
+        window: Option<usize>,
+        min_window: Option<usize>,
+    ) -> Result<OnlineParams> {
+        let window = window
+            .or(defaults.window)
+            .ok_or_else(|| Error::param("window", "is not given and the calibration sets none"))?;
+        let params = OnlineParams {
+            k: k.unwrap_or(defaults.k),
+            precision: precision.unwrap_or(defaults.precision),
+            window,
+            min_window: min_window.unwrap_or(1),
+        };
+        params.validate()?;
+        Ok(params)
+    }
+}
+
+/// How one query was decided.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Outcome {
+    /// Single matching: the query's best match.
+    Single {
+        /// Its database index: the first maximum of the column.
+        best: usize,
+        /// Its score.
+        score: f64,
+        /// Whether `score >= threshold`.
+        accept: bool,
+    },
+    /// Multi matching.
+    Multi {
+        /// The number of database images with a score `>= threshold`.
+        accepted: usize,
+    },
+}
+
+/// The decision of one deployment query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// Its index in arrival order, from 0.
+    pub query: usize,
+    /// Its own quantile `q_j` (of its subset threshold among its calibration neighbours).
+    pub query_quantile: f64,
+    /// Its weight `w_j` (the mean correlation of its neighbours, clipped at 0).
+    pub weight: f64,
+    /// The window's quantile: the lower weighted median of the window's `q` (1 in warm-up).
+    pub quantile: f64,
+    /// `theta_j`, that quantile of the window's scores: accept `score >= threshold`.
+    pub threshold: f64,
+    /// The decision at `threshold`.
+    pub outcome: Outcome,
+}
+
+/// The state of an online deployment: a calibration, parameters and the window.
+///
+/// ```
+/// use std::sync::Arc;
+/// use ndarray::array;
+/// use qtvpr::{Calibration, GroundTruth, Matching, Online, OnlineParams, Outcome};
+///
+/// let s_cal = array![[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]];
+/// let gt = GroundTruth::new(array![[true, false], [false, true], [false, false]].view())?;
+/// let cal = Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Single)?);
+/// let params = OnlineParams { k: 1, precision: 1.0, window: 2, min_window: 1 };
+/// let mut online = Online::new(cal, params)?;
+/// let d = online.push(array![0.7, 0.2, 0.1].view())?;
+/// assert_eq!(d.query, 0);
+/// assert!(matches!(d.outcome, Outcome::Single { best: 0, .. }));
+/// # Ok::<(), qtvpr::Error>(())
+/// ```
+pub struct Online {
+    calibration: Arc<Calibration>,
+    params: OnlineParams,
+    n_db: usize,
+    /// The window's sorted columns, slot after slot (|DB| scores each, ascending).
+    sorted: Vec<f64>,
+    /// Per slot: `q` and `w` of the query in it.
+    q: Vec<f64>,
+    w: Vec<f64>,
+    /// The slot the next query goes into (the oldest once the window is full).
+    next: usize,
+    pushed: usize,
+    accepted: Vec<usize>,
+    threshold: Option<f64>,
+}
+
+impl Online {
+    /// An empty window over `calibration`.
+    ///
+    /// # Errors
+    /// Invalid `params` ([`OnlineParams::validate`]).
+    pub fn new(calibration: Arc<Calibration>, params: OnlineParams) -> Result<Online> {
+        params.validate()?;
+        Ok(Online {
+            n_db: calibration.db_size(),
+            calibration,
+            params,
+            sorted: Vec::new(),
+            q: Vec::new(),
+            w: Vec::new(),
+            next: 0,
+            pushed: 0,
+            accepted: Vec::new(),
+            threshold: None,
+        })
+    }
+
+    /// Decide one deployment query from its |DB| scores (any stride, f32 or f64).
+    ///
+    /// # Errors
+    /// [`Error::ColumnLength`] for a column of another length than |DB|,
+    /// [`Error::NotFinite`] naming the query (as the column) and the row of a NaN or
+    /// infinite score. The state is then unchanged.
+    pub fn push<T: Score>(&mut self, column: ArrayView1<'_, T>) -> Result<Decision> {
+        self.check_length(column.len())?;
+        let mut ranked = Ranked::default();
+        let block = column.insert_axis(Axis(1));
+        let screen = self.calibration.rank(&mut ranked, block, self.pushed)?;
+        let mut r = self.per_query(&ranked, &screen);
+        Ok(self.commit(ranked.column(0), column, r.swap_remove(0)))
+    }
+
+    /// Decide several queries, the columns of `s` (|DB| x n) in arrival order. Their
+    /// `q` and `w` are found for blocks of columns at once (one matrix product each),
+    /// with the same results as pushing them one by one.
+    ///
+    /// # Errors
+    /// As [`Online::push`], for the first bad column; the queries before it are kept
+    /// (decided and in the window), the bad one and those after it are not.
+    pub fn push_many<T: Score>(&mut self, s: ArrayView2<'_, T>) -> Result<Vec<Decision>> {
+        let n = s.ncols();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        self.check_length(s.nrows())?;
+        let chunk = (CHUNK_SCORES / self.n_db).clamp(1, 1024);
+        let mut decisions = Vec::with_capacity(n);
+        let mut ranked = Ranked::default();
+        for start in (0..n).step_by(chunk) {
+            let end = (start + chunk).min(n);
+            let block = s.slice(s![.., start..end]);
+            let Ok(screen) = self.calibration.rank(&mut ranked, block, self.pushed) else {
+                // A bad score in the block: push its columns one by one, which keeps
+                // those before the bad one and reports it.
+                for j in start..end {
+                    decisions.push(self.push(s.column(j))?);
+                }
+                continue;
+            };
+            for (j, r) in self.per_query(&ranked, &screen).into_iter().enumerate() {
+                decisions.push(self.commit(ranked.column(j), s.column(start + j), r));
+            }
+        }
+        Ok(decisions)
+    }
+
+    /// Database indices accepted for the last pushed query, ascending (multi: every
+    /// score `>= threshold`; single: the best match if accepted, else none).
+    pub fn accepted(&self) -> &[usize] {
+        &self.accepted
+    }
+
+    /// The threshold of the last decision (`None` before the first push).
+    pub fn threshold(&self) -> Option<f64> {
+        self.threshold
+    }
+
+    /// The number of queries decided so far.
+    pub fn pushed(&self) -> usize {
+        self.pushed
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &OnlineParams {
+        &self.params
+    }
+
+    /// The calibration.
+    pub fn calibration(&self) -> &Arc<Calibration> {
+        &self.calibration
+    }
+
+    fn check_length(&self, len: usize) -> Result<()> {
+        if len != self.n_db {
+            return Err(Error::ColumnLength {
+                query: self.pushed,
+                len,
+                db: self.n_db,
+            });
+        }
+        Ok(())
+    }
+
+    fn per_query<T: Score>(&self, ranked: &Ranked<T>, screen: &[f64]) -> Vec<QueryTransfer> {
+        let p = &self.params;
+        self.calibration.queries(ranked, screen, p.k, p.precision)
+    }
+
+    /// Put a checked query (its sorted scores, its column and its `q`, `w`) into the
+    /// window and decide it. Cannot fail, so a failed push changes nothing.
+    fn commit<T: Score>(&mut self, sorted: &[T], column: ArrayView1<'_, T>, r: QueryTransfer) -> Decision {
+        let (n_db, m) = (self.n_db, self.params.window);
+        let slot = self.next;
+        if self.q.len() < m {
+            self.sorted.extend(sorted.iter().map(|v| v.to_f64()));
+            self.q.push(r.quantile);
+            self.w.push(r.weight);
+        } else {
+            let dst = &mut self.sorted[slot * n_db..(slot + 1) * n_db];
+            dst.iter_mut().zip(sorted).for_each(|(d, v)| *d = v.to_f64());
+            (self.q[slot], self.w[slot]) = (r.quantile, r.weight);
+        }
+        self.next = (slot + 1) % m;
+        let len = self.q.len();
+        let query = self.pushed;
+        let quantile = if query + 1 < self.params.min_window {
+            1.0
+        } else {
+            // Oldest first, as the window's columns stand in a deployment matrix (the
+            // weighted median sums weights in that order).
+            let order: Vec<usize> = if len < m {
+                (0..len).collect()
+            } else {
+                (self.next..m).chain(0..self.next).collect()
+            };
+            let q: Vec<f64> = order.iter().map(|&i| self.q[i]).collect();
+            let w: Vec<f64> = order.iter().map(|&i| self.w[i]).collect();
+            weighted_median(&q, &w)
+        };
+        let window = ArrayView2::from_shape((n_db, len).f(), &self.sorted[..n_db * len]).expect("slots of n_db scores");
+        let threshold = sorted_columns_threshold(window, quantile);
+        self.accepted.clear();
+        let outcome = match self.calibration.matching() {
+            Matching::Single => {
+                let best = best_match(column);
+                let score = column[best].to_f64();
+                let accept = score >= threshold;
+                if accept {
+                    self.accepted.push(best);
+                }
+                Outcome::Single { best, score, accept }
+            }
+            Matching::Multi => {
+                let above = column.iter().enumerate().filter(|(_, v)| v.to_f64() >= threshold);
+                self.accepted.extend(above.map(|(i, _)| i));
+                Outcome::Multi {
+                    accepted: self.accepted.len(),
+                }
+            }
+        };
+        self.pushed += 1;
+        self.threshold = Some(threshold);
+        Decision {
+            query,
+            query_quantile: r.quantile,
+            weight: r.weight,
+            quantile,
+            threshold,
+            outcome,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input::GroundTruth;
+    use crate::transfer::Params;
+    use ndarray::{Array2, array};
+
+    /// The calibration of the transfer tests (|DB| = 3):
+    /// - c0 = [3, 1, 2], hard GT rows 0 and 2: multi candidates 3 T, 2 T, 1 F;
+    /// - c1 = [1, 4, 1], hard GT rows 0 and 1: multi candidates 4 T, 1 T, 1 F.
+    ///
+    /// With k = 1 and tau = 1 (see transfer.rs), a query whose profile is linear
+    /// (v0 = [2, 6, 4], v2 = [1, 3, 2]) takes c0: t = 2, q = 0.5, w = 1; v1 = [2, 5, 2]
+    /// takes c1: t = 4 (the 1-group holds a FP), q = 1, w = 1.
+    fn multi() -> Arc<Calibration> {
+        let s_cal = array![[3.0, 1.0], [1.0, 4.0], [2.0, 1.0]];
+        let gt = GroundTruth::new(array![[1, 1], [0, 1], [1, 0]].view()).unwrap();
+        Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Multi).unwrap())
+    }
+
+    /// v0, v1, v2 as columns.
+    fn deployment() -> Array2<f64> {
+        array![[2.0, 2.0, 1.0], [6.0, 5.0, 3.0], [4.0, 2.0, 2.0]]
+    }
+
+    fn params(window: usize, min_window: usize) -> OnlineParams {
+        OnlineParams {
+            k: 1,
+            precision: 1.0,
+            window,
+            min_window,
+        }
+    }
+
+    fn run(cal: &Arc<Calibration>, p: OnlineParams, s: &Array2<f64>) -> (Vec<Decision>, Vec<Vec<usize>>) {
+        let mut online = Online::new(Arc::clone(cal), p).unwrap();
+        let mut accepted = Vec::new();
+        let decisions = s
+            .columns()
+            .into_iter()
+            .map(|c| {
+                let d = online.push(c).unwrap();
+                accepted.push(online.accepted().to_vec());
+                d
+            })
+            .collect();
+        (decisions, accepted)
+    }
+
+    #[test]
+    fn window_of_one() {
+        let (d, accepted) = run(&multi(), params(1, 1), &deployment());
+        // v0 alone: q = 0.5 of [2, 4, 6]: h = 2 * 0.5 = 1 -> 4; accepts rows 1 (6) and 2 (4).
+        // v1 alone: q = 1 -> reject-all, the next f64 above its maximum 5.
+        // v2 alone: q = 0.5 of [1, 2, 3] -> 2; accepts rows 1 (3) and 2 (2).
+        let t: Vec<f64> = d.iter().map(|d| d.threshold).collect();
+        assert_eq!(t, vec![4.0, 5.0f64.next_up(), 2.0]);
+        assert_eq!(d.iter().map(|d| d.quantile).collect::<Vec<_>>(), vec![0.5, 1.0, 0.5]);
+        assert_eq!(
+            d.iter().map(|d| d.query_quantile).collect::<Vec<_>>(),
+            vec![0.5, 1.0, 0.5]
+        );
+        assert_eq!(d.iter().map(|d| d.query).collect::<Vec<_>>(), vec![0, 1, 2]);
+        assert_eq!(accepted, vec![vec![1, 2], vec![], vec![1, 2]]);
+        assert_eq!(d[0].outcome, Outcome::Multi { accepted: 2 });
+        assert_eq!(d[1].outcome, Outcome::Multi { accepted: 0 });
+        assert!(d.iter().all(|d| (d.weight - 1.0).abs() < 1e-12));
+    }
+
+    #[test]
+    fn window_of_two_slides() {
+        let (d, accepted) = run(&multi(), params(2, 1), &deployment());
+        // j = 0: window {v0}: 4, as above.
+        // j = 1: window {v0, v1}: q {0.5, 1}, weights 1, 1: the lower median 0.5. Scores
+        //   ascending [2, 2, 2, 4, 5, 6]: h = 5 * 0.5 = 2.5 -> 2 + 0.5 * (4 - 2) = 3;
+        //   v1 = [2, 5, 2] accepts row 1 only.
+        // j = 2: window {v1, v2} (v0 left): q {1, 0.5} -> 0.5. Scores [1, 2, 2, 2, 3, 5]:
+        //   h = 2.5 -> 2 + 0.5 * (2 - 2) = 2; v2 = [1, 3, 2] accepts rows 1 and 2.
+        assert_eq!(d.iter().map(|d| d.threshold).collect::<Vec<_>>(), vec![4.0, 3.0, 2.0]);
+        assert_eq!(d.iter().map(|d| d.quantile).collect::<Vec<_>>(), vec![0.5, 0.5, 0.5]);
+        assert_eq!(accepted, vec![vec![1, 2], vec![1], vec![1, 2]]);
+    }
+
+    #[test]
+    fn window_larger_than_the_stream() {
+        // m = 5 > 3 pushed: j = 2's window is {v0, v1, v2}: q {0.5, 1, 0.5}, weights 1:
+        // sorted 0.5, 0.5, 1, half of 3 is 1.5 -> cumulative 1, 2 -> 0.5. Scores ascending
+        // [1, 2, 2, 2, 2, 3, 4, 5, 6]: h = 8 * 0.5 = 4 -> x[4] = 2.
+        let (d, _) = run(&multi(), params(5, 1), &deployment());
+        assert_eq!(d.iter().map(|d| d.threshold).collect::<Vec<_>>(), vec![4.0, 3.0, 2.0]);
+    }
+
+    #[test]
+    fn warm_up_rejects_everything() {
+        // min_window 3 of m = 3: j = 0 and 1 are reject-all at the next f64 above their
+        // window's maximum (6 both times: v0 holds it); j = 2 as with m = 5 above.
+        let (d, accepted) = run(&multi(), params(3, 3), &deployment());
+        assert_eq!(
+            d.iter().map(|d| d.threshold).collect::<Vec<_>>(),
+            vec![6.0f64.next_up(), 6.0f64.next_up(), 2.0]
+        );
+        assert_eq!(d.iter().map(|d| d.quantile).collect::<Vec<_>>(), vec![1.0, 1.0, 0.5]);
+        // q_j is still each query's own.
+        assert_eq!(d[0].query_quantile, 0.5);
+        assert_eq!(accepted[..2], [Vec::<usize>::new(), Vec::new()]);
+    }
+
+    #[test]
+    fn soft_ground_truth_and_lower_precision() {
+        // Row 2 of c1 soft: its 1 F is ignored, so c1's candidates are 4 T, 1 T: t = 1,
+        // sample {1, 4, 1}: c(<= 1) = 2, q = (2 - 1) / 2 = 0.5. v1 alone: q = 0.5 of
+        // [2, 2, 5]: h = 1 -> 2, accepting all three rows.
+        let s_cal = array![[3.0, 1.0], [1.0, 4.0], [2.0, 1.0]];
+        let gt = GroundTruth::new(array![[1, 1], [0, 1], [1, 0]].view())
+            .unwrap()
+            .with_soft(array![[0, 0], [0, 0], [0, 1]].view())
+            .unwrap();
+        let soft = Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Multi).unwrap());
+        let (d, accepted) = run(&soft, params(1, 1), &deployment());
+        assert_eq!((d[1].query_quantile, d[1].threshold), (0.5, 2.0));
+        assert_eq!(accepted[1], vec![0, 1, 2]);
+        // tau = 0.6 without soft GT: c1's 1-group gives TP 2, FP 1, 2 >= 0.6 * 3, so
+        // t = 1 and q = 0.5 likewise.
+        let p = OnlineParams {
+            precision: 0.6,
+            ..params(1, 1)
+        };
+        let (d, _) = run(&multi(), p, &deployment());
+        assert_eq!((d[1].query_quantile, d[1].threshold), (0.5, 2.0));
+    }
+
+    #[test]
+    fn single_matching_ties_and_inclusive_threshold() {
+        // Single: c0's best match 3 (row 0) is correct, c1's 4 (row 1) is not (GT row 2).
+        // k = 2 takes both: candidates 4 F, 3 T; at tau 0.5 the 4-group has TP 0 and the
+        // 3-group 1 >= 0.5 * 2: t = 3. Sample {1, 1, 1, 2, 3, 4}: c(<= 3) = 5 -> q = 4/5.
+        let s_cal = array![[3.0, 1.0], [1.0, 4.0], [2.0, 1.0]];
+        let gt = GroundTruth::new(array![[1, 0], [0, 0], [0, 1]].view()).unwrap();
+        let cal = Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Single).unwrap());
+        let p = OnlineParams {
+            k: 2,
+            precision: 0.5,
+            window: 1,
+            min_window: 1,
+        };
+        // u0 = [5, 5, 1]: best is the first maximum, row 0; ascending [1, 5, 5],
+        //   h = 2 * 0.8 = 1.6 -> 5 + 0.6 * 0 = 5: 5 >= 5 is accepted (inclusive).
+        // u1 = [2, 6, 4]: [2, 4, 6], h = 1.6 -> 4 + 0.6 * 2 = 5.2; best row 1 (6) accepted.
+        // u2 = [4, 1, 4.5]: [1, 4, 4.5], h = 1.6 -> 4 + 0.6 * 0.5 = 4.3; best row 2 (4.5).
+        // u3 = [1, 2, 1.2]: [1, 1.2, 2] -> 1.2 + 0.6 * 0.8 = 1.68; best 2 (row 1) accepted.
+        let s = array![[5.0, 2.0, 4.0, 1.0], [5.0, 6.0, 1.0, 2.0], [1.0, 4.0, 4.5, 1.2]];
+        let (d, accepted) = run(&cal, p, &s);
+        for (d, (best, score, t)) in d
+            .iter()
+            .zip([(0, 5.0, 5.0), (1, 6.0, 5.2), (2, 4.5, 4.3), (1, 2.0, 1.68)])
+        {
+            assert_eq!(d.query_quantile, 0.8);
+            assert!((d.threshold - t).abs() < 1e-12, "{} vs {t}", d.threshold);
+            assert_eq!(
+                d.outcome,
+                Outcome::Single {
+                    best,
+                    score,
+                    accept: true
+                }
+            );
+        }
+        assert_eq!(accepted, vec![vec![0], vec![1], vec![2], vec![1]]);
+        // A best match below the threshold is rejected: u = [1, 0, 3] alone gives
+        // [0, 1, 3], h = 1.6 -> 1 + 0.6 * 2 = 2.2 <= 3 accepted; at tau 0.5 with a window of
+        // 2 after u = [9, 9, 9] (q 0.8): scores [0, 1, 3, 9, 9, 9], h = 5 * 0.8 = 4 -> 9.
+        let (d, accepted) = run(
+            &cal,
+            OnlineParams { window: 2, ..p },
+            &array![[9.0, 1.0], [9.0, 0.0], [9.0, 3.0]],
+        );
+        assert_eq!(d[1].threshold, 9.0);
+        assert_eq!(
+            d[1].outcome,
+            Outcome::Single {
+                best: 2,
+                score: 3.0,
+                accept: false
+            }
+        );
+        assert_eq!(accepted[1], Vec::<usize>::new());
+    }
+
+    /// A fixed LCG in [0, 1), quantised to force ties.
+    fn lcg(seed: u64) -> impl FnMut() -> f64 {
+        let mut x = seed;
+        move || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 200) as f64 / 200.0
+        }
+    }
+
+    #[test]
+    fn push_many_equals_pushes_and_windows_equal_transfer() {
+        let mut rand = lcg(5);
+        let s_cal = Array2::from_shape_fn((9, 12), |_| rand());
+        let gt =
+            GroundTruth::new(Array2::from_shape_fn((9, 12), |(i, j)| i == j % 9 || i == (j + 1) % 9).view()).unwrap();
+        let s_val = Array2::from_shape_fn((9, 40), |_| rand());
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Arc::new(Calibration::new(s_cal.view(), &gt, matching).unwrap());
+            for (window, min_window, precision) in [(1, 1, 1.0), (4, 1, 0.8), (7, 3, 1.0), (60, 2, 0.9)] {
+                let p = OnlineParams {
+                    k: 3,
+                    precision,
+                    window,
+                    min_window,
+                };
+                let (one, _) = run(&cal, p, &s_val);
+                let mut online = Online::new(Arc::clone(&cal), p).unwrap();
+                let many = online.push_many(s_val.view()).unwrap();
+                assert_eq!(one, many, "{matching:?} {p:?}");
+                let batch = cal
+                    .transfer(
+                        s_val.view(),
+                        &Params {
+                            k: 3,
+                            precision,
+                            segment_size: None,
+                        },
+                    )
+                    .unwrap();
+                for (j, d) in many.iter().enumerate() {
+                    assert_eq!(d.query_quantile.to_bits(), batch.query_quantiles[j].to_bits());
+                    assert_eq!(d.weight.to_bits(), batch.query_weights[j].to_bits());
+                    if j + 1 < min_window {
+                        assert_eq!(d.quantile, 1.0);
+                        continue;
+                    }
+                    let first = (j + 1).saturating_sub(window);
+                    let w = cal
+                        .transfer(
+                            s_val.slice(s![.., first..=j]),
+                            &Params {
+                                k: 3,
+                                precision,
+                                segment_size: None,
+                            },
+                        )
+                        .unwrap();
+                    assert_eq!(d.quantile.to_bits(), w.segments[0].quantile.to_bits(), "query {j}");
+                    assert_eq!(d.threshold.to_bits(), w.segments[0].threshold.to_bits(), "query {j}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn f32_columns_and_strides() {
+        let cal = multi();
+        let s = deployment();
+        let (a, _) = run(&cal, params(2, 1), &s);
+        let mut online = Online::new(Arc::clone(&cal), params(2, 1)).unwrap();
+        let f = s.mapv(|x| x as f32);
+        let b: Vec<Decision> = f.columns().into_iter().map(|c| online.push(c).unwrap()).collect();
+        assert_eq!(a, b);
+        // A query-major matrix's rows, and push_many over a transposed view.
+        let query_major = s.t().to_owned();
+        let mut online = Online::new(Arc::clone(&cal), params(2, 1)).unwrap();
+        assert_eq!(online.push_many(query_major.t()).unwrap(), a);
+        assert_eq!(online.pushed(), 3);
+        assert_eq!(online.threshold(), Some(2.0));
+    }
+
+    #[test]
+    fn errors_leave_the_state_unchanged() {
+        let cal = multi();
+        let mut online = Online::new(Arc::clone(&cal), params(2, 1)).unwrap();
+        assert_eq!(online.threshold(), None);
+        online.push(array![2.0, 6.0, 4.0].view()).unwrap();
+        let err = online.push(array![1.0, 2.0].view()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "deployment query 1 has 2 scores but the calibration has 3 database images; \
+             a query's column holds one score per database image"
+        );
+        let err = online.push(array![1.0, f64::NAN, 0.0].view()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "deployment similarity contains NaN at row 1, column 1; scores must be finite"
+        );
+        assert_eq!(
+            (online.pushed(), online.threshold(), online.accepted()),
+            (1, Some(4.0), &[1, 2][..])
+        );
+        // The next good query is decided as if the bad ones never came (window {v0, v1}: 3).
+        assert_eq!(online.push(array![2.0, 5.0, 2.0].view()).unwrap().threshold, 3.0);
+        // push_many keeps the queries before a bad column: v2 is decided, then column 1 fails.
+        let bad = array![[1.0, 0.0], [3.0, f64::INFINITY], [2.0, 0.0]];
+        let err = online.push_many(bad.view()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "deployment similarity contains inf at row 1, column 3; scores must be finite"
+        );
+        assert_eq!((online.pushed(), online.threshold()), (3, Some(2.0)));
+        assert!(
+            online
+                .push_many(Array2::<f64>::zeros((3, 0)).view())
+                .unwrap()
+                .is_empty()
+        );
+        assert!(matches!(
+            online.push_many(Array2::<f64>::zeros((2, 1)).view()),
+            Err(Error::ColumnLength {
+                query: 3,
+                len: 2,
+                db: 3
+            })
+        ));
+    }
+
+    #[test]
+    fn parameters() {
+        let msg = |p: OnlineParams| p.validate().unwrap_err().to_string();
+        assert_eq!(msg(OnlineParams { k: 0, ..params(2, 1) }), "k must be >= 1, got 0");
+        assert_eq!(
+            msg(OnlineParams {
+                precision: 0.0,
+                ..params(2, 1)
+            }),
+            "precision must be in (0, 1], got 0"
+        );
+        assert_eq!(msg(params(0, 1)), "window must be >= 1, got 0");
+        assert_eq!(
+            msg(params(2, 3)),
+            "min window must be between 1 and the window (2), got 3"
+        );
+        assert_eq!(
+            msg(params(2, 0)),
+            "min window must be between 1 and the window (2), got 0"
+        );
+        assert!(Online::new(multi(), params(0, 1)).is_err());
+        let d = Defaults {
+            k: 4,
+            precision: 0.9,
+            window: Some(28),
+        };
+        assert_eq!(
+            OnlineParams::resolve(&d, None, None, None, None).unwrap(),
+            OnlineParams {
+                k: 4,
+                precision: 0.9,
+                window: 28,
+                min_window: 1
+            }
+        );
+        assert_eq!(
+            OnlineParams::resolve(&d, Some(2), Some(1.0), Some(5), Some(5)).unwrap(),
+            OnlineParams {
+                k: 2,
+                precision: 1.0,
+                window: 5,
+                min_window: 5
+            }
+        );
+        let none = Defaults::default();
+        assert_eq!(
+            OnlineParams::resolve(&none, None, None, None, None)
+                .unwrap_err()
+                .to_string(),
+            "window is not given and the calibration sets none"
+        );
+        assert_eq!(
+            OnlineParams::resolve(&none, None, None, Some(3), Some(4))
+                .unwrap_err()
+                .to_string(),
+            "min window must be between 1 and the window (3), got 4"
+        );
+    }
+}

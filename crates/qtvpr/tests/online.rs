@@ -1,0 +1,85 @@
+//! Online thresholds (SPEC section 11) on real VPR-Bench matrices in `../shared/data`:
+//! every query's threshold equals the batch transfer of just its window's columns, bit
+//! for bit, in both matching modes, for f32 and f64 input; and a calibration saved and
+//! loaded gives the same decisions.
+#![cfg(feature = "npy")]
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use ndarray::{ArrayView2, s};
+use qtvpr::npy::{ScoresView, read_ground_truth, read_scores};
+use qtvpr::{Calibration, Defaults, GroundTruth, Matching, Online, OnlineParams, Params, Score};
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel)
+}
+
+/// Calibrate on the first `n_cal` queries, stream the rest through `Online`, and check
+/// every decision against `transfer` on the window's columns.
+fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize, matching: Matching, p: OnlineParams) {
+    let gt_cal = GroundTruth::from_truth(gt.view().slice(s![.., ..n_cal]).to_owned());
+    let cal = Arc::new(Calibration::new(s.slice(s![.., ..n_cal]), &gt_cal, matching).unwrap());
+    let s_val = s.slice(s![.., n_cal..]);
+    let decisions = Online::new(Arc::clone(&cal), p).unwrap().push_many(s_val).unwrap();
+    let params = Params {
+        k: p.k,
+        precision: p.precision,
+        segment_size: None,
+    };
+    for (j, d) in decisions.iter().enumerate() {
+        if j + 1 < p.min_window {
+            assert_eq!(d.quantile, 1.0);
+            continue;
+        }
+        let window = cal
+            .transfer(s_val.slice(s![.., (j + 1).saturating_sub(p.window)..=j]), &params)
+            .unwrap();
+        let g = window.segments[0];
+        assert_eq!(
+            (d.quantile.to_bits(), d.threshold.to_bits()),
+            (g.quantile.to_bits(), g.threshold.to_bits()),
+            "query {j}: {d:?} vs {g:?}"
+        );
+    }
+    // Save, load, and stream again: the same decisions.
+    let bytes = cal.to_bytes(&Defaults::default()).unwrap();
+    let loaded = Arc::new(Calibration::from_bytes(&bytes, "cal.npz").unwrap());
+    assert_eq!(Online::new(loaded, p).unwrap().push_many(s_val).unwrap(), decisions);
+}
+
+fn run(dir: &str, technique: &str, n_cal: usize) {
+    let scores = read_scores(&data(&format!("{dir}/S_{technique}.npy"))).unwrap();
+    let gt = read_ground_truth(&data(&format!("{dir}/GT.npy")), None).unwrap();
+    for matching in [Matching::Single, Matching::Multi] {
+        for (window, min_window, precision) in [(1, 1, 1.0), (11, 1, 1.0), (7, 4, 0.9), (1000, 1, 1.0)] {
+            let p = OnlineParams {
+                k: 10,
+                precision,
+                window,
+                min_window,
+            };
+            match scores.view() {
+                ScoresView::F32(v) => check(v, &gt, n_cal, matching, p),
+                ScoresView::F64(v) => check(v, &gt, n_cal, matching, p),
+            }
+        }
+    }
+}
+
+#[test]
+fn corridor_float64() {
+    run("vprbench-corridor", "NetVLAD", 11);
+}
+
+#[test]
+fn corridor_float32() {
+    run("vprbench-corridor", "CoHOG", 11);
+}
+
+#[test]
+fn spedtest_float32() {
+    run("vprbench-spedtest", "CALC", 60);
+}
