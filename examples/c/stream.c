@@ -12,18 +12,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "npy.h"
+#include "example_io.h"
 #include "qtvpr.h"
-
-static void print_decision(const qtvpr_decision *d, int matching) {
-    if (matching == QTVPR_SINGLE)
-        printf("{\"query\":%zu,\"quantile\":%.17g,\"threshold\":%.17g,\"best\":%zu,\"score\":%.17g,"
-               "\"accept\":%s}\n",
-               d->query, d->quantile, d->threshold, d->best, d->score, d->accept ? "true" : "false");
-    else
-        printf("{\"query\":%zu,\"quantile\":%.17g,\"threshold\":%.17g,\"accepted\":%zu}\n", d->query,
-               d->quantile, d->threshold, d->accepted);
-}
 
 int main(int argc, char **argv) {
     qtvpr_calibration *cal = NULL;

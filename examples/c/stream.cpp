@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "npy.h"
+#include "example_io.h"
 #include "qtvpr.h"
 
 namespace qtvpr {
@@ -65,13 +65,7 @@ template <typename T> void stream(const qtvpr::Online &o, const npy_matrix &s, i
     for (size_t j = 0; j < s.cols; j++) {
         npy_column(&s, j, column.data());
         qtvpr_decision d = qtvpr::push(o, column);
-        if (matching == QTVPR_SINGLE)
-            std::printf("{\"query\":%zu,\"quantile\":%.17g,\"threshold\":%.17g,\"best\":%zu,"
-                        "\"score\":%.17g,\"accept\":%s}\n",
-                        d.query, d.quantile, d.threshold, d.best, d.score, d.accept ? "true" : "false");
-        else
-            std::printf("{\"query\":%zu,\"quantile\":%.17g,\"threshold\":%.17g,\"accepted\":%zu}\n",
-                        d.query, d.quantile, d.threshold, d.accepted);
+        print_decision(&d, matching);
     }
 }
 

@@ -167,19 +167,23 @@ pub extern "C" fn qtvpr_last_error_code() -> c_int {
     })
 }
 
+/// This thread's last error as the tests read it: its code and message.
+#[cfg(test)]
+pub(crate) fn last() -> (c_int, Option<String>) {
+    let message = qtvpr_last_error();
+    let message = (!message.is_null()).then(|| {
+        // SAFETY: a non-NULL message is a NUL-terminated string valid until the next call.
+        unsafe { std::ffi::CStr::from_ptr(message) }
+            .to_str()
+            .unwrap()
+            .to_owned()
+    });
+    (qtvpr_last_error_code(), message)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::ffi::CStr;
-
-    fn last() -> (c_int, Option<String>) {
-        let message = qtvpr_last_error();
-        let message = (!message.is_null()).then(|| {
-            // SAFETY: a non-NULL message is a NUL-terminated string valid until the next call.
-            unsafe { CStr::from_ptr(message) }.to_str().unwrap().to_owned()
-        });
-        (qtvpr_last_error_code(), message)
-    }
 
     #[test]
     fn a_panic_becomes_an_error_and_success_clears_it() {
@@ -191,7 +195,10 @@ mod tests {
         );
         let r: Result<(), _> = guard("qtvpr_test", || panic!("static"));
         assert_eq!(r, Err(QTVPR_ERR_PANIC));
-        assert_eq!(last().1.unwrap(), "qtvpr_test: internal error, please report it: static");
+        assert_eq!(
+            last().1.unwrap(),
+            "qtvpr_test: internal error, please report it: static"
+        );
 
         assert_eq!(guard("qtvpr_test", || Ok(5)), Ok(5));
         assert_eq!(last(), (0, None));
@@ -224,11 +231,12 @@ mod tests {
             path: "x.npz".into(),
             message: "is not an npz".into(),
         };
-        assert_eq!(
-            Failure::from(file),
-            Failure::new(QTVPR_ERR_FILE, "x.npz is not an npz")
-        );
-        let len = qtvpr::Error::ColumnLength { query: 0, len: 2, db: 3 };
+        assert_eq!(Failure::from(file), Failure::new(QTVPR_ERR_FILE, "x.npz is not an npz"));
+        let len = qtvpr::Error::ColumnLength {
+            query: 0,
+            len: 2,
+            db: 3,
+        };
         assert_eq!(Failure::from(len).code, QTVPR_ERR_SIZE);
         let nan = qtvpr::Error::NotFinite {
             what: "deployment similarity",

@@ -26,7 +26,7 @@ use qtvpr::{Calibration, Matching, Online, OnlineParams, Outcome, Score};
 
 pub mod error;
 
-use error::qtvpr_status::{self, *};
+use error::qtvpr_status::*;
 use error::{Failure, catch, guard};
 
 /// A calibration loaded from a calibration file (an .npz written by `qtvpr-cli
@@ -55,7 +55,7 @@ pub struct qtvpr_online {
 /// accepted is 1 if it is accepted, else 0. In multi matching, accepted is the number
 /// of database images with a score >= threshold (qtvpr_online_accepted lists them),
 /// accept is whether there is any, best is SIZE_MAX and score is NaN. In both,
-/// accept == (accepted > 0).
+/// accept == (accepted > 0). The fields are those of a `qtvpr-cli stream` line.
 #[repr(C)]
 #[allow(non_camel_case_types)]
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,6 +74,12 @@ pub struct qtvpr_decision {
     pub accept: bool,
     /// Multi matching: number of accepted database entries.
     pub accepted: usize,
+    /// The query's own quantile q_j: that of its subset threshold among its k
+    /// calibration neighbours (the window's quantile is their weighted median).
+    pub query_quantile: f64,
+    /// The query's weight w_j in that median: the mean correlation of its neighbours,
+    /// clipped at 0.
+    pub weight: f64,
 }
 
 /// How a calibration matches queries, as qtvpr_calibration_matching returns it.
@@ -331,6 +337,8 @@ fn decision(d: &qtvpr::Decision) -> qtvpr_decision {
         score,
         accept: accepted > 0,
         accepted,
+        query_quantile: d.query_quantile,
+        weight: d.weight,
     }
 }
 

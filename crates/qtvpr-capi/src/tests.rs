@@ -9,16 +9,7 @@ use ndarray::{Array2, array};
 use qtvpr::{Defaults, GroundTruth};
 
 use super::*;
-
-/// This thread's last error: its code and message.
-fn last() -> (c_int, Option<String>) {
-    let message = qtvpr_last_error();
-    let message = (!message.is_null()).then(|| {
-        // SAFETY: a non-NULL message is a NUL-terminated string, valid until the next call.
-        unsafe { CStr::from_ptr(message) }.to_str().unwrap().to_owned()
-    });
-    (qtvpr_last_error_code(), message)
-}
+use crate::error::{last, qtvpr_status};
 
 fn code(status: qtvpr_status) -> c_int {
     status as c_int
@@ -34,7 +25,10 @@ fn calibration(matching: Matching, window: Option<usize>) -> Calibration {
         precision: 1.0,
         window,
     };
-    Calibration::new(s.view(), &gt, matching).unwrap().with_defaults(defaults).unwrap()
+    Calibration::new(s.view(), &gt, matching)
+        .unwrap()
+        .with_defaults(defaults)
+        .unwrap()
 }
 
 /// A C handle for `cal`, as qtvpr_calibration_load returns it.
@@ -60,6 +54,8 @@ fn no_decision() -> qtvpr_decision {
         score: -1.0,
         accept: true,
         accepted: 99,
+        query_quantile: -1.0,
+        weight: -1.0,
     }
 }
 
@@ -112,7 +108,10 @@ fn a_wrong_size_or_a_bad_score_is_an_error_and_changes_nothing() {
         let o = qtvpr_online_new(cal, 0, 0.0, 0, 0);
         let mut d = no_decision();
         let scores = QUERIES[0];
-        assert_eq!(qtvpr_online_push_f64(o, scores.as_ptr(), 3, &mut d), code(QTVPR_ERR_SIZE));
+        assert_eq!(
+            qtvpr_online_push_f64(o, scores.as_ptr(), 3, &mut d),
+            code(QTVPR_ERR_SIZE)
+        );
         let message = last().1.unwrap();
         assert!(
             message.starts_with("qtvpr_online_push_f64: deployment query 0 has 3 scores but the calibration has 4"),
@@ -125,7 +124,10 @@ fn a_wrong_size_or_a_bad_score_is_an_error_and_changes_nothing() {
         let nan = [0.1, f64::NAN, 0.2, 0.3];
         assert_eq!(qtvpr_online_push_f64(o, nan.as_ptr(), 4, &mut d), code(QTVPR_ERR_INPUT));
         let message = last().1.unwrap();
-        assert!(message.starts_with("qtvpr_online_push_f64: ") && message.contains("NaN"), "{message}");
+        assert!(
+            message.starts_with("qtvpr_online_push_f64: ") && message.contains("NaN"),
+            "{message}"
+        );
         let inf = [0.1f32, 0.2, f32::INFINITY, 0.3];
         assert_eq!(qtvpr_online_push_f32(o, inf.as_ptr(), 4, &mut d), 3);
         assert!(last().1.unwrap().contains("inf"));
@@ -244,6 +246,8 @@ fn pushes_are_the_rust_online_decisions() {
                 }
                 assert_eq!(d.quantile.to_bits(), want.quantile.to_bits());
                 assert_eq!(d.threshold.to_bits(), want.threshold.to_bits());
+                assert_eq!(d.query_quantile.to_bits(), want.query_quantile.to_bits());
+                assert_eq!(d.weight.to_bits(), want.weight.to_bits());
                 match want.outcome {
                     Outcome::Single { best, score, accept } => {
                         assert_eq!((d.best, d.score.to_bits(), d.accept), (best, score.to_bits(), accept));

@@ -1,17 +1,21 @@
 /*
- * A minimal reader of 2-D little-endian float32/float64 .npy files (NumPy's format,
- * versions 1 to 3), enough for the examples to read the same similarity matrices as
- * `qtvpr-cli`. Not part of the qtvpr API: a robot has its scores in memory already.
+ * What the examples need besides qtvpr: a minimal reader of 2-D little-endian
+ * float32/float64 .npy files (NumPy's format, versions 1 to 3), so that they read the
+ * same similarity matrices as `qtvpr-cli`, and a decision printed as a line of
+ * `qtvpr-cli stream --format jsonl`. Not part of the qtvpr API: a robot has its scores
+ * in memory already.
  *
  * Header-only: static functions, for C and C++ alike.
  */
-#ifndef QTVPR_EXAMPLE_NPY_H
-#define QTVPR_EXAMPLE_NPY_H
+#ifndef QTVPR_EXAMPLE_IO_H
+#define QTVPR_EXAMPLE_IO_H
 
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "qtvpr.h"
 
 typedef struct {
     size_t rows, cols;
@@ -104,4 +108,16 @@ static void npy_column(const npy_matrix *m, size_t j, void *out) {
         memcpy((char *)out + i * m->itemsize, data + (i * m->cols + j) * m->itemsize, m->itemsize);
 }
 
-#endif /* QTVPR_EXAMPLE_NPY_H */
+/* Print d as `qtvpr-cli stream --format jsonl` does: the same keys in the same order;
+ * %.17g gives every double exactly (the CLI writes the shortest form of the same value). */
+static void print_decision(const qtvpr_decision *d, int matching) {
+    printf("{\"query\":%zu,\"query_quantile\":%.17g,\"weight\":%.17g,\"quantile\":%.17g,"
+           "\"threshold\":%.17g,\"accept\":%s,",
+           d->query, d->query_quantile, d->weight, d->quantile, d->threshold, d->accept ? "true" : "false");
+    if (matching == QTVPR_SINGLE)
+        printf("\"best\":%zu,\"score\":%.17g}\n", d->best, d->score);
+    else
+        printf("\"accepted\":%zu}\n", d->accepted);
+}
+
+#endif /* QTVPR_EXAMPLE_IO_H */
