@@ -36,6 +36,7 @@ cc "${cflags[@]}" examples/c/stream.c "${static[@]}" -o "$work/stream-static"
 c++ -std=c++17 -Wall -Wextra -Wpedantic -Werror -Iinclude -Iexamples/c examples/c/stream.cpp "${shared[@]}" \
     -o "$work/stream-cpp"
 cc "${cflags[@]}" -pthread examples/c/errors.c "${shared[@]}" -lm -o "$work/errors"
+cc "${cflags[@]}" examples/c/minimal.c "${shared[@]}" -o "$work/minimal"
 if ldd "$work/stream-static" | grep -q libqtvpr; then
     echo "stream-static links libqtvpr.so" >&2
     exit 1
@@ -78,6 +79,18 @@ else
     echo "(no $shared_data: Nordland and SPEDTest skipped)"
 fi
 
+step "the README's example"
+python3 scripts/capi_check.py raw data/corridor/deploy_S.npy "$work/corridor-deploy.f32"
+"$work/minimal" "$work/corridor-single.npz" < "$work/corridor-deploy.f32" > "$work/minimal.txt"
+[ "$(wc -l < "$work/minimal.txt")" = 100 ] || { echo "minimal: expected 100 decisions" >&2; exit 1; }
+head -n 2 "$work/minimal.txt"
+if "$work/minimal" "$work/missing.npz" < /dev/null 2> "$work/minimal.err"; then
+    echo "minimal: a missing calibration file is not an error" >&2
+    exit 1
+fi
+grep -q "missing.npz" "$work/minimal.err"
+cat "$work/minimal.err"
+
 step "error paths from C"
 errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp")
 "${errors[@]}"
@@ -91,7 +104,9 @@ if ! command -v valgrind > /dev/null; then
         exit 1
     fi
 fi
-vg=(valgrind --quiet --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite,indirect,possible)
+# examples/c/valgrind.supp says what it suppresses and why (rayon's threads at exit).
+vg=(valgrind --quiet --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite,indirect,possible
+    --suppressions=examples/c/valgrind.supp)
 "${vg[@]}" "${errors[@]}"
 "${vg[@]}" "$work/stream" "$work/corridor-multi.npz" data/corridor/deploy_S.npy 0 0 0 2 > "$work/valgrind.jsonl"
 python3 scripts/capi_check.py compare "$work/corridor-multi.jsonl" "$work/valgrind.jsonl"

@@ -3,6 +3,9 @@
     capi_check.py split S.npy N_CAL CAL.npy DEPLOY.npy
         Write the first N_CAL columns of the |DB| x |Q| C-order matrix S.npy to CAL.npy
         and the others to DEPLOY.npy: a calibration and a deployment traverse.
+    capi_check.py raw S.npy OUT.f32
+        Write the |DB| x |Q| C-order matrix S.npy query-major as raw little-endian
+        float32: each query's |DB| scores in turn, as a camera would deliver them.
     capi_check.py compare EXPECTED.jsonl ACTUAL.jsonl [TOLERANCE]
         Check that two `qtvpr-cli stream --format jsonl` outputs have the same lines: the
         same keys, equal integers and booleans, and numbers within TOLERANCE (default
@@ -54,6 +57,16 @@ def split(source: str, n_cal: str, cal: str, deploy: str) -> None:
     write_npy(deploy, header["descr"], (rows, cols - c), b"".join(r[c * item :] for r in rows_of))
 
 
+def raw(source: str, out: str) -> None:
+    header, data = read_npy(source)
+    if header["fortran_order"] or len(header["shape"]) != 2 or header["descr"] not in ("<f4", "<f8"):
+        sys.exit(f"{source}: expected a 2-D C-order float32/float64 matrix")
+    rows, cols = header["shape"]
+    values = struct.unpack(f"<{rows * cols}{header['descr'][1:].replace('f4', 'f').replace('f8', 'd')}", data)
+    with open(out, "wb") as f:
+        f.write(struct.pack(f"<{rows * cols}f", *(values[i * cols + j] for j in range(cols) for i in range(rows))))
+
+
 def compare(expected: str, actual: str, tolerance: str = "1e-12") -> None:
     tol = float(tolerance)
     with open(expected) as f:
@@ -80,7 +93,7 @@ def compare(expected: str, actual: str, tolerance: str = "1e-12") -> None:
 
 
 if __name__ == "__main__":
-    commands = {"split": split, "compare": compare}
+    commands = {"split": split, "raw": raw, "compare": compare}
     if len(sys.argv) < 2 or sys.argv[1] not in commands:
         sys.exit(__doc__)
     commands[sys.argv[1]](*sys.argv[2:])
