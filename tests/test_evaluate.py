@@ -182,8 +182,9 @@ def from_json(out: dict) -> dict:
 )
 def test_cli_json_equals_reference(cli, shared_data, dataset, technique, matching, precision):
     d = shared_data / dataset
+    # Every method the reference knows (the CLI's `all` may know more).
     res = run_cli(cli, "evaluate", "--similarity", d / f"S_{technique}.npy", "--gt", d / "GT.npy",
-                  "--matching", matching, "--precision", precision)
+                  "--matching", matching, "--precision", precision, "--method", ",".join(ref.METHODS))
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     n_q = load(shared_data, dataset, technique)[0].shape[1]
@@ -225,7 +226,7 @@ def test_cli_ablation_rows_equal_reference(cli, shared_data):
 
 def test_cli_embedded_data_matches_the_reference(cli):
     """The README's main command runs the reference protocol on data/corridor."""
-    res = run_cli(cli, "evaluate", "--format", "json")
+    res = run_cli(cli, "evaluate", "--format", "json", "--method", ",".join(ref.METHODS))
     assert res.returncode == 0, res.stderr
     data = Path(__file__).resolve().parents[1] / "data" / "corridor"
     s = np.concatenate([np.load(data / "cal_S.npy"), np.load(data / "deploy_S.npy")], axis=1)

@@ -39,8 +39,9 @@ pub struct EvaluateArgs {
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
     #[arg(long)]
     query_major: bool,
-    /// Methods to evaluate, comma-separated, or `all`: quantile-transfer, schubert,
-    /// schubert-calibrated, calibration-threshold, oracle.
+    /// Methods to evaluate, comma-separated, or `all`: quantile-transfer,
+    /// quantile-transfer-online (each query at the threshold of its last segment-size
+    /// queries), schubert, schubert-calibrated, calibration-threshold, oracle.
     #[arg(long, value_delimiter = ',', default_value = "all", value_name = "M1,M2,...")]
     method: Vec<String>,
     /// Calibration queries sampled per deployment query by quantile transfer. A list

@@ -41,14 +41,20 @@ use qtvpr::npy::{Scores, read_ground_truth};
 /// options under the long-option prefix `$prefix` (see the [module docs](self)).
 /// `$matrix` names the option of the similarity matrix the ground truth labels, for
 /// help texts.
+///
+/// With `, required = false` at the end, the source may be left out: use
+/// [`given`](CalGtSource::given) then, not `source`.
 macro_rules! gt_source_args {
     ($(#[$doc:meta])* $name:ident, $prefix:literal, $matrix:literal) => {
+        gt_source_args!($(#[$doc])* $name, $prefix, $matrix, required = true);
+    };
+    ($(#[$doc:meta])* $name:ident, $prefix:literal, $matrix:literal, required = $required:literal) => {
         $(#[$doc])*
         #[derive(Debug, Clone, clap::Args)]
         #[group(skip)]
         #[command(group(
             clap::ArgGroup::new(concat!($prefix, "-source"))
-                .required(true)
+                .required($required)
                 .multiple(false)
                 .args(["gt", "gt_tolerance", "gt_db_positions"])
         ))]
@@ -123,9 +129,19 @@ macro_rules! gt_source_args {
         }
 
         impl $name {
-            /// The source the options name.
+            /// The source the options name (one is required, unless declared
+            /// `required = false`).
+            #[allow(dead_code)] // a command with an optional source uses `given`
             pub fn source(&self) -> $crate::gt_source::GtSource<'_> {
+                self.given().expect("clap requires one source")
+            }
+
+            /// The source the options name, if any.
+            pub fn given(&self) -> Option<$crate::gt_source::GtSource<'_>> {
                 use $crate::gt_source::{GtSource, Kind};
+                if self.gt.is_none() && self.gt_tolerance.is_none() && self.gt_db_positions.is_none() {
+                    return None;
+                }
                 let kind = if let Some(hard) = &self.gt {
                     Kind::File {
                         hard,
@@ -146,7 +162,7 @@ macro_rules! gt_source_args {
                         soft_radius: self.gt_soft_radius,
                     }
                 };
-                GtSource { prefix: $prefix, kind }
+                Some(GtSource { prefix: $prefix, kind })
             }
         }
     };
@@ -155,10 +171,19 @@ macro_rules! gt_source_args {
 pub(crate) use gt_source_args;
 
 gt_source_args!(
-    /// The calibration ground truth of `threshold` (`--cal-gt...`).
+    /// The calibration ground truth of `calibrate` (`--cal-gt...`).
     CalGtSource,
     "cal-gt",
     "--cal"
+);
+
+gt_source_args!(
+    /// The calibration ground truth of `threshold` (`--cal-gt...`): not needed when
+    /// `--cal` is a calibration file, which holds its own.
+    OptionalCalGtSource,
+    "cal-gt",
+    "--cal",
+    required = false
 );
 
 /// One ground-truth source, as given on the command line.

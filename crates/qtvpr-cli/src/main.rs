@@ -18,6 +18,7 @@ macro_rules! with_view {
     };
 }
 
+mod calibrate;
 mod embedded;
 mod evaluate;
 mod ground_truth;
@@ -27,6 +28,7 @@ mod output;
 mod plot;
 mod progress;
 mod similarity;
+mod stream;
 mod threshold;
 
 /// Choose the operating point of a visual place recognition system by quantile
@@ -59,6 +61,13 @@ enum Command {
     /// Calibrate on a traverse with ground truth; print one threshold per segment of
     /// deployment queries (no deployment ground truth needed).
     Threshold(threshold::ThresholdArgs),
+    /// Check a calibration traverse with ground truth and write it as one calibration
+    /// file (.npz), once, offline, for `stream`, `threshold` and a deployed system to load.
+    Calibrate(calibrate::CalibrateArgs),
+    /// Replay a deployment matrix query by query, as a robot sees it: each query is
+    /// thresholded on its last --window queries (a causal window) and decided at once;
+    /// one line per query.
+    Stream(stream::StreamArgs),
     /// Run the paper's evaluation protocol on a matrix with ground truth for every
     /// query: the first queries calibrate, the rest are cut into segments, and each
     /// method's per-segment threshold is scored against the segment's ground truth
@@ -77,6 +86,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = configure_threads(cli.global.threads).and_then(|()| match &cli.command {
         Command::Threshold(args) => threshold::run(args, &cli.global),
+        Command::Calibrate(args) => calibrate::run(args),
+        Command::Stream(args) => stream::run(args, &cli.global),
         Command::Evaluate(args) => evaluate::run(args, &cli.global),
         Command::Similarity(args) => similarity::run(args),
         Command::GroundTruth(args) => ground_truth::run(args),

@@ -4,7 +4,7 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 /// Output formats of `threshold`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -15,7 +15,8 @@ pub enum Format {
     Csv,
 }
 
-/// Write `text` to `path` atomically, or to stdout when `path` is `None`.
+/// Write `text` to `path` atomically (with the mode a plain create gives), or to stdout
+/// when `path` is `None`.
 pub fn emit(text: &str, path: Option<&Path>) -> Result<()> {
     match path {
         None => {
@@ -25,14 +26,7 @@ pub fn emit(text: &str, path: Option<&Path>) -> Result<()> {
             Ok(())
         }
         Some(path) => {
-            let dir = match path.parent() {
-                Some(d) if !d.as_os_str().is_empty() => d,
-                _ => Path::new("."),
-            };
-            let ctx = || format!("writing --output {}", path.display());
-            let mut tmp = tempfile::NamedTempFile::new_in(dir).with_context(ctx)?;
-            tmp.write_all(text.as_bytes()).with_context(ctx)?;
-            tmp.persist(path).map_err(|e| e.error).with_context(ctx)?;
+            qtvpr::npy::write_atomically(path, |w| w.write_all(text.as_bytes()))?;
             Ok(())
         }
     }

@@ -116,6 +116,7 @@ fn hand_computed_json() {
     let at = |name: &str| text.find(&format!("\"{name}\": {{")).unwrap();
     let names = [
         "quantile-transfer",
+        "quantile-transfer-online",
         "schubert",
         "schubert-calibrated",
         "calibration-threshold",
@@ -130,7 +131,7 @@ fn hand_computed_json() {
                "segment_size": 2, "segments": 2})
     );
     let methods = out["methods"].as_object().unwrap();
-    assert_eq!(methods.len(), 5);
+    assert_eq!(methods.len(), 6);
     for m in methods.values() {
         // Segment (2, 4) = d2, d3 has no hard match: skipped. Its oracle is reject-all (null).
         assert_eq!(
@@ -174,6 +175,19 @@ fn hand_computed_json() {
         (Some(1), Some(1))
     );
     assert!(near(&q["threshold_mse"], 0.01));
+    // Online, a window of 2 over d0, d1, ... (crates/qtvpr/src/evaluate.rs): d0 alone
+    // -> 0.54, accepting d0 (T); d1 with d0 -> 0.6, accepting d1 (F). Segment 0: TP 1,
+    // FP 1 at the threshold of its last query, 0.6; segment 1 ends at d3: 0.5.
+    let o = &methods["quantile-transfer-online"];
+    assert!(near(&o["segments"][0]["threshold"], 0.6) && near(&o["segments"][1]["threshold"], 0.5));
+    assert_eq!(
+        (o["segments"][0]["tp"].as_u64(), o["segments"][0]["fp"].as_u64()),
+        (Some(1), Some(1))
+    );
+    assert_eq!(
+        (o["pct_segs"].as_f64(), o["avg_recall"].as_f64()),
+        (Some(100.0), Some(0.5))
+    );
     // Schubert on segment 0: median 0.4, MAD 0.2 -> 0.4 + (0.2 / 0.675) z; calibrated:
     // median 0.35, MAD 0.2.
     assert!(near(
@@ -299,8 +313,9 @@ fn embedded_demo_data_prints_a_table() {
         .lines()
         .filter(|l| l.starts_with("| ") && !l.starts_with("| method"))
         .collect();
-    assert_eq!(rows.len(), 5, "{text}");
-    assert!(rows[4].starts_with("| oracle | 100.0 |"), "{text}");
+    assert_eq!(rows.len(), 6, "{text}");
+    assert!(rows[1].starts_with("| quantile-transfer-online | "), "{text}");
+    assert!(rows[5].starts_with("| oracle | 100.0 |"), "{text}");
 }
 
 #[test]
@@ -313,6 +328,7 @@ fn plots_are_written() {
         assert!(svg.starts_with("<svg"), "{name}");
         // Text is real SVG text, with the legend's method names.
         assert!(svg.contains("<text") && svg.contains("quantile-transfer"), "{name}");
+        assert!(svg.contains("quantile-transfer-online"), "{name}");
     }
     case.ok(&["--plot", dir.to_str().unwrap(), "--k", "1,2,3"]);
     let svg = std::fs::read_to_string(dir.join("ablation_k.svg")).unwrap();

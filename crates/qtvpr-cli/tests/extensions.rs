@@ -260,7 +260,7 @@ fn similarity_output_errors_leave_nothing() {
             "no/such/dir/s.npy",
         ],
         &[],
-        &["writing --output no/such/dir/s.npy"],
+        &["--output: cannot write no/such/dir/s.npy"],
     );
 }
 

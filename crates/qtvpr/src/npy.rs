@@ -719,7 +719,6 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File
         _ => Path::new("."),
     };
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".qtvpr-tmp");
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;

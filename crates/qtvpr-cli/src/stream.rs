@@ -1,0 +1,197 @@
+//! `qtvpr-cli stream`: replay a deployment matrix query by query through
+//! [`qtvpr::Online`], as a robot would see it, and write one line per query: its
+//! threshold and decision.
+
+use std::io::{self, BufWriter, Write};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use ndarray::ArrayView2;
+use qtvpr::{Calibration, Decision, Online, OnlineParams, Outcome, Score};
+use serde::Serialize;
+
+use crate::output::emit;
+use crate::threshold::orient;
+use crate::{Global, progress};
+use qtvpr::npy::read_scores;
+
+/// Arguments of `stream`.
+#[derive(Debug, Args)]
+pub struct StreamArgs {
+    /// Calibration file (.npz) written by `calibrate`.
+    #[arg(long, value_name = "cal.npz")]
+    calibration: PathBuf,
+    /// Deployment similarity matrix (.npy), |DB| x |Qval|, its columns in arrival order.
+    #[arg(long, value_name = "S_val.npy")]
+    val: PathBuf,
+    /// Calibration queries sampled per deployment query [default: the file's].
+    #[arg(long)]
+    k: Option<usize>,
+    /// Target precision tau, in (0, 1] [default: the file's].
+    #[arg(long, allow_negative_numbers = true)]
+    precision: Option<f64>,
+    /// Window: each query is thresholded on its last M queries, itself included
+    /// [default: the file's; required if it sets none].
+    #[arg(long, value_name = "M")]
+    window: Option<usize>,
+    /// Warm-up: queries before the W-th are rejected outright (threshold above every
+    /// score), so that no decision rests on fewer than W queries.
+    #[arg(long, value_name = "W", default_value_t = 1)]
+    min_window: usize,
+    /// --val is stored query-major, |Qval| x |DB| (the VPR-Bench convention).
+    #[arg(long)]
+    query_major: bool,
+    /// Output format: one JSON object per line, or CSV with a header.
+    #[arg(long, value_enum, default_value_t = StreamFormat::Jsonl)]
+    format: StreamFormat,
+    /// Write to this file (atomically, once every query is decided) instead of stdout.
+    #[arg(long, short, value_name = "FILE")]
+    output: Option<PathBuf>,
+}
+
+/// Output formats of `stream`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StreamFormat {
+    /// JSON lines: one object per query.
+    Jsonl,
+    /// CSV: a header, then one row per query.
+    Csv,
+}
+
+/// One output line. `accept` is whether anything is accepted; `best` and `score` are
+/// given in single matching, `accepted` (a count) in multi matching.
+#[derive(Serialize)]
+struct Line {
+    query: usize,
+    query_quantile: f64,
+    weight: f64,
+    quantile: f64,
+    threshold: f64,
+    accept: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    best: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    score: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    accepted: Option<usize>,
+}
+
+impl From<&Decision> for Line {
+    fn from(d: &Decision) -> Self {
+        let (accept, best, score, accepted) = match d.outcome {
+            Outcome::Single { best, score, accept } => (accept, Some(best), Some(score), None),
+            Outcome::Multi { accepted } => (accepted > 0, None, None, Some(accepted)),
+        };
+        Line {
+            query: d.query,
+            query_quantile: d.query_quantile,
+            weight: d.weight,
+            quantile: d.quantile,
+            threshold: d.threshold,
+            accept,
+            best,
+            score,
+            accepted,
+        }
+    }
+}
+
+impl Line {
+    fn write(&self, format: StreamFormat, out: &mut impl Write) -> Result<()> {
+        match format {
+            StreamFormat::Jsonl => {
+                serde_json::to_writer(&mut *out, self)?;
+                writeln!(out)?;
+            }
+            StreamFormat::Csv => {
+                let opt = |v: Option<String>| v.unwrap_or_default();
+                write!(
+                    out,
+                    "{},{},{},{},{},{}",
+                    self.query, self.query_quantile, self.weight, self.quantile, self.threshold, self.accept
+                )?;
+                match self.accepted {
+                    Some(n) => writeln!(out, ",{n}")?,
+                    None => writeln!(
+                        out,
+                        ",{},{}",
+                        opt(self.best.map(|b| b.to_string())),
+                        opt(self.score.map(|s| s.to_string()))
+                    )?,
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Queries decided per step of the progress bar.
+const STEP: usize = 256;
+
+/// Run `stream`.
+pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
+    let cal = Calibration::load(&args.calibration).context("--calibration")?;
+    let params = OnlineParams::resolve(
+        cal.defaults(),
+        args.k,
+        args.precision,
+        args.window,
+        Some(args.min_window),
+    )?;
+    let matching = cal.matching();
+    let mut online = Online::new(Arc::new(cal), params)?;
+    let s_val = read_scores(&args.val).context("--val")?;
+    let s_val = orient(s_val.view(), args.query_major);
+
+    let header = match matching {
+        qtvpr::Matching::Single => "query,query_quantile,weight,quantile,threshold,accept,best,score\n",
+        qtvpr::Matching::Multi => "query,query_quantile,weight,quantile,threshold,accept,accepted\n",
+    };
+    // Lines go to stdout as queries are decided, or to memory for an atomic --output.
+    let mut buffer = Vec::new();
+    let stdout = io::stdout();
+    let mut out: Box<dyn Write> = match &args.output {
+        None => Box::new(BufWriter::new(stdout.lock())),
+        Some(_) => Box::new(&mut buffer),
+    };
+    if args.format == StreamFormat::Csv {
+        out.write_all(header.as_bytes())?;
+    }
+    let n_val = s_val.dim().1;
+    let bar = progress::bar(global.quiet, n_val, "deployment queries");
+    with_view!(s_val, |v| replay(&mut online, v, args.format, &mut out, |done| bar
+        .set_position(done as u64)))
+    .map_err(|e| match e.downcast::<qtvpr::Error>() {
+        Ok(e) if args.query_major => e.transposed().into(),
+        Ok(e) => e.into(),
+        Err(e) => e,
+    })
+    .with_context(|| format!("--val {}", args.val.display()))?;
+    bar.finish_and_clear();
+    out.flush()?;
+    drop(out);
+    match &args.output {
+        None => Ok(()),
+        Some(path) => emit(std::str::from_utf8(&buffer).expect("the lines are UTF-8"), Some(path)),
+    }
+}
+
+/// Push the columns of `s` one by one, as a robot would, writing each decision as it is
+/// made (so that a bad column stops the stream after every query before it).
+fn replay<T: Score>(
+    online: &mut Online,
+    s: ArrayView2<'_, T>,
+    format: StreamFormat,
+    out: &mut impl Write,
+    progress: impl Fn(usize),
+) -> Result<()> {
+    for (j, column) in s.columns().into_iter().enumerate() {
+        Line::from(&online.push(column)?).write(format, out)?;
+        if (j + 1) % STEP == 0 || j + 1 == s.ncols() {
+            progress(j + 1);
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,676 @@
+//! End-to-end tests of `calibrate`, `stream` and `threshold --cal cal.npz` on real
+//! VPR-Bench matrices (`../shared/data`): the stream equals `qtvpr::Online` bit for bit
+//! in both matching modes, with query-major input, soft ground truth and a warm-up; a
+//! calibration file gives the same thresholds as the matrices it was made from; every
+//! bad calibration file exits 2 with one line naming it; written files get the mode of a
+//! plain create.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::Arc;
+
+use ndarray::{Array2, ArrayView2, s};
+use qtvpr::npy::{NpyArray, ScoresView, read_scores, write_npy, write_npz};
+use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, Outcome, Score};
+use tempfile::TempDir;
+
+mod common;
+use common::assert_clean_failure;
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel)
+}
+
+/// Corridor (111 x 111) of one technique: calibration = the first 11 queries.
+struct Case {
+    dir: TempDir,
+    s: Array2<f64>,
+    gt: Array2<bool>,
+    f32: bool,
+}
+
+const N_CAL: usize = 11;
+
+impl Case {
+    fn new(technique: &str) -> Self {
+        let scores = read_scores(&data(&format!("vprbench-corridor/S_{technique}.npy"))).unwrap();
+        let (s, f32) = match scores.view() {
+            ScoresView::F32(v) => (v.mapv(f64::from), true),
+            ScoresView::F64(v) => (v.to_owned(), false),
+        };
+        let gt = qtvpr::npy::read_hard_ground_truth(&data("vprbench-corridor/GT.npy")).unwrap();
+        let gt = gt.view().mapv(|t| t == qtvpr::Truth::True);
+        let case = Self {
+            dir: tempfile::tempdir().unwrap(),
+            s,
+            gt,
+            f32,
+        };
+        // DB x Q and query-major copies of the calibration and deployment halves, in the
+        // technique's own dtype.
+        for (name, cols) in [("cal", 0..N_CAL), ("val", N_CAL..111)] {
+            let part = case.s.slice(s![.., cols.clone()]);
+            case.write_scores(&format!("{name}.npy"), part);
+            case.write_scores(&format!("{name}_qm.npy"), part.t());
+            let gt = case.gt.slice(s![.., cols]);
+            write_npy(&case.path(&format!("{name}_gt.npy")), gt).unwrap();
+            write_npy(&case.path(&format!("{name}_gt_qm.npy")), gt.t()).unwrap();
+        }
+        case
+    }
+
+    fn write_scores(&self, name: &str, m: ArrayView2<'_, f64>) {
+        if self.f32 {
+            write_npy(&self.path(name), m.mapv(|v| v as f32).view()).unwrap();
+        } else {
+            write_npy(&self.path(name), m).unwrap();
+        }
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    fn run(&self, args: &[&str]) -> Output {
+        Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
+            .current_dir(self.dir.path())
+            .env("RUST_BACKTRACE", "1")
+            .args(args)
+            .output()
+            .unwrap()
+    }
+
+    fn ok(&self, args: &[&str]) -> String {
+        let out = self.run(args);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    }
+
+    fn fails(&self, args: &[&str], outputs: &[&str], needles: &[&str]) {
+        let outputs: Vec<PathBuf> = outputs.iter().map(|o| self.path(o)).collect();
+        let refs: Vec<&Path> = outputs.iter().map(|p| p.as_path()).collect();
+        assert_clean_failure(&self.run(args), self.dir.path(), &refs, needles);
+    }
+
+    /// The decisions `qtvpr::Online` makes on the deployment half, from a calibration
+    /// built in this process (not from the file).
+    fn expected(&self, matching: Matching, soft: Option<&Array2<bool>>, p: OnlineParams) -> Vec<Decision> {
+        let mut gt = GroundTruth::new(self.gt.slice(s![.., ..N_CAL])).unwrap();
+        if let Some(soft) = soft {
+            gt = gt.with_soft(soft.slice(s![.., ..N_CAL])).unwrap();
+        }
+        let (cal, val) = (self.s.slice(s![.., ..N_CAL]), self.s.slice(s![.., N_CAL..]));
+        fn go<T: Score>(
+            cal: ArrayView2<'_, T>,
+            val: ArrayView2<'_, T>,
+            gt: &GroundTruth,
+            m: Matching,
+            p: OnlineParams,
+        ) -> Vec<Decision> {
+            let cal = Arc::new(Calibration::new(cal, gt, m).unwrap());
+            Online::new(cal, p).unwrap().push_many(val).unwrap()
+        }
+        if self.f32 {
+            let (c, v) = (cal.mapv(|x| x as f32), val.mapv(|x| x as f32));
+            go(c.view(), v.view(), &gt, matching, p)
+        } else {
+            go(cal, val, &gt, matching, p)
+        }
+    }
+}
+
+/// Parse `stream --format csv` and compare every field with `expected`, bit for bit.
+fn assert_csv_equals(csv: &str, expected: &[Decision], matching: Matching) {
+    let mut lines = csv.lines();
+    let header = match matching {
+        Matching::Single => "query,query_quantile,weight,quantile,threshold,accept,best,score",
+        Matching::Multi => "query,query_quantile,weight,quantile,threshold,accept,accepted",
+    };
+    assert_eq!(lines.next(), Some(header));
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), expected.len());
+    let f = |x: &str| x.parse::<f64>().unwrap().to_bits();
+    for (row, d) in rows.iter().zip(expected) {
+        let v: Vec<&str> = row.split(',').collect();
+        assert_eq!(v[0].parse::<usize>().unwrap(), d.query);
+        let got = (f(v[1]), f(v[2]), f(v[3]), f(v[4]));
+        let want = (
+            d.query_quantile.to_bits(),
+            d.weight.to_bits(),
+            d.quantile.to_bits(),
+            d.threshold.to_bits(),
+        );
+        assert_eq!(got, want, "query {}: {row}", d.query);
+        match d.outcome {
+            Outcome::Single { best, score, accept } => {
+                assert_eq!(
+                    (v[5], v[6].parse::<usize>().unwrap(), f(v[7])),
+                    (&*accept.to_string(), best, score.to_bits())
+                );
+            }
+            Outcome::Multi { accepted } => {
+                assert_eq!(
+                    (v[5], v[6].parse::<usize>().unwrap()),
+                    (&*(accepted > 0).to_string(), accepted)
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn single_matching_stream_equals_online() {
+    let case = Case::new("NetVLAD");
+    case.ok(&[
+        "calibrate",
+        "--cal",
+        "cal.npy",
+        "--cal-gt",
+        "cal_gt.npy",
+        "--window",
+        "5",
+        "-o",
+        "cal.npz",
+    ]);
+    let p = OnlineParams {
+        k: 10,
+        precision: 1.0,
+        window: 5,
+        min_window: 1,
+    };
+    let expected = case.expected(Matching::Single, None, p);
+    // The window comes from the file.
+    let csv = case.ok(&[
+        "stream",
+        "--calibration",
+        "cal.npz",
+        "--val",
+        "val.npy",
+        "--format",
+        "csv",
+    ]);
+    assert_csv_equals(&csv, &expected, Matching::Single);
+    // Some are accepted, some not (the test can tell a wrong threshold).
+    assert!(
+        expected
+            .iter()
+            .any(|d| matches!(d.outcome, Outcome::Single { accept: true, .. }))
+    );
+    assert!(
+        expected
+            .iter()
+            .any(|d| matches!(d.outcome, Outcome::Single { accept: false, .. }))
+    );
+
+    // JSON lines carry the same values.
+    let jsonl = case.ok(&["stream", "--calibration", "cal.npz", "--val", "val.npy"]);
+    let lines: Vec<serde_json::Value> = jsonl.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 100);
+    for (l, d) in lines.iter().zip(&expected) {
+        let Outcome::Single { best, score, accept } = d.outcome else {
+            unreachable!()
+        };
+        assert_eq!(l["query"], d.query);
+        assert_eq!(
+            (l["accept"].as_bool(), l["best"].as_u64()),
+            (Some(accept), Some(best as u64))
+        );
+        for (key, want) in [("threshold", d.threshold), ("quantile", d.quantile), ("score", score)] {
+            assert!(
+                (l[key].as_f64().unwrap() - want).abs() <= 1e-15 * want.abs(),
+                "{key}: {l}"
+            );
+        }
+        assert!(l.get("accepted").is_none());
+    }
+
+    // Options override the file: k, precision, window, min-window.
+    let p = OnlineParams {
+        k: 3,
+        precision: 0.9,
+        window: 8,
+        min_window: 4,
+    };
+    let csv = case.ok(&[
+        "stream",
+        "--calibration",
+        "cal.npz",
+        "--val",
+        "val.npy",
+        "--format",
+        "csv",
+        "--k",
+        "3",
+        "--precision",
+        "0.9",
+        "--window",
+        "8",
+        "--min-window",
+        "4",
+    ]);
+    let expected = case.expected(Matching::Single, None, p);
+    assert_csv_equals(&csv, &expected, Matching::Single);
+    assert!(
+        expected[..3]
+            .iter()
+            .all(|d| d.quantile == 1.0 && matches!(d.outcome, Outcome::Single { accept: false, .. }))
+    );
+}
+
+#[test]
+fn multi_matching_query_major_soft_ground_truth() {
+    // float32 scores, stored query-major; soft ground truth |i - j| <= 3 around the hard
+    // |i - j| <= 2 (by tolerance, from the calibration's own columns 0..11).
+    let case = Case::new("CoHOG");
+    assert!(case.f32);
+    case.ok(&[
+        "calibrate",
+        "--cal",
+        "cal_qm.npy",
+        "--cal-gt-tolerance",
+        "2",
+        "--cal-gt-soft-tolerance",
+        "3",
+        "--matching",
+        "multi",
+        "--k",
+        "4",
+        "--precision",
+        "0.9",
+        "--window",
+        "6",
+        "--query-major",
+        "-o",
+        "cal.npz",
+    ]);
+    let hard = Array2::from_shape_fn((111, 111), |(i, j)| i.abs_diff(j) <= 2);
+    let soft = Array2::from_shape_fn((111, 111), |(i, j)| i.abs_diff(j) <= 3);
+    let case = Case { gt: hard, ..case };
+    let p = OnlineParams {
+        k: 4,
+        precision: 0.9,
+        window: 6,
+        min_window: 3,
+    };
+    let expected = case.expected(Matching::Multi, Some(&soft), p);
+    let csv = case.ok(&[
+        "stream",
+        "--calibration",
+        "cal.npz",
+        "--val",
+        "val_qm.npy",
+        "--query-major",
+        "--format",
+        "csv",
+        "--min-window",
+        "3",
+        "-o",
+        "out.csv",
+    ]);
+    assert!(csv.is_empty());
+    let csv = std::fs::read_to_string(case.path("out.csv")).unwrap();
+    assert_csv_equals(&csv, &expected, Matching::Multi);
+    assert!(
+        expected
+            .iter()
+            .any(|d| matches!(d.outcome, Outcome::Multi { accepted } if accepted > 1))
+    );
+    // The file holds |DB| x |Qcal| and the soft ground truth.
+    let cal = Calibration::load(&case.path("cal.npz")).unwrap();
+    assert_eq!(
+        (cal.db_size(), cal.len(), cal.matching()),
+        (111, N_CAL, Matching::Multi)
+    );
+    assert!(cal.ground_truth().view().iter().any(|&t| t == qtvpr::Truth::Ignored));
+    let lines = case.ok(&[
+        "stream",
+        "--calibration",
+        "cal.npz",
+        "--val",
+        "val_qm.npy",
+        "--query-major",
+        "--min-window",
+        "3",
+    ]);
+    let first: serde_json::Value = serde_json::from_str(lines.lines().next().unwrap()).unwrap();
+    assert_eq!(first["accepted"], 0, "warm-up");
+    assert!(first.get("best").is_none());
+}
+
+#[test]
+fn threshold_takes_a_calibration_file() {
+    let case = Case::new("NetVLAD");
+    let matrices = [
+        "threshold",
+        "--cal",
+        "cal.npy",
+        "--cal-gt",
+        "cal_gt.npy",
+        "--val",
+        "val.npy",
+        "--segment-size",
+        "20",
+    ];
+    let file = [
+        "threshold",
+        "--cal",
+        "cal.npz",
+        "--val",
+        "val.npy",
+        "--segment-size",
+        "20",
+    ];
+    for (matching, k, precision) in [("single", "10", "1.0"), ("multi", "3", "0.9")] {
+        case.ok(&[
+            "calibrate",
+            "--cal",
+            "cal.npy",
+            "--cal-gt",
+            "cal_gt.npy",
+            "--matching",
+            matching,
+            "--k",
+            k,
+            "--precision",
+            precision,
+            "-o",
+            "cal.npz",
+        ]);
+        let params = ["--matching", matching, "--k", k, "--precision", precision];
+        let want = case.ok(&[&matrices[..], &params].concat());
+        // The file's k, precision and matching are the defaults; giving them again is the same.
+        assert_eq!(case.ok(&file), want);
+        assert_eq!(case.ok(&[&file[..], &params].concat()), want);
+        let json: serde_json::Value = serde_json::from_str(&want).unwrap();
+        assert_eq!(json["params"]["matching"], matching);
+        assert_eq!(json["segments"].as_array().unwrap().len(), 5);
+    }
+    // A calibration file told apart by its content, whatever its name.
+    std::fs::copy(case.path("cal.npz"), case.path("cal_file.npy")).unwrap();
+    let want = case.ok(&file);
+    assert_eq!(
+        case.ok(&[
+            "threshold",
+            "--cal",
+            "cal_file.npy",
+            "--val",
+            "val.npy",
+            "--segment-size",
+            "20"
+        ]),
+        want
+    );
+    // --cal-gt with a calibration file, a different --matching, no --cal-gt with a matrix.
+    case.fails(
+        &[&file[..], &["--cal-gt", "cal_gt.npy", "-o", "out.json"]].concat(),
+        &["out.json"],
+        &[
+            "--cal cal.npz is a calibration file, which holds its own ground truth",
+            "--cal-gt cal_gt.npy",
+        ],
+    );
+    case.fails(
+        &[&file[..], &["--matching", "single", "-o", "out.json"]].concat(),
+        &["out.json"],
+        &["--matching single: --cal cal.npz was calibrated for multi matching"],
+    );
+    case.fails(
+        &["threshold", "--cal", "cal.npy", "--val", "val.npy", "-o", "out.json"],
+        &["out.json"],
+        &["--cal cal.npy is a similarity matrix, which needs its ground truth"],
+    );
+}
+
+#[test]
+fn bad_calibration_files_name_the_file() {
+    let case = Case::new("NetVLAD");
+    let stream = |cal: &str| -> Vec<String> {
+        [
+            "stream",
+            "--calibration",
+            cal,
+            "--val",
+            "val.npy",
+            "--window",
+            "3",
+            "-o",
+            "out.jsonl",
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let fails = |cal: &str, needle: &str| {
+        let args = stream(cal);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        case.fails(&args, &["out.jsonl"], &["--calibration", cal, needle]);
+        let args = ["threshold", "--cal", cal, "--val", "val.npy", "-o", "out.json"];
+        if cal.ends_with(".npz") && cal != "missing.npz" {
+            case.fails(&args, &["out.json"], &["--cal", cal, needle]);
+        }
+    };
+    std::fs::write(case.path("junk.npz"), b"PK\x03\x04 not a zip at all").unwrap();
+    fails("junk.npz", "is not a valid .npz archive");
+    fails("missing.npz", "cannot read missing.npz");
+    let s = array2(&[&[0.5, 0.1], &[0.2, 0.9]]);
+    let gt = ndarray::array![[true, false], [false, true]];
+    let meta = |version: u32| {
+        format!(
+            r#"{{"format": "qtvpr-calibration", "version": {version}, "matching": "single", "params": {{"k": 10, "precision": 1.0, "window": null}}, "qtvpr": "0"}}"#
+        )
+    };
+    let (m1, m2) = (meta(1), meta(2));
+    write_npz(
+        &case.path("no_meta.npz"),
+        &[("s", NpyArray::F64(s.view())), ("gt", NpyArray::Bool(gt.view()))],
+    )
+    .unwrap();
+    fails("no_meta.npz", "has no array meta: it is not a qtvpr calibration file");
+    write_npz(
+        &case.path("v2.npz"),
+        &[
+            ("s", s.view().into()),
+            ("gt", gt.view().into()),
+            ("meta", m2.as_str().into()),
+        ],
+    )
+    .unwrap();
+    fails("v2.npz", "has calibration file version 2");
+    let nan = array2(&[&[0.5, f64::NAN], &[0.2, 0.9]]);
+    write_npz(
+        &case.path("nan.npz"),
+        &[
+            ("s", nan.view().into()),
+            ("gt", gt.view().into()),
+            ("meta", m1.as_str().into()),
+        ],
+    )
+    .unwrap();
+    fails("nan.npz", "calibration similarity contains NaN at row 0, column 1");
+    // A good file of another |DB|: the stream names the mismatch.
+    write_npz(
+        &case.path("small.npz"),
+        &[
+            ("s", s.view().into()),
+            ("gt", gt.view().into()),
+            ("meta", m1.as_str().into()),
+        ],
+    )
+    .unwrap();
+    let args = stream("small.npz");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    case.fails(
+        &args,
+        &["out.jsonl"],
+        &[
+            "--val val.npy",
+            "deployment query 0 has 111 scores but the calibration has 2 database images",
+        ],
+    );
+    // No window anywhere.
+    write_npz(
+        &case.path("ok.npz"),
+        &[
+            ("s", s.view().into()),
+            ("gt", gt.view().into()),
+            ("meta", m1.as_str().into()),
+        ],
+    )
+    .unwrap();
+    case.fails(
+        &["stream", "--calibration", "ok.npz", "--val", "val.npy"],
+        &[],
+        &["window is not given and the calibration sets none"],
+    );
+    // A NaN in the deployment matrix names the query; nothing is written.
+    case.ok(&[
+        "calibrate",
+        "--cal",
+        "cal.npy",
+        "--cal-gt",
+        "cal_gt.npy",
+        "--window",
+        "5",
+        "-o",
+        "cal.npz",
+    ]);
+    let mut val = case.s.slice(s![.., N_CAL..]).to_owned();
+    val[[7, 42]] = f64::INFINITY;
+    write_npy(&case.path("bad_val.npy"), val.view()).unwrap();
+    case.fails(
+        &[
+            "stream",
+            "--calibration",
+            "cal.npz",
+            "--val",
+            "bad_val.npy",
+            "-o",
+            "out.jsonl",
+        ],
+        &["out.jsonl"],
+        &["--val bad_val.npy", "contains inf at row 7, column 42"],
+    );
+    // calibrate's own bad input and parameters.
+    case.fails(
+        &["calibrate", "--cal", "cal.npy", "--cal-gt", "val_gt.npy", "-o", "c.npz"],
+        &["c.npz"],
+        &["ground truth shape 111x100 does not match calibration similarity shape 111x11"],
+    );
+    case.fails(
+        &[
+            "calibrate",
+            "--cal",
+            "cal.npy",
+            "--cal-gt",
+            "cal_gt.npy",
+            "--window",
+            "0",
+            "-o",
+            "c.npz",
+        ],
+        &["c.npz"],
+        &["window must be >= 1, got 0"],
+    );
+}
+
+fn array2(rows: &[&[f64]]) -> Array2<f64> {
+    Array2::from_shape_fn((rows.len(), rows[0].len()), |(i, j)| rows[i][j])
+}
+
+#[cfg(unix)]
+#[test]
+fn written_files_get_the_mode_of_a_plain_create() {
+    use std::os::unix::fs::PermissionsExt;
+    let case = Case::new("NetVLAD");
+    std::fs::File::create(case.path("plain")).unwrap();
+    let mode = |name: &str| std::fs::metadata(case.path(name)).unwrap().permissions().mode() & 0o777;
+    case.ok(&[
+        "calibrate",
+        "--cal",
+        "cal.npy",
+        "--cal-gt",
+        "cal_gt.npy",
+        "-o",
+        "cal.npz",
+    ]);
+    case.ok(&[
+        "threshold",
+        "--cal",
+        "cal.npz",
+        "--val",
+        "val.npy",
+        "--output",
+        "t.json",
+    ]);
+    case.ok(&[
+        "stream",
+        "--calibration",
+        "cal.npz",
+        "--val",
+        "val.npy",
+        "--window",
+        "4",
+        "--output",
+        "s.jsonl",
+    ]);
+    write_npy(&case.path("db.npy"), array2(&[&[3.0, 4.0], &[1.0, 0.0]]).view()).unwrap();
+    case.ok(&[
+        "similarity",
+        "--db",
+        "db.npy",
+        "--queries",
+        "db.npy",
+        "--output",
+        "sim.npy",
+    ]);
+    for name in ["cal.npz", "t.json", "s.jsonl", "sim.npy"] {
+        assert_eq!(mode(name), mode("plain"), "{name}");
+        assert_ne!(mode(name), 0o600, "{name} has a temporary file's mode");
+    }
+}
+
+#[test]
+fn evaluate_reports_the_online_method() {
+    let case = Case::new("NetVLAD");
+    write_npy(&case.path("S.npy"), case.s.view()).unwrap();
+    write_npy(&case.path("GT.npy"), case.gt.view()).unwrap();
+    let base = [
+        "evaluate",
+        "--similarity",
+        "S.npy",
+        "--gt",
+        "GT.npy",
+        "--segment-size",
+        "5",
+    ];
+    let json = case.ok(&[&base[..], &["--method", "quantile-transfer-online"]].concat());
+    let json: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let online = &json["methods"]["quantile-transfer-online"];
+    // Against Online directly: 20 segments of 5 over the 100 deployment queries, each
+    // reporting its last query's threshold.
+    let p = OnlineParams {
+        k: 10,
+        precision: 1.0,
+        window: 5,
+        min_window: 1,
+    };
+    let expected = case.expected(Matching::Single, None, p);
+    let segments = online["segments"].as_array().unwrap();
+    assert_eq!(segments.len(), 20);
+    for (i, g) in segments.iter().enumerate() {
+        let t = expected[5 * i + 4].threshold;
+        assert!((g["threshold"].as_f64().unwrap() - t).abs() <= 1e-15 * t.abs(), "{g}");
+    }
+    let table = case.ok(&[&base[..], &["--format", "table"]].concat());
+    assert!(
+        table.lines().any(|l| l.starts_with("| quantile-transfer-online | ")),
+        "{table}"
+    );
+    let csv = case.ok(&[&base[..], &["--format", "csv"]].concat());
+    assert!(csv.lines().any(|l| l.contains(",quantile-transfer-online,")), "{csv}");
+}
