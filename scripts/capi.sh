@@ -14,7 +14,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 step() { printf '\n== %s\n' "$*"; }
-target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+read -r target version < <(cargo metadata --format-version 1 --no-deps --locked | python3 -c '
+import json, sys
+m = json.load(sys.stdin)
+print(m["target_directory"], next(p["version"] for p in m["packages"] if p["name"] == "qtvpr-capi"))')
+[ -n "${version:-}" ] || { echo "cargo metadata failed" >&2; exit 1; }
 work="$target/capi-test"
 rm -rf "$work"
 mkdir -p "$work/lib" "$work/tmp"
@@ -90,6 +94,23 @@ if "$work/minimal" "$work/missing.npz" < /dev/null 2> "$work/minimal.err"; then
 fi
 grep -q "missing.npz" "$work/minimal.err"
 cat "$work/minimal.err"
+
+step "pkg-config: the library installed under a prefix, as the README says"
+if command -v pkg-config > /dev/null; then
+    prefix="$work/prefix"
+    mkdir -p "$prefix/include" "$prefix/lib/pkgconfig"
+    cp include/qtvpr.h "$prefix/include/"
+    cp "$work/lib/libqtvpr.so" "$work/lib/libqtvpr.a" "$prefix/lib/"
+    sed -e "s|@PREFIX@|$prefix|" -e "s|@VERSION@|$version|" crates/qtvpr-capi/qtvpr.pc.in > "$prefix/lib/pkgconfig/qtvpr.pc"
+    export PKG_CONFIG_PATH="$prefix/lib/pkgconfig"
+    [ "$(pkg-config --modversion qtvpr)" = "$version" ]
+    # shellcheck disable=SC2046 # pkg-config's flags are words
+    cc -std=c99 examples/c/minimal.c $(pkg-config --cflags --libs qtvpr) -Wl,-rpath,"$prefix/lib" -o "$work/minimal-pc"
+    "$work/minimal-pc" "$work/corridor-single.npz" < "$work/corridor-deploy.f32" | cmp - "$work/minimal.txt"
+    echo "cc app.c \$(pkg-config --cflags --libs qtvpr): $(pkg-config --cflags --libs qtvpr)"
+else
+    echo "(no pkg-config: skipped)"
+fi
 
 step "error paths from C"
 errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp")
