@@ -21,6 +21,7 @@ step "cargo clippy"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 step "cargo test"
 cargo test --workspace --locked
+scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
 step "wheel into a virtualenv"
 venv="$target/test-venv"

@@ -1,0 +1,417 @@
+//! # qtvpr-capi: the C interface of qtvpr
+//!
+//! Online thresholds (a decision for each deployment query as it arrives, from a
+//! calibration file made offline) behind a small C ABI, for C and C++ robotics stacks
+//! that embed neither Python nor Rust. The library is `libqtvpr.so` / `libqtvpr.a`; its
+//! header, `include/qtvpr.h`, is generated from this crate by cbindgen and is what C
+//! users read: every exported item's documentation here is its documentation there.
+//!
+//! The crate is as thin as the CLI and the Python binding: it turns pointers and lengths
+//! into views, calls [`qtvpr::Calibration::load`], [`qtvpr::Online::new`] and
+//! [`qtvpr::Online::push`], and turns their errors into codes and messages. It does no
+//! arithmetic.
+//!
+//! The shape follows regex-capi: opaque handles with a `_new`/`_free` pair (the caller
+//! owns what a constructor returns and nothing else), one guard around every exported
+//! function so that no panic unwinds into C ([`error`]), and errors as values the
+//! caller reads (a code, and this thread's last error message).
+
+use std::ffi::{CStr, c_char, c_int};
+use std::path::Path;
+use std::ptr;
+use std::sync::Arc;
+
+use ndarray::ArrayView1;
+use qtvpr::{Calibration, Matching, Online, OnlineParams, Outcome, Score};
+
+pub mod error;
+
+use error::qtvpr_status::*;
+use error::{Failure, catch, guard};
+
+/// A calibration loaded from a calibration file (an .npz written by `qtvpr-cli
+/// calibrate`, `qtvpr.Calibration.save` or `qtvpr::Calibration::save`). Opaque.
+///
+/// Read-only once loaded: any number of threads may use one calibration at once (to
+/// query it or to create online states from it).
+#[allow(non_camel_case_types)]
+pub struct qtvpr_calibration {
+    inner: Arc<Calibration>,
+}
+
+/// The state of an online deployment: a calibration, its parameters and the window of
+/// the last queries pushed. Opaque.
+///
+/// Not thread-safe: one thread at a time may use a state (it may move from thread to
+/// thread between calls). Give each camera or thread its own.
+#[allow(non_camel_case_types)]
+pub struct qtvpr_online {
+    inner: Online,
+}
+
+/// The decision of one deployment query.
+///
+/// In single matching, best, score and accept describe the query's best match and
+/// accepted is 1 if it is accepted, else 0. In multi matching, accepted is the number
+/// of database images with a score >= threshold (qtvpr_online_accepted lists them),
+/// accept is whether there is any, best is SIZE_MAX and score is NaN. In both,
+/// accept == (accepted > 0). The fields are those of a `qtvpr-cli stream` line.
+#[repr(C)]
+#[allow(non_camel_case_types)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct qtvpr_decision {
+    /// Index of the query in arrival order, from 0.
+    pub query: usize,
+    /// The window's quantile.
+    pub quantile: f64,
+    /// Accept a score >= threshold.
+    pub threshold: f64,
+    /// Single matching: index of the best database match (the first maximum).
+    pub best: usize,
+    /// Single matching: its score.
+    pub score: f64,
+    /// Single matching: whether the best match is accepted.
+    pub accept: bool,
+    /// Multi matching: number of accepted database entries.
+    pub accepted: usize,
+    /// The query's own quantile q_j: that of its subset threshold among its k
+    /// calibration neighbours (the window's quantile is their weighted median).
+    pub query_quantile: f64,
+    /// The query's weight w_j in that median: the mean correlation of its neighbours,
+    /// clipped at 0.
+    pub weight: f64,
+}
+
+/// How a calibration matches queries, as qtvpr_calibration_matching returns it.
+#[repr(C)]
+#[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum qtvpr_matching {
+    /// Each query's best database match is accepted or rejected.
+    QTVPR_SINGLE = 1,
+    /// Every database image with a score >= threshold is accepted.
+    QTVPR_MULTI = 2,
+}
+
+/// The version of the qtvpr library, e.g. "0.1.0": a static string, never NULL, not to
+/// be freed. Thread-safe; does not change the last error.
+#[unsafe(no_mangle)]
+pub extern "C" fn qtvpr_version() -> *const c_char {
+    catch(ptr::null(), || {
+        const VERSION: &CStr = match CStr::from_bytes_with_nul(concat!(env!("CARGO_PKG_VERSION"), "\0").as_bytes()) {
+            Ok(v) => v,
+            Err(_) => panic!("the version has no NUL"),
+        };
+        VERSION.as_ptr()
+    })
+}
+
+/// Load the calibration file at path (a NUL-terminated file name; on Unix any bytes,
+/// elsewhere UTF-8).
+///
+/// Returns a new calibration, which the caller frees with qtvpr_calibration_free, or
+/// NULL on error: QTVPR_ERR_NULL (path is NULL), QTVPR_ERR_IO (the file cannot be read),
+/// QTVPR_ERR_FILE (it is not a valid calibration file); the message names the file.
+/// Thread-safe.
+///
+/// # Safety
+/// path is NULL or a NUL-terminated string.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_calibration_load(path: *const c_char) -> *mut qtvpr_calibration {
+    guard("qtvpr_calibration_load", || {
+        if path.is_null() {
+            return Err(Failure::null("path"));
+        }
+        // SAFETY: the caller passes a NUL-terminated string.
+        let path = unsafe { CStr::from_ptr(path) };
+        let calibration = Calibration::load(c_path(path)?)?;
+        let handle = qtvpr_calibration {
+            inner: Arc::new(calibration),
+        };
+        Ok(Box::into_raw(Box::new(handle)))
+    })
+    .unwrap_or(ptr::null_mut())
+}
+
+/// A C file name as a path: its bytes on Unix, UTF-8 elsewhere.
+fn c_path(path: &CStr) -> Result<&Path, Failure> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        Ok(Path::new(std::ffi::OsStr::from_bytes(path.to_bytes())))
+    }
+    #[cfg(not(unix))]
+    {
+        path.to_str()
+            .map(Path::new)
+            .map_err(|_| Failure::new(QTVPR_ERR_IO, format!("path {path:?} is not UTF-8")))
+    }
+}
+
+/// Free a calibration returned by qtvpr_calibration_load. NULL is a no-op.
+///
+/// Online states created from it keep what they need: it may be freed while they are
+/// still in use. Not to be called while another thread uses the same calibration.
+///
+/// # Safety
+/// cal is NULL or a calibration from qtvpr_calibration_load, not freed before.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_calibration_free(cal: *mut qtvpr_calibration) {
+    let _ = guard("qtvpr_calibration_free", || {
+        if !cal.is_null() {
+            // SAFETY: cal came from Box::into_raw in qtvpr_calibration_load, and is freed once.
+            drop(unsafe { Box::from_raw(cal) });
+        }
+        Ok(())
+    });
+}
+
+/// The calibration's number of database images, |DB|: the n_db every push must pass.
+///
+/// Returns 0 on error (QTVPR_ERR_NULL: cal is NULL); a calibration has at least one
+/// database image. Thread-safe.
+///
+/// # Safety
+/// cal is NULL or a live calibration.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_calibration_db_size(cal: *const qtvpr_calibration) -> usize {
+    guard("qtvpr_calibration_db_size", || {
+        // SAFETY: the caller passes NULL or a live calibration.
+        Ok(unsafe { arg(cal, "cal") }?.inner.db_size())
+    })
+    .unwrap_or(0)
+}
+
+/// The calibration's matching: QTVPR_SINGLE or QTVPR_MULTI (a qtvpr_matching), which
+/// says how to read a qtvpr_decision.
+///
+/// Returns 0 on error (QTVPR_ERR_NULL: cal is NULL). Thread-safe.
+///
+/// # Safety
+/// cal is NULL or a live calibration.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_calibration_matching(cal: *const qtvpr_calibration) -> c_int {
+    guard("qtvpr_calibration_matching", || {
+        // SAFETY: the caller passes NULL or a live calibration.
+        let matching = match unsafe { arg(cal, "cal") }?.inner.matching() {
+            Matching::Single => qtvpr_matching::QTVPR_SINGLE,
+            Matching::Multi => qtvpr_matching::QTVPR_MULTI,
+        };
+        Ok(matching as c_int)
+    })
+    .unwrap_or(0)
+}
+
+/// A new online state over cal: an empty window.
+///
+/// k (calibration queries sampled per deployment query), precision (the target, in
+/// (0, 1]), window (each query is thresholded on its last window queries) and
+/// min_window (queries before the min_window-th are rejected) take the calibration
+/// file's value when 0 (min_window: 1).
+///
+/// Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
+/// QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, or window 0
+/// and the file sets none). The state holds its own reference to the calibration: cal
+/// may be freed afterwards. Thread-safe (cal is only read).
+///
+/// # Safety
+/// cal is NULL or a live calibration.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_new(
+    cal: *const qtvpr_calibration,
+    k: usize,
+    precision: f64,
+    window: usize,
+    min_window: usize,
+) -> *mut qtvpr_online {
+    guard("qtvpr_online_new", || {
+        // SAFETY: the caller passes NULL or a live calibration.
+        let cal = unsafe { arg(cal, "cal") }?;
+        let given = |v: usize| (v != 0).then_some(v);
+        let params = OnlineParams::resolve(
+            cal.inner.defaults(),
+            given(k),
+            (precision != 0.0).then_some(precision),
+            given(window),
+            given(min_window),
+        )?;
+        let inner = Online::new(Arc::clone(&cal.inner), params)?;
+        Ok(Box::into_raw(Box::new(qtvpr_online { inner })))
+    })
+    .unwrap_or(ptr::null_mut())
+}
+
+/// Decide the next deployment query from its n_db float scores against the database
+/// (higher is more similar), and write the decision to *out.
+///
+/// Returns QTVPR_OK (0), or on error: QTVPR_ERR_NULL (o, scores or out is NULL),
+/// QTVPR_ERR_SIZE (n_db is not qtvpr_calibration_db_size), QTVPR_ERR_INPUT (a NaN or
+/// infinite score, or scores misaligned). On error *out and the state are unchanged.
+/// Not thread-safe for the same o.
+///
+/// # Safety
+/// o is NULL or a live state; scores is NULL or points to n_db floats; out is NULL or
+/// points to a writable qtvpr_decision.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_push_f32(
+    o: *mut qtvpr_online,
+    scores: *const f32,
+    n_db: usize,
+    out: *mut qtvpr_decision,
+) -> c_int {
+    // SAFETY: the caller's promises are push's.
+    unsafe { push("qtvpr_online_push_f32", o, scores, n_db, out) }
+}
+
+/// As qtvpr_online_push_f32, for n_db double scores. A state takes float and double
+/// queries alike, each decided in its own precision.
+///
+/// # Safety
+/// o is NULL or a live state; scores is NULL or points to n_db doubles; out is NULL or
+/// points to a writable qtvpr_decision.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_push_f64(
+    o: *mut qtvpr_online,
+    scores: *const f64,
+    n_db: usize,
+    out: *mut qtvpr_decision,
+) -> c_int {
+    // SAFETY: the caller's promises are push's.
+    unsafe { push("qtvpr_online_push_f64", o, scores, n_db, out) }
+}
+
+/// Both push functions.
+///
+/// # Safety
+/// `o` is NULL or a live state, `scores` NULL or `n_db` readable `T`s, `out` NULL or
+/// writable.
+unsafe fn push<T: Score>(
+    function: &str,
+    o: *mut qtvpr_online,
+    scores: *const T,
+    n_db: usize,
+    out: *mut qtvpr_decision,
+) -> c_int {
+    let done = guard(function, || {
+        // SAFETY: the caller passes NULL or a live state, used by this thread only.
+        let online = &mut unsafe { arg_mut(o, "o") }?.inner;
+        if scores.is_null() {
+            return Err(Failure::null("scores"));
+        }
+        // SAFETY: the caller passes NULL or a writable decision.
+        let out = unsafe { arg_mut(out, "out") }?;
+        let db = online.calibration().db_size();
+        if n_db != db {
+            // Checked before making the view, which must not claim more than the caller has.
+            let query = online.pushed();
+            return Err(qtvpr::Error::ColumnLength { query, len: n_db, db }.into());
+        }
+        if !scores.is_aligned() {
+            return Err(Failure::new(
+                QTVPR_ERR_INPUT,
+                format!(
+                    "scores {scores:p} is not aligned for {}",
+                    if size_of::<T>() == 4 { "float" } else { "double" }
+                ),
+            ));
+        }
+        // SAFETY: non-NULL, aligned, and n_db = |DB| readable values (the caller's promise).
+        let column = unsafe { ArrayView1::from_shape_ptr(n_db, scores) };
+        *out = decision(&online.push(column)?);
+        Ok(())
+    });
+    done.err().unwrap_or(QTVPR_OK) as c_int
+}
+
+/// The C form of a decision.
+fn decision(d: &qtvpr::Decision) -> qtvpr_decision {
+    let (best, score, accepted) = match d.outcome {
+        Outcome::Single { best, score, accept } => (best, score, usize::from(accept)),
+        Outcome::Multi { accepted } => (usize::MAX, f64::NAN, accepted),
+    };
+    qtvpr_decision {
+        query: d.query,
+        quantile: d.quantile,
+        threshold: d.threshold,
+        best,
+        score,
+        accept: accepted > 0,
+        accepted,
+        query_quantile: d.query_quantile,
+        weight: d.weight,
+    }
+}
+
+/// The database indices accepted for the last query pushed, ascending (multi matching:
+/// every score >= threshold; single: the best match if accepted, else none).
+///
+/// Writes the first min(count, cap) of them to out and returns count, so a call with
+/// cap 0 (out may then be NULL) asks for the size. Returns 0 before the first push, and
+/// 0 on error (QTVPR_ERR_NULL: o is NULL, or out is NULL with cap > 0): check
+/// qtvpr_last_error_code() when 0 is ambiguous. Not thread-safe for the same o.
+///
+/// # Safety
+/// o is NULL or a live state; out is NULL or points to cap writable size_t.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_accepted(o: *const qtvpr_online, out: *mut usize, cap: usize) -> usize {
+    guard("qtvpr_online_accepted", || {
+        // SAFETY: the caller passes NULL or a live state.
+        let accepted = unsafe { arg(o, "o") }?.inner.accepted();
+        if cap > 0 {
+            if out.is_null() {
+                return Err(Failure::null("out"));
+            }
+            let n = accepted.len().min(cap);
+            // SAFETY: out points to cap >= n writable size_t, none of them inside the state.
+            unsafe { ptr::copy_nonoverlapping(accepted.as_ptr(), out, n) };
+        }
+        Ok(accepted.len())
+    })
+    .unwrap_or(0)
+}
+
+/// Free a state returned by qtvpr_online_new. NULL is a no-op.
+///
+/// # Safety
+/// o is NULL or a state from qtvpr_online_new, not freed before and not in use by
+/// another thread.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_free(o: *mut qtvpr_online) {
+    let _ = guard("qtvpr_online_free", || {
+        if !o.is_null() {
+            // SAFETY: o came from Box::into_raw in qtvpr_online_new, and is freed once.
+            drop(unsafe { Box::from_raw(o) });
+        }
+        Ok(())
+    });
+}
+
+/// `*p`, or the NULL error naming `argument`.
+///
+/// # Safety
+/// `p` is NULL or valid for reads for `'a`.
+unsafe fn arg<'a, T>(p: *const T, argument: &str) -> Result<&'a T, Failure> {
+    // SAFETY: the caller's promise.
+    unsafe { p.as_ref() }.ok_or_else(|| Failure::null(argument))
+}
+
+/// `*p` for writing, or the NULL error naming `argument`.
+///
+/// # Safety
+/// `p` is NULL or valid for reads and writes for `'a`, and not aliased meanwhile.
+unsafe fn arg_mut<'a, T>(p: *mut T, argument: &str) -> Result<&'a mut T, Failure> {
+    // SAFETY: the caller's promise.
+    unsafe { p.as_mut() }.ok_or_else(|| Failure::null(argument))
+}
+
+// The handles' promises in the header: a calibration is shared across threads, a state
+// moves between them.
+const _: () = {
+    const fn send_sync<T: Send + Sync>() {}
+    const fn send<T: Send>() {}
+    send_sync::<qtvpr_calibration>();
+    send::<qtvpr_online>();
+};
+
+#[cfg(test)]
+mod tests;

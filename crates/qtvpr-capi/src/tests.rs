@@ -1,0 +1,317 @@
+//! The C functions called from Rust as C calls them: NULL pointers, wrong sizes and bad
+//! values are errors with their documented codes, and a push gives exactly what
+//! `qtvpr::Online` gives.
+
+use std::ffi::{CStr, CString};
+use std::path::Path;
+
+use ndarray::{Array2, array};
+use qtvpr::{Defaults, GroundTruth};
+
+use super::*;
+use crate::error::{last, qtvpr_status};
+
+fn code(status: qtvpr_status) -> c_int {
+    status as c_int
+}
+
+/// 4 database images x 3 calibration queries; query j matches database image j.
+fn calibration(matching: Matching, window: Option<usize>) -> Calibration {
+    let s = array![[0.9, 0.2, 0.3], [0.1, 0.8, 0.2], [0.3, 0.4, 0.7], [0.2, 0.1, 0.1]];
+    let gt = Array2::from_shape_fn((4, 3), |(i, j)| i == j);
+    let gt = GroundTruth::new(gt.view()).unwrap();
+    let defaults = Defaults {
+        k: 2,
+        precision: 1.0,
+        window,
+    };
+    Calibration::new(s.view(), &gt, matching)
+        .unwrap()
+        .with_defaults(defaults)
+        .unwrap()
+}
+
+/// A C handle for `cal`, as qtvpr_calibration_load returns it.
+fn handle(cal: Calibration) -> *mut qtvpr_calibration {
+    Box::into_raw(Box::new(qtvpr_calibration { inner: Arc::new(cal) }))
+}
+
+/// Deployment queries (|DB| = 4), in arrival order.
+const QUERIES: [[f64; 4]; 5] = [
+    [0.8, 0.1, 0.2, 0.3],
+    [0.2, 0.9, 0.1, 0.1],
+    [0.3, 0.3, 0.6, 0.2],
+    [0.5, 0.5, 0.1, 0.4],
+    [0.1, 0.2, 0.2, 0.7],
+];
+
+fn no_decision() -> qtvpr_decision {
+    qtvpr_decision {
+        query: 99,
+        quantile: -1.0,
+        threshold: -1.0,
+        best: 99,
+        score: -1.0,
+        accept: true,
+        accepted: 99,
+        query_quantile: -1.0,
+        weight: -1.0,
+    }
+}
+
+#[test]
+fn null_pointers_are_errors_with_their_code() {
+    unsafe {
+        assert!(qtvpr_calibration_load(ptr::null()).is_null());
+        assert_eq!(last(), (1, Some("qtvpr_calibration_load: path is NULL".into())));
+        assert_eq!(qtvpr_calibration_db_size(ptr::null()), 0);
+        assert_eq!(last(), (1, Some("qtvpr_calibration_db_size: cal is NULL".into())));
+        assert_eq!(qtvpr_calibration_matching(ptr::null()), 0);
+        assert_eq!(last(), (1, Some("qtvpr_calibration_matching: cal is NULL".into())));
+        assert!(qtvpr_online_new(ptr::null(), 0, 0.0, 0, 0).is_null());
+        assert_eq!(last(), (1, Some("qtvpr_online_new: cal is NULL".into())));
+
+        let cal = handle(calibration(Matching::Single, Some(2)));
+        let o = qtvpr_online_new(cal, 0, 0.0, 0, 0);
+        assert!(!o.is_null());
+        assert_eq!(last(), (0, None));
+        let scores = QUERIES[0];
+        let mut d = no_decision();
+        assert_eq!(qtvpr_online_push_f64(ptr::null_mut(), scores.as_ptr(), 4, &mut d), 1);
+        assert_eq!(last(), (1, Some("qtvpr_online_push_f64: o is NULL".into())));
+        assert_eq!(qtvpr_online_push_f64(o, ptr::null(), 4, &mut d), 1);
+        assert_eq!(last(), (1, Some("qtvpr_online_push_f64: scores is NULL".into())));
+        assert_eq!(qtvpr_online_push_f32(o, [0.5f32; 4].as_ptr(), 4, ptr::null_mut()), 1);
+        assert_eq!(last(), (1, Some("qtvpr_online_push_f32: out is NULL".into())));
+        assert_eq!(d, no_decision());
+        assert_eq!(qtvpr_online_accepted(ptr::null(), ptr::null_mut(), 0), 0);
+        assert_eq!(last(), (1, Some("qtvpr_online_accepted: o is NULL".into())));
+        assert_eq!(qtvpr_online_accepted(o, ptr::null_mut(), 1), 0);
+        assert_eq!(last(), (1, Some("qtvpr_online_accepted: out is NULL".into())));
+        // Before the first push nothing is accepted, and a size query needs no buffer.
+        assert_eq!(qtvpr_online_accepted(o, ptr::null_mut(), 0), 0);
+        assert_eq!(last(), (0, None));
+
+        qtvpr_online_free(ptr::null_mut());
+        qtvpr_calibration_free(ptr::null_mut());
+        assert_eq!(last(), (0, None));
+        qtvpr_online_free(o);
+        qtvpr_calibration_free(cal);
+    }
+}
+
+#[test]
+fn a_wrong_size_or_a_bad_score_is_an_error_and_changes_nothing() {
+    unsafe {
+        let cal = handle(calibration(Matching::Single, Some(2)));
+        assert_eq!(qtvpr_calibration_db_size(cal), 4);
+        let o = qtvpr_online_new(cal, 0, 0.0, 0, 0);
+        let mut d = no_decision();
+        let scores = QUERIES[0];
+        assert_eq!(
+            qtvpr_online_push_f64(o, scores.as_ptr(), 3, &mut d),
+            code(QTVPR_ERR_SIZE)
+        );
+        let message = last().1.unwrap();
+        assert!(
+            message.starts_with("qtvpr_online_push_f64: deployment query 0 has 3 scores but the calibration has 4"),
+            "{message}"
+        );
+        // A length far beyond the buffer is refused before any view of it is made.
+        assert_eq!(qtvpr_online_push_f64(o, scores.as_ptr(), usize::MAX, &mut d), 2);
+        assert_eq!(qtvpr_online_push_f64(o, scores.as_ptr(), 0, &mut d), 2);
+
+        let nan = [0.1, f64::NAN, 0.2, 0.3];
+        assert_eq!(qtvpr_online_push_f64(o, nan.as_ptr(), 4, &mut d), code(QTVPR_ERR_INPUT));
+        let message = last().1.unwrap();
+        assert!(
+            message.starts_with("qtvpr_online_push_f64: ") && message.contains("NaN"),
+            "{message}"
+        );
+        let inf = [0.1f32, 0.2, f32::INFINITY, 0.3];
+        assert_eq!(qtvpr_online_push_f32(o, inf.as_ptr(), 4, &mut d), 3);
+        assert!(last().1.unwrap().contains("inf"));
+
+        // Scores one byte off their alignment: refused, never read.
+        let buffer = [0.5f64; 5];
+        let misaligned = buffer.as_ptr().cast::<u8>().add(1).cast::<f64>();
+        assert_eq!(qtvpr_online_push_f64(o, misaligned, 4, &mut d), 3);
+        assert!(last().1.unwrap().ends_with("is not aligned for double"));
+        assert_eq!(d, no_decision());
+
+        // None of this was pushed: the next query is query 0.
+        assert_eq!(qtvpr_online_push_f64(o, scores.as_ptr(), 4, &mut d), 0);
+        assert_eq!(last(), (0, None));
+        assert_eq!(d.query, 0);
+        qtvpr_online_free(o);
+        qtvpr_calibration_free(cal);
+    }
+}
+
+#[test]
+fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
+    unsafe {
+        let cal = handle(calibration(Matching::Single, Some(2)));
+        let o = qtvpr_online_new(cal, 0, 0.0, 0, 0);
+        let params = OnlineParams {
+            k: 2,
+            precision: 1.0,
+            window: 2,
+            min_window: 1,
+        };
+        assert_eq!(*(*o).inner.params(), params);
+        qtvpr_online_free(o);
+        let o = qtvpr_online_new(cal, 1, 0.5, 3, 2);
+        let params = OnlineParams {
+            k: 1,
+            precision: 0.5,
+            window: 3,
+            min_window: 2,
+        };
+        assert_eq!(*(*o).inner.params(), params);
+        qtvpr_online_free(o);
+
+        assert!(qtvpr_online_new(cal, 0, 1.5, 0, 0).is_null());
+        assert_eq!(
+            last(),
+            (4, Some("qtvpr_online_new: precision must be in (0, 1], got 1.5".into()))
+        );
+        assert!(qtvpr_online_new(cal, 0, f64::NAN, 0, 0).is_null());
+        assert_eq!(last().0, 4);
+        assert!(qtvpr_online_new(cal, 0, 0.0, 2, 3).is_null());
+        assert_eq!(
+            last(),
+            (
+                4,
+                Some("qtvpr_online_new: min window must be between 1 and the window (2), got 3".into())
+            )
+        );
+        qtvpr_calibration_free(cal);
+
+        let cal = handle(calibration(Matching::Single, None));
+        assert!(qtvpr_online_new(cal, 0, 0.0, 0, 0).is_null());
+        assert_eq!(
+            last(),
+            (
+                4,
+                Some("qtvpr_online_new: window is not given and the calibration sets none".into())
+            )
+        );
+        let o = qtvpr_online_new(cal, 0, 0.0, 2, 0);
+        assert!(!o.is_null());
+        qtvpr_online_free(o);
+        qtvpr_calibration_free(cal);
+    }
+}
+
+/// The C pushes, f32 and f64 mixed, give what `qtvpr::Online` gives, in both matchings;
+/// the calibration is freed first (the state keeps its own reference).
+#[test]
+fn pushes_are_the_rust_online_decisions() {
+    for matching in [Matching::Single, Matching::Multi] {
+        let mut rust = Online::new(
+            Arc::new(calibration(matching, Some(3))),
+            OnlineParams {
+                k: 2,
+                precision: 1.0,
+                window: 3,
+                min_window: 2,
+            },
+        )
+        .unwrap();
+        unsafe {
+            let cal = handle(calibration(matching, Some(3)));
+            let expected = match matching {
+                Matching::Single => qtvpr_matching::QTVPR_SINGLE,
+                Matching::Multi => qtvpr_matching::QTVPR_MULTI,
+            };
+            assert_eq!(qtvpr_calibration_matching(cal), expected as c_int);
+            let o = qtvpr_online_new(cal, 0, 0.0, 0, 2);
+            qtvpr_calibration_free(cal);
+            for (j, column) in QUERIES.iter().enumerate() {
+                let mut d = no_decision();
+                let want = if j % 2 == 0 {
+                    assert_eq!(qtvpr_online_push_f64(o, column.as_ptr(), 4, &mut d), 0);
+                    rust.push(ArrayView1::from(column)).unwrap()
+                } else {
+                    let column = column.map(|v| v as f32);
+                    assert_eq!(qtvpr_online_push_f32(o, column.as_ptr(), 4, &mut d), 0);
+                    rust.push(ArrayView1::from(&column)).unwrap()
+                };
+                assert_eq!(d.query, j);
+                if j == 0 {
+                    // Warm-up (min_window 2): query 0 rejects all, at quantile 1 and
+                    // the next double above its window's highest score, 0.8.
+                    assert_eq!((d.quantile, d.threshold, d.accepted), (1.0, 0.8f64.next_up(), 0));
+                }
+                assert_eq!(d.quantile.to_bits(), want.quantile.to_bits());
+                assert_eq!(d.threshold.to_bits(), want.threshold.to_bits());
+                assert_eq!(d.query_quantile.to_bits(), want.query_quantile.to_bits());
+                assert_eq!(d.weight.to_bits(), want.weight.to_bits());
+                match want.outcome {
+                    Outcome::Single { best, score, accept } => {
+                        assert_eq!((d.best, d.score.to_bits(), d.accept), (best, score.to_bits(), accept));
+                        assert_eq!(d.accepted, usize::from(accept));
+                    }
+                    Outcome::Multi { accepted } => {
+                        assert_eq!((d.best, d.accepted, d.accept), (usize::MAX, accepted, accepted > 0));
+                        assert!(d.score.is_nan());
+                    }
+                }
+                // The accepted indices, in full and cut to a buffer of 1.
+                let all = rust.accepted();
+                let mut out = [usize::MAX; 4];
+                assert_eq!(qtvpr_online_accepted(o, out.as_mut_ptr(), 4), all.len());
+                assert_eq!(&out[..all.len()], all);
+                let mut one = [usize::MAX; 2];
+                assert_eq!(qtvpr_online_accepted(o, one.as_mut_ptr(), 1), all.len());
+                assert_eq!(one[0], all.first().copied().unwrap_or(usize::MAX));
+                assert_eq!(one[1], usize::MAX);
+            }
+            qtvpr_online_free(o);
+        }
+    }
+}
+
+#[test]
+fn loading_names_the_file_and_tells_missing_from_corrupt() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| CString::new(dir.path().join(name).to_str().unwrap()).unwrap();
+    let cal = calibration(Matching::Multi, Some(2));
+    cal.save(&dir.path().join("cal.npz"), cal.defaults()).unwrap();
+    std::fs::write(dir.path().join("corrupt.npz"), b"not a zip archive").unwrap();
+    unsafe {
+        let loaded = qtvpr_calibration_load(path("cal.npz").as_ptr());
+        assert!(!loaded.is_null());
+        assert_eq!(last(), (0, None));
+        assert_eq!(qtvpr_calibration_db_size(loaded), 4);
+        assert_eq!(qtvpr_calibration_matching(loaded), qtvpr_matching::QTVPR_MULTI as c_int);
+        assert_eq!((*loaded).inner.defaults(), cal.defaults());
+        qtvpr_calibration_free(loaded);
+
+        let missing = path("missing.npz");
+        assert!(qtvpr_calibration_load(missing.as_ptr()).is_null());
+        let (code, message) = last();
+        let message = message.unwrap();
+        assert_eq!(code, 5);
+        let expected = format!("qtvpr_calibration_load: cannot read {}", missing.to_str().unwrap());
+        assert!(message.starts_with(&expected), "{message}");
+
+        let corrupt = path("corrupt.npz");
+        assert!(qtvpr_calibration_load(corrupt.as_ptr()).is_null());
+        let (code, message) = last();
+        assert_eq!(code, 6);
+        assert!(message.unwrap().contains(corrupt.to_str().unwrap()));
+    }
+    assert!(Path::new(&dir.path().join("cal.npz")).exists());
+}
+
+#[test]
+fn the_version_is_the_crates_and_leaves_the_last_error() {
+    unsafe {
+        assert_eq!(qtvpr_calibration_db_size(ptr::null()), 0);
+        let version = CStr::from_ptr(qtvpr_version()).to_str().unwrap();
+        assert_eq!(version, env!("CARGO_PKG_VERSION"));
+        assert_eq!(last().0, 1);
+    }
+}

@@ -1,0 +1,59 @@
+/*
+ * Online thresholds from C: load a calibration file, then decide each query of a
+ * deployment similarity matrix (|DB| x |Q| .npy, float32 or float64) as if it arrived
+ * from a camera, one push at a time, printing one JSON line per decision (the lines of
+ * `qtvpr-cli stream --format jsonl`).
+ *
+ *     stream CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW]
+ *
+ * Each parameter left out or 0 takes the calibration file's value.
+ * Build: cc -Iinclude examples/c/stream.c -Ltarget/release -lqtvpr -o stream
+ */
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "example_io.h"
+#include "qtvpr.h"
+
+int main(int argc, char **argv) {
+    qtvpr_calibration *cal = NULL;
+    qtvpr_online *online = NULL;
+    npy_matrix s = {0};
+    void *column = NULL;
+    int status = 1, matching;
+    size_t j;
+
+    if (argc != 3 && argc != 7) {
+        fprintf(stderr, "usage: %s CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW]\n", argv[0]);
+        return 2;
+    }
+    if (!(cal = qtvpr_calibration_load(argv[1]))) goto error;
+    matching = qtvpr_calibration_matching(cal);
+    online = qtvpr_online_new(cal, argc == 7 ? strtoul(argv[3], NULL, 10) : 0,
+                              argc == 7 ? strtod(argv[4], NULL) : 0.0,
+                              argc == 7 ? strtoul(argv[5], NULL, 10) : 0,
+                              argc == 7 ? strtoul(argv[6], NULL, 10) : 0);
+    if (!online) goto error;
+    if (npy_read(argv[2], &s) != 0) goto done;
+    if (!(column = malloc(s.rows * s.itemsize))) goto done;
+
+    for (j = 0; j < s.cols; j++) {
+        qtvpr_decision d;
+        int rc;
+        npy_column(&s, j, column); /* query j's scores against the database */
+        rc = s.itemsize == 4 ? qtvpr_online_push_f32(online, (const float *)column, s.rows, &d)
+                             : qtvpr_online_push_f64(online, (const double *)column, s.rows, &d);
+        if (rc != QTVPR_OK) goto error;
+        print_decision(&d, matching);
+    }
+    status = 0;
+    goto done;
+error:
+    fprintf(stderr, "error: %s\n", qtvpr_last_error());
+done:
+    free(column);
+    free(s.data);
+    qtvpr_online_free(online);
+    qtvpr_calibration_free(cal);
+    return status;
+}

@@ -1,0 +1,133 @@
+#!/usr/bin/env bash
+# The C interface end to end, with the system compilers: builds libqtvpr (shared and
+# static, dev profile), compiles the C example against include/qtvpr.h and links it
+# once against each, compiles the C++ example, and checks that their output equals
+# `qtvpr-cli stream --format jsonl` on real data in both matching modes (the embedded
+# VPR-Bench Corridor always; Nordland HOG and VPR-Bench SPEDTest when ../shared/data is
+# there). Then runs the C error-path test, and runs it and one stream under valgrind
+# (no leak, no invalid access). That include/qtvpr.h is current is checked by
+# `cargo test` (crates/qtvpr-capi/tests/header.rs).
+#
+# Called by scripts/test.sh; runs alone from a fresh clone too. Needs cc, c++, python3
+# and valgrind (installed with apt-get when missing and running as root).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n== %s\n' "$*"; }
+read -r target version < <(cargo metadata --format-version 1 --no-deps --locked | python3 -c '
+import json, sys
+m = json.load(sys.stdin)
+print(m["target_directory"], next(p["version"] for p in m["packages"] if p["name"] == "qtvpr-capi"))')
+[ -n "${version:-}" ] || { echo "cargo metadata failed" >&2; exit 1; }
+work="$target/capi-test"
+rm -rf "$work"
+mkdir -p "$work/lib" "$work/tmp"
+
+step "build libqtvpr and qtvpr-cli"
+cargo build --locked -p qtvpr-capi -p qtvpr-cli
+# Copies, so that what is tested is what was just built even if the target directory
+# is shared.
+cp "$target/debug/libqtvpr.so" "$target/debug/libqtvpr.a" "$work/lib/"
+cp "$target/debug/qtvpr-cli" "$work/"
+cli="$work/qtvpr-cli"
+
+step "compile the examples (shared and static library)"
+cflags=(-std=c99 -Wall -Wextra -Wpedantic -Werror -Iinclude -Iexamples/c)
+shared=(-L"$work/lib" -lqtvpr -Wl,-rpath,"$work/lib")
+static=("$work/lib/libqtvpr.a" -lpthread -ldl -lm)
+cc "${cflags[@]}" examples/c/stream.c "${shared[@]}" -o "$work/stream"
+cc "${cflags[@]}" examples/c/stream.c "${static[@]}" -o "$work/stream-static"
+c++ -std=c++17 -Wall -Wextra -Wpedantic -Werror -Iinclude -Iexamples/c examples/c/stream.cpp "${shared[@]}" \
+    -o "$work/stream-cpp"
+cc "${cflags[@]}" -pthread examples/c/errors.c "${shared[@]}" -lm -o "$work/errors"
+cc "${cflags[@]}" examples/c/minimal.c "${shared[@]}" -o "$work/minimal"
+if ldd "$work/stream-static" | grep -q libqtvpr; then
+    echo "stream-static links libqtvpr.so" >&2
+    exit 1
+fi
+
+# stream NAME CAL_S CAL_GT_ARGS DEPLOY_S WINDOW: calibrate in both matchings, then
+# check that every example prints what `qtvpr-cli stream` prints.
+check_stream() {
+    local name=$1 cal_s=$2 gt=$3 deploy=$4 window=$5 matching
+    for matching in single multi; do
+        local cal="$work/$name-$matching.npz" want="$work/$name-$matching.jsonl"
+        # shellcheck disable=SC2086 # gt is the ground-truth arguments
+        "$cli" calibrate --cal "$cal_s" $gt --matching "$matching" --window "$window" --output "$cal"
+        "$cli" --quiet stream --calibration "$cal" --val "$deploy" --min-window 2 > "$want"
+        for example in stream stream-static stream-cpp; do
+            "$work/$example" "$cal" "$deploy" 0 0 0 2 > "$work/$name-$matching-$example.jsonl"
+            python3 scripts/capi_check.py compare "$want" "$work/$name-$matching-$example.jsonl"
+        done
+    done
+}
+
+step "examples reproduce qtvpr-cli stream: VPR-Bench Corridor, AMOSNet (float64, embedded)"
+check_stream corridor data/corridor/cal_S.npy "--cal-gt data/corridor/cal_GT.npy" data/corridor/deploy_S.npy 20
+
+shared_data=../shared/data
+if [ -d "$shared_data" ]; then
+    step "examples reproduce qtvpr-cli stream: VPR-Bench SPEDTest, NetVLAD (float32)"
+    python3 scripts/capi_check.py split "$shared_data/vprbench-spedtest/S_NetVLAD.npy" 60 \
+        "$work/sped-cal.npy" "$work/sped-deploy.npy"
+    python3 scripts/capi_check.py split "$shared_data/vprbench-spedtest/GT.npy" 60 \
+        "$work/sped-cal-gt.npy" "$work/sped-deploy-gt.npy"
+    check_stream sped "$work/sped-cal.npy" "--cal-gt $work/sped-cal-gt.npy" "$work/sped-deploy.npy" 50
+
+    step "examples reproduce qtvpr-cli stream: Nordland HOG, winter vs summer (float32, 3576 x 3576)"
+    "$cli" similarity --db "$shared_data/nordland-hog/db_winter.npy" \
+        --queries "$shared_data/nordland-hog/query_summer.npy" --output "$work/nordland.npy"
+    python3 scripts/capi_check.py split "$work/nordland.npy" 357 "$work/nordland-cal.npy" "$work/nordland-deploy.npy"
+    check_stream nordland "$work/nordland-cal.npy" "--cal-gt-tolerance 1" "$work/nordland-deploy.npy" 100
+else
+    echo "(no $shared_data: Nordland and SPEDTest skipped)"
+fi
+
+step "the README's example"
+python3 scripts/capi_check.py raw data/corridor/deploy_S.npy "$work/corridor-deploy.f32"
+"$work/minimal" "$work/corridor-single.npz" < "$work/corridor-deploy.f32" > "$work/minimal.txt"
+[ "$(wc -l < "$work/minimal.txt")" = 100 ] || { echo "minimal: expected 100 decisions" >&2; exit 1; }
+head -n 2 "$work/minimal.txt"
+if "$work/minimal" "$work/missing.npz" < /dev/null 2> "$work/minimal.err"; then
+    echo "minimal: a missing calibration file is not an error" >&2
+    exit 1
+fi
+grep -q "missing.npz" "$work/minimal.err"
+cat "$work/minimal.err"
+
+step "pkg-config: the library installed under a prefix, as the README says"
+if command -v pkg-config > /dev/null; then
+    prefix="$work/prefix"
+    mkdir -p "$prefix/include" "$prefix/lib/pkgconfig"
+    cp include/qtvpr.h "$prefix/include/"
+    cp "$work/lib/libqtvpr.so" "$work/lib/libqtvpr.a" "$prefix/lib/"
+    sed -e "s|@PREFIX@|$prefix|" -e "s|@VERSION@|$version|" crates/qtvpr-capi/qtvpr.pc.in > "$prefix/lib/pkgconfig/qtvpr.pc"
+    export PKG_CONFIG_PATH="$prefix/lib/pkgconfig"
+    [ "$(pkg-config --modversion qtvpr)" = "$version" ]
+    # shellcheck disable=SC2046 # pkg-config's flags are words
+    cc -std=c99 examples/c/minimal.c $(pkg-config --cflags --libs qtvpr) -Wl,-rpath,"$prefix/lib" -o "$work/minimal-pc"
+    "$work/minimal-pc" "$work/corridor-single.npz" < "$work/corridor-deploy.f32" | cmp - "$work/minimal.txt"
+    echo "cc app.c \$(pkg-config --cflags --libs qtvpr): $(pkg-config --cflags --libs qtvpr)"
+else
+    echo "(no pkg-config: skipped)"
+fi
+
+step "error paths from C"
+errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp")
+"${errors[@]}"
+
+step "valgrind: the error test and a stream"
+if ! command -v valgrind > /dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get > /dev/null; then
+        apt-get update -qq && apt-get install -y -qq valgrind > /dev/null
+    else
+        echo "valgrind is missing: apt-get install valgrind" >&2
+        exit 1
+    fi
+fi
+# examples/c/valgrind.supp says what it suppresses and why (rayon's threads at exit).
+vg=(valgrind --quiet --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite,indirect,possible
+    --suppressions=examples/c/valgrind.supp)
+"${vg[@]}" "${errors[@]}"
+"${vg[@]}" "$work/stream" "$work/corridor-multi.npz" data/corridor/deploy_S.npy 0 0 0 2 > "$work/valgrind.jsonl"
+python3 scripts/capi_check.py compare "$work/corridor-multi.jsonl" "$work/valgrind.jsonl"

@@ -1,0 +1,99 @@
+"""Helpers of scripts/capi.sh, in plain Python (no NumPy: the script runs before the wheel).
+
+    capi_check.py split S.npy N_CAL CAL.npy DEPLOY.npy
+        Write the first N_CAL columns of the |DB| x |Q| C-order matrix S.npy to CAL.npy
+        and the others to DEPLOY.npy: a calibration and a deployment traverse.
+    capi_check.py raw S.npy OUT.f32
+        Write the |DB| x |Q| C-order matrix S.npy query-major as raw little-endian
+        float32: each query's |DB| scores in turn, as a camera would deliver them.
+    capi_check.py compare EXPECTED.jsonl ACTUAL.jsonl [TOLERANCE]
+        Check that two `qtvpr-cli stream --format jsonl` outputs have the same lines: the
+        same keys, equal integers and booleans, and numbers within TOLERANCE (default
+        1e-12) of each other. Prints the largest difference; exits 1 on a mismatch.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import struct
+import sys
+
+
+def read_npy(path: str) -> tuple[dict, bytes]:
+    """The header dictionary and the data of a .npy file."""
+    with open(path, "rb") as f:
+        raw = f.read()
+    if raw[:6] != b"\x93NUMPY":
+        sys.exit(f"{path}: not a .npy file")
+    if raw[6] == 1:
+        (n,) = struct.unpack("<H", raw[8:10])
+        start = 10
+    else:
+        (n,) = struct.unpack("<I", raw[8:12])
+        start = 12
+    header = ast.literal_eval(raw[start : start + n].decode("latin1"))
+    return header, raw[start + n :]
+
+
+def write_npy(path: str, descr: str, shape: tuple[int, int], data: bytes) -> None:
+    """A version 1 .npy file, its header padded to a multiple of 64 bytes."""
+    header = repr({"descr": descr, "fortran_order": False, "shape": shape})
+    header += " " * (63 - (10 + len(header)) % 64) + "\n"
+    with open(path, "wb") as f:
+        f.write(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode("latin1") + data)
+
+
+def split(source: str, n_cal: str, cal: str, deploy: str) -> None:
+    header, data = read_npy(source)
+    if header["fortran_order"] or len(header["shape"]) != 2:
+        sys.exit(f"{source}: expected a 2-D C-order matrix")
+    rows, cols = header["shape"]
+    item = int(header["descr"][2:])
+    c = int(n_cal)
+    row_bytes = cols * item
+    rows_of = [data[i * row_bytes : (i + 1) * row_bytes] for i in range(rows)]
+    write_npy(cal, header["descr"], (rows, c), b"".join(r[: c * item] for r in rows_of))
+    write_npy(deploy, header["descr"], (rows, cols - c), b"".join(r[c * item :] for r in rows_of))
+
+
+def raw(source: str, out: str) -> None:
+    header, data = read_npy(source)
+    if header["fortran_order"] or len(header["shape"]) != 2 or header["descr"] not in ("<f4", "<f8"):
+        sys.exit(f"{source}: expected a 2-D C-order float32/float64 matrix")
+    rows, cols = header["shape"]
+    values = struct.unpack(f"<{rows * cols}{header['descr'][1:].replace('f4', 'f').replace('f8', 'd')}", data)
+    with open(out, "wb") as f:
+        f.write(struct.pack(f"<{rows * cols}f", *(values[i * cols + j] for j in range(cols) for i in range(rows))))
+
+
+def compare(expected: str, actual: str, tolerance: str = "1e-12") -> None:
+    tol = float(tolerance)
+    with open(expected) as f:
+        want = [json.loads(line) for line in f]
+    with open(actual) as f:
+        got = [json.loads(line) for line in f]
+    if len(want) != len(got):
+        sys.exit(f"{actual}: {len(got)} lines, expected {len(want)} ({expected})")
+    worst = 0.0
+    for n, (w, g) in enumerate(zip(want, got), 1):
+        if list(w) != list(g):
+            sys.exit(f"{actual}:{n}: keys {list(g)}, expected {list(w)}")
+        for key, value in w.items():
+            other = g[key]
+            if isinstance(value, float) or isinstance(other, float):
+                diff = abs(value - other)
+                worst = max(worst, diff)
+                ok = diff <= tol * max(1.0, abs(value))
+            else:
+                ok = value == other and type(value) is type(other)
+            if not ok:
+                sys.exit(f"{actual}:{n}: {key} is {other!r}, expected {value!r} ({expected})")
+    print(f"{actual}: {len(got)} decisions equal {expected} (largest difference {worst:.3g})")
+
+
+if __name__ == "__main__":
+    commands = {"split": split, "raw": raw, "compare": compare}
+    if len(sys.argv) < 2 or sys.argv[1] not in commands:
+        sys.exit(__doc__)
+    commands[sys.argv[1]](*sys.argv[2:])
