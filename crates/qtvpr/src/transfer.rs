@@ -98,7 +98,7 @@ pub struct Transfer {
 ///
 /// Besides what the transfer needs, it keeps its input (the raw scores in their own
 /// type and the ground truth) so that it can be saved as a calibration file
-/// ([`Calibration::save`], feature `npy`) and loaded with bit-identical results. That
+/// (`Calibration::save`, feature `npy`) and loaded with bit-identical results. That
 /// costs one more copy of the calibration matrix (|DB| x |Qcal| scores of 4 or 8
 /// bytes) and one byte per entry for the ground truth, beside the ranked profiles
 /// (the same size again, plus 4 bytes a score for their screen).
@@ -198,7 +198,7 @@ impl Calibration {
     }
 
     /// The same calibration with the defaults a calibration file stores in its
-    /// `params` (what [`Calibration::load`] gives a loaded one).
+    /// `params` (what `Calibration::load` gives a loaded one).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1] or a window of 0.
