@@ -1,8 +1,8 @@
 """Regenerate the results table of README.md on every real matrix in ../shared/data.
 
-The paper's protocol (SPEC section 8) with the project's defaults: the first 10% of the
+The paper's protocol (semantics §8) with the project's defaults: the first 10% of the
 queries calibrate, segments of ceil(1%) of |Q| deployment queries, target precision
-tau = 1, single-best-match decisions, k = 10, every method of SPEC section 7.
+tau = 1, single-best-match decisions, k = 10, every method of semantics §7.
 
 Matrices:
 - the 20 VPR-Bench similarity matrices (Corridor and SPEDTest, 10 techniques each);

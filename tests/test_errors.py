@@ -1,4 +1,4 @@
-"""Bad input (SPEC section 10): the right exception type, with a message naming the
+"""Bad input (semantics §10): the right exception type, with a message naming the
 argument, and never a panic.
 
 The table-driven cases run against both the wheel and the reference, so the two agree

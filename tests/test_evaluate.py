@@ -1,4 +1,4 @@
-"""The evaluation protocol (SPEC sections 7 and 8): the wheel's ``qtvpr.evaluate`` and
+"""The evaluation protocol (semantics §7 and §8): the wheel's ``qtvpr.evaluate`` and
 ``qtvpr-cli evaluate --format json`` equal ``qtvpr.reference.evaluate``.
 
 On the real VPR-Bench matrices in ../shared/data: every method, both matching modes,

@@ -1,7 +1,7 @@
 """File input to the Python API: every matrix argument also takes a path (``str`` or
 ``os.PathLike``) to a ``.npy`` (ground truth: ``.npy`` or a VPR_Tutorial ``.npz``), read
 by the same Rust reader as the CLI. Good files give the same results as arrays; every
-bad file of SPEC section 10 raises the exception a Python user expects, with a message
+bad file of semantics §10 raises the exception a Python user expects, with a message
 naming the argument and the file, and never a panic. Wheel only: the reference takes
 arrays.
 """
@@ -100,7 +100,7 @@ def test_npz_ground_truth_and_soft_files(tmp_path, files):
 
 
 # ---------------------------------------------------------------------------------------
-# Bad files: every SPEC section 10 case
+# Bad files: every semantics §10 case
 # ---------------------------------------------------------------------------------------
 
 

@@ -1,4 +1,4 @@
-"""Online thresholds (SPEC section 11) and the calibration file (SPEC section 12).
+"""Online thresholds (semantics §11) and the calibration file (semantics §12).
 
 First the NumPy reference alone: hand-computed windows, warm-up and the online method
 of the evaluation protocol, each value worked out in the comment beside it; then the

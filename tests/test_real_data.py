@@ -1,6 +1,6 @@
 """The wheel equals the NumPy reference on every real VPR-Bench similarity matrix.
 
-Protocol of SPEC section 8: the first 10% of the queries calibrate, the rest deploy,
+Protocol of semantics §8: the first 10% of the queries calibrate, the rest deploy,
 in segments of ceil(1%) of |Q| and also as one batch; both matching modes, precision
 targets 1.0 and 0.9. The query-major variant feeds the transposed arrays with
 ``query_major=True`` and must give the same result.

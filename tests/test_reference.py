@@ -1,5 +1,5 @@
 """Hand-computed cases for the NumPy reference (py/qtvpr/reference.py), one group per
-section of SPEC.md, plus input validation and a smoke run on real Corridor data.
+section of the semantics (docs/semantics.md), plus input validation and a smoke run on real Corridor data.
 
 Every expected value is worked out by hand in the comment beside it; none is copied
 from the output under test.
@@ -25,7 +25,7 @@ from qtvpr.reference import (
 )
 
 T, F = True, False
-Z = 4.753424308817087  # SPEC section 7
+Z = 4.753424308817087  # semantics §7
 
 
 def col(*values):

@@ -1,5 +1,5 @@
 //! The core on arbitrary small matrices and parameters: every call returns `Ok` or a
-//! typed error, never panics, and on `Ok` the SPEC's invariants hold:
+//! typed error, never panics, and on `Ok` the invariants of the semantics hold:
 //!
 //! - quantiles are in [0, 1], every segment threshold is finite (but see below for
 //!   f64::MAX) and the segments tile the deployment queries;

@@ -1,8 +1,8 @@
 """Plain NumPy reference implementation of quantile transfer.
 
-This module is the executable form of ``SPEC.md`` (the project's contract, kept in
-``../shared/SPEC.md``). It is written to be read, not to be fast: one function per spec
-section, loops where a loop says it more plainly, and no code shared with the Rust
+This module is the executable form of the project's semantics (``docs/semantics.md``
+in the repository, cited as "semantics §N"). It is written to be read, not to be
+fast: one function per section, loops where a loop says it more plainly, and no code shared with the Rust
 core. Parity tests compare the compiled implementation against it.
 
 Conventions shared by every public function:
@@ -14,10 +14,10 @@ Conventions shared by every public function:
 - Ground truth is bool or integer 0/1. ``gt_soft`` marks extra tolerable matches; the
   *ignored* entries are ``gt_soft & ~gt`` and count as neither true nor false.
 - Bad input raises ``ValueError`` (or ``TypeError`` for an unsupported dtype) with a
-  message that names the argument (SPEC section 10). Positions in messages are given
+  message that names the argument (semantics §10). Positions in messages are given
   in the caller's own orientation, before any transposition.
 
-One deliberate refinement of SPEC section 4.3, shared with the Rust core: the top-k
+One deliberate refinement of semantics §4.3, shared with the Rust core: the top-k
 calibration queries are chosen by correlations rounded to a grid of 2**-40, so that
 correlations that are equal in exact arithmetic tie whatever the floating-point
 summation order. See ``_calibration_neighbours``.
@@ -52,16 +52,16 @@ __all__ = [
     "schubert_threshold",
 ]
 
-#: Tolerance used in every precision comparison (SPEC sections 3, 6 and 8).
+#: Tolerance used in every precision comparison (semantics §3, §6 and §8).
 EPS = 1e-12
 
-#: Standard normal quantile at 1 - 1e-6 (SPEC section 7).
+#: Standard normal quantile at 1 - 1e-6 (semantics §7).
 SCHUBERT_Z = 4.753424308817087
 
 #: Grid on which correlations are compared when choosing neighbours (refinement of 4.3).
 CORRELATION_GRID = 2.0**40
 
-#: Every method of the evaluation protocol, in report order (SPEC sections 7 and 8).
+#: Every method of the evaluation protocol, in report order (semantics §7 and §8).
 METHODS = (
     "quantile-transfer",
     "quantile-transfer-online",
@@ -82,7 +82,7 @@ def _shape(a: np.ndarray) -> str:
 
 
 def _check_matrix(name: str, a: np.ndarray) -> None:
-    """A matrix argument must be 2-D and non-empty (SPEC section 10)."""
+    """A matrix argument must be 2-D and non-empty (semantics §10)."""
     if a.ndim != 2:
         raise ValueError(f"{name} must be a 2-D matrix, got a {a.ndim}-D array of shape {a.shape}")
     if a.size == 0:
@@ -180,7 +180,7 @@ def _check_positive_int(name: str, value) -> int:
 
 
 def _candidates(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray, matching: str):
-    """The candidates of a matrix, as SPEC section 2 defines them.
+    """The candidates of a matrix, as semantics §2 defines them.
 
     Returns ``(scores, correct, positives)``: the candidate scores (float64), whether
     each candidate is correct (bool), and the number of positives.
@@ -258,7 +258,7 @@ def precision_lower95(tp: int, fp: int) -> float | None:
 
 
 def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
-    """Counts of one matrix's decisions at ``threshold`` (SPEC section 2).
+    """Counts of one matrix's decisions at ``threshold`` (semantics §2).
 
     Returns ``dict(tp=, fp=, positives=, precision=, recall=)``. Precision is 1 when
     nothing is accepted; recall is 0 when there are no positives. ``threshold`` may be
@@ -277,7 +277,7 @@ def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=Fal
 
 
 def _sweep(scores: np.ndarray, correct: np.ndarray, positives: int, tau: float) -> float:
-    """The exact precision sweep of SPEC section 3 over a list of candidates.
+    """The exact precision sweep of semantics §3 over a list of candidates.
 
     Candidates are sorted by decreasing score; the counts are evaluated only at the last
     candidate of each group of equal scores. A group is valid when TP > 0 and
@@ -309,7 +309,7 @@ def _best_threshold(s, gt, ignored, tau, matching) -> float:
 def best_threshold(
     s, gt, *, gt_soft=None, precision=1.0, matching="single", query_major=False
 ) -> float:
-    """Best threshold of one matrix under precision target ``precision`` (SPEC section 3,
+    """Best threshold of one matrix under precision target ``precision`` (semantics §3,
     candidates per section 2). Returns ``math.inf`` for reject-all."""
     tau = _check_precision(precision)
     matching = _check_matching(matching)
@@ -323,7 +323,7 @@ def best_threshold(
 
 
 def _ranked_unit_profiles(s: np.ndarray) -> np.ndarray:
-    """Column-centred, unit-norm ranked similarity profiles (SPEC sections 4.1 and 4.2).
+    """Column-centred, unit-norm ranked similarity profiles (semantics §4.1 and §4.2).
 
     Each column is sorted in descending order. A sorted column has zero variance exactly
     when its first and last values are equal; its vector is then all zeros, so its
@@ -341,7 +341,7 @@ def _ranked_unit_profiles(s: np.ndarray) -> np.ndarray:
 
 
 def _calibration_neighbours(s_cal, s_val, k: int):
-    """Ranked correlation and top-k calibration queries (SPEC section 4).
+    """Ranked correlation and top-k calibration queries (semantics §4).
 
     Takes float64 |DB| x |Qcal| and |DB| x |Qval| matrices. Returns
     ``(R, neighbours, weights)``:
@@ -380,7 +380,7 @@ def _calibration_neighbours(s_cal, s_val, k: int):
 
 
 def _subset_quantile(sample: np.ndarray, t: float) -> float:
-    """``q = (c - 1) / (n - 1)`` with c = #{sample <= t} (SPEC section 5).
+    """``q = (c - 1) / (n - 1)`` with c = #{sample <= t} (semantics §5).
 
     Reject-all (t = +inf) gives 1; this takes precedence over n = 1, which gives 0.
     """
@@ -399,7 +399,7 @@ def _subset_quantile(sample: np.ndarray, t: float) -> float:
 
 
 def _lower_weighted_median(q: np.ndarray, w: np.ndarray) -> float:
-    """Lower weighted median (SPEC section 6.1).
+    """Lower weighted median (semantics §6.1).
 
     Stable sort by q; the first q whose cumulative weight is >= 0.5 * total - 1e-12.
     A total weight of 0 makes every weight 1. Weights are summed one by one in sorted
@@ -423,7 +423,7 @@ def _lower_weighted_median(q: np.ndarray, w: np.ndarray) -> float:
 
 
 def _linear_quantile(scores: np.ndarray, q: float) -> float:
-    """Empirical quantile by linear interpolation (SPEC section 6.2).
+    """Empirical quantile by linear interpolation (semantics §6.2).
 
     With x sorted ascending, h = (N - 1) q, lo = floor(h), the value is
     ``x[lo] + (h - lo) * (x[lo+1] - x[lo])`` (``x[lo]`` when lo is the last index).
@@ -448,7 +448,7 @@ def _linear_quantile(scores: np.ndarray, q: float) -> float:
 
 def _segments(n_queries: int, segment_size: int | None) -> list[tuple[int, int]]:
     """Consecutive runs of ``segment_size`` queries from the first one; the shorter last
-    run is kept. ``None`` means one batch of everything (SPEC section 6)."""
+    run is kept. ``None`` means one batch of everything (semantics §6)."""
     if segment_size is None:
         return [(0, n_queries)]
     return [
@@ -511,7 +511,7 @@ def quantile_transfer(
     segment_size=None,
     query_major=False,
 ) -> TransferResult:
-    """Quantile transfer from calibration to deployment queries (SPEC sections 4-6).
+    """Quantile transfer from calibration to deployment queries (semantics §4-§6).
 
     For every deployment query j: its top-k calibration neighbours and weight w_j
     (section 4), the threshold t_j of that calibration subset and its quantile q_j
@@ -586,7 +586,7 @@ def _schubert(s: np.ndarray) -> float:
 
 
 def schubert_threshold(s) -> float:
-    """Schubert et al.'s automatic threshold over all raw scores of ``s`` (SPEC section 7).
+    """Schubert et al.'s automatic threshold over all raw scores of ``s`` (semantics §7).
 
     mu = median, sigma = median(|S - mu|) / 0.675, t = mu + sigma * 4.753424308817087;
     when sigma = 0 (half or more of the scores equal) the threshold is reject-all,
@@ -821,7 +821,7 @@ def evaluate(
     deploy_fraction=None,
     query_major=False,
 ) -> dict:
-    """The evaluation protocol of the paper's Table I (SPEC sections 7 and 8).
+    """The evaluation protocol of the paper's Table I (semantics §7 and §8).
 
     The first ``cal_queries`` (default ``floor(cal_fraction * |Q|)``) columns calibrate;
     the deployment set is every later column, or with ``deploy_fraction`` the last
@@ -921,7 +921,7 @@ def ablation(
 
 @dataclass
 class OnlineDecision:
-    """One deployment query decided by :class:`Online` (SPEC section 11).
+    """One deployment query decided by :class:`Online` (semantics §11).
 
     ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
     its own q_j and w_j (sections 4 and 5); ``quantile`` and ``threshold`` its window's
@@ -982,7 +982,7 @@ def _check_float_dtype(name: str, a: np.ndarray) -> None:
 
 
 class Online:
-    """Online thresholds for queries that arrive one at a time (SPEC section 11).
+    """Online thresholds for queries that arrive one at a time (semantics §11).
 
     ``Online(calibration, *, k=None, precision=None, window=None, min_window=1)``: each
     of ``k``, ``precision`` and ``window`` left as None takes the calibration's default
@@ -1126,7 +1126,7 @@ def _package_version() -> str:
 
 class Calibration:
     """A calibration traverse with ground truth: what :class:`Online` and a calibration
-    file (SPEC section 12) hold.
+    file (semantics §12) hold.
 
     ``Calibration(s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False)``
     validates its input as :func:`quantile_transfer` does and keeps the raw scores in
@@ -1174,7 +1174,7 @@ class Calibration:
         return _best_threshold(self._s64, self._gt, self._ignored, _check_precision(precision), self.matching)
 
     def save(self, path, *, k=10, precision=1.0, window=None) -> None:
-        """Write the SPEC section-12 ``.npz`` to ``path`` (the name is used as given):
+        """Write the semantics §12 ``.npz`` to ``path`` (the name is used as given):
         ``s``, ``gt``, ``gt_soft`` when there is one, and ``meta``, a 0-d string array of
         JSON whose ``params`` are ``k``, ``precision`` and ``window``."""
         params = {

@@ -1,4 +1,4 @@
-//! `qtvpr-cli evaluate`: the paper's evaluation protocol (SPEC sections 7-8) on one
+//! `qtvpr-cli evaluate`: the paper's evaluation protocol (semantics §7-§8) on one
 //! similarity matrix with ground truth, as JSON, a Markdown table or CSV, with figures.
 //!
 //! Lists given to `--k` and `--cal-fraction`/`--cal-queries` make an ablation: the
@@ -102,7 +102,7 @@ pub struct EvaluateArgs {
 /// Output formats of `evaluate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum EvalFormat {
-    /// One JSON object (every key: the `qtvpr::report` docs); a reject-all threshold is
+    /// One JSON object (keys: docs/cli.md and semantics §9); a reject-all threshold is
     /// `null`.
     Json,
     /// A Markdown table.

@@ -9,7 +9,7 @@ use anyhow::Result;
 /// Output formats of `threshold`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
-    /// One JSON object (every key: the `qtvpr::report` docs); reject-all is `null`.
+    /// One JSON object (keys: docs/cli.md and semantics §9); reject-all is `null`.
     Json,
     /// One CSV row per segment.
     Csv,

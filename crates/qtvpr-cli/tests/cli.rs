@@ -1,5 +1,5 @@
 //! End-to-end tests of `qtvpr-cli threshold`: a hand-computed run, and every bad input
-//! of SPEC section 10 (exit 2, one `error:` line naming the file or argument, no panic,
+//! of semantics §10 (exit 2, one `error:` line naming the file or argument, no panic,
 //! no output file).
 
 use std::path::{Path, PathBuf};

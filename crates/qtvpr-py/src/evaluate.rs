@@ -1,4 +1,4 @@
-//! `evaluate` and `ablation`: the evaluation protocol (SPEC sections 7 and 8).
+//! `evaluate` and `ablation`: the evaluation protocol (semantics §7 and §8).
 //!
 //! The results are the core's serde values turned into Python objects by `pythonize`,
 //! so the dicts have exactly the keys of `qtvpr-cli evaluate --format json` (listed in

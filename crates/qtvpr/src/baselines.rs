@@ -1,4 +1,4 @@
-//! SPEC section 7: the baselines quantile transfer is measured against.
+//! semantics §7: the baselines quantile transfer is measured against.
 //!
 //! - **schubert**: Schubert et al.'s (ICRA 2021) automatic threshold, a robust normal
 //!   fit to the raw scores: `mu + sigma * z` with `mu` the median, `sigma` the median
@@ -23,7 +23,7 @@ use crate::error::Result;
 use crate::input::{Score, validate_scores};
 use crate::names::SIMILARITY;
 
-/// The standard normal quantile at 1 - 1e-6 (SPEC section 7).
+/// The standard normal quantile at 1 - 1e-6 (semantics §7).
 pub const SCHUBERT_Z: f64 = 4.753424308817087;
 
 /// The normal-consistency constant of the median absolute deviation, as in

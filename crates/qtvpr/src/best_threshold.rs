@@ -1,4 +1,4 @@
-//! SPEC section 3: the threshold of maximum recall under a precision target.
+//! semantics §3: the threshold of maximum recall under a precision target.
 //!
 //! An exact sweep over the candidates in descending score order, evaluated only at the
 //! end of each group of equal scores (equal scores are accepted together). Candidates
@@ -17,7 +17,7 @@ use crate::error::Result;
 use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate_scores};
 use crate::names::SIMILARITY;
 
-/// The best threshold of a whole matrix (SPEC section 3), `f64::INFINITY` for reject-all.
+/// The best threshold of a whole matrix (semantics §3), `f64::INFINITY` for reject-all.
 ///
 /// `s` and `gt` are |DB| x |Q|; `tau` is the precision target in (0, 1].
 ///
@@ -45,7 +45,7 @@ pub(crate) fn subset_threshold(cands: &Candidates, columns: &[usize], tau: f64) 
     sweep(merged, tau, cands.positives(columns.iter().copied()))
 }
 
-/// The exact sweep (SPEC section 3) over candidates sorted by descending score, of which
+/// The exact sweep (semantics §3) over candidates sorted by descending score, of which
 /// at most `positives` can be correct.
 pub(crate) fn sweep(sorted: impl Iterator<Item = (f64, bool)>, tau: f64, positives: usize) -> f64 {
     // No group with more false positives than this can be valid (with a margin of one

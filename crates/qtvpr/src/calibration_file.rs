@@ -1,4 +1,4 @@
-//! SPEC section 12: the calibration file, so that calibration is done once, offline, and
+//! semantics §12: the calibration file, so that calibration is done once, offline, and
 //! a deployed system loads it.
 //!
 //! A NumPy `.npz` archive (uncompressed, no pickle: `np.load` reads it) of:
@@ -95,6 +95,9 @@ mod file {
         version: u64,
         matching: String,
         params: Params,
+        /// The version of qtvpr that wrote the file: informative only, so a file written
+        /// by another tool may leave it out.
+        #[serde(default)]
         qtvpr: String,
     }
 

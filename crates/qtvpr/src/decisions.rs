@@ -1,4 +1,4 @@
-//! SPEC section 2: which candidates a matrix offers, which are correct, and the
+//! semantics §2: which candidates a matrix offers, which are correct, and the
 //! TP/FP/precision/recall of a threshold.
 //!
 //! Both matching modes reduce to the same shape: per query column, a list of
@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use crate::input::{Score, Truth};
 
-/// How a query's matches are decided (SPEC section 2).
+/// How a query's matches are decided (semantics §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "lowercase"))]
 pub enum Matching {
@@ -162,7 +162,7 @@ fn column_candidates<T: Score>(
     }
 }
 
-/// Decision counts of a set of queries at one threshold (SPEC section 2).
+/// Decision counts of a set of queries at one threshold (semantics §2).
 ///
 /// Serialised (feature `serde`) as `tp`, `fp`, `positives` and the figures derived
 /// from them: `precision`, `recall` and `precision_lower95` (see [`crate::report`]).

@@ -1,4 +1,4 @@
-//! SPEC section 6: one threshold per batch (segment) of deployment queries.
+//! semantics §6: one threshold per batch (segment) of deployment queries.
 //!
 //! The batch quantile is the lower weighted median of its queries' quantiles; the
 //! threshold is that quantile of all the batch's raw scores, by linear interpolation.
@@ -53,7 +53,7 @@ pub fn weighted_median(q: &[f64], w: &[f64]) -> f64 {
     q[order[order.len() - 1]]
 }
 
-/// The threshold for quantile `q` of every score in `s` (SPEC section 6.2): linear
+/// The threshold for quantile `q` of every score in `s` (semantics §6.2): linear
 /// interpolation between order statistics, and for `q >= 1` the next `f64` above the
 /// maximum (finite, accepts nothing).
 pub fn deployment_threshold<T: Score>(s: ArrayView2<'_, T>, q: f64) -> f64 {
@@ -114,7 +114,7 @@ pub(crate) fn sorted_columns_threshold<T: Score>(sorted: ArrayView2<'_, T>, q: f
     )
 }
 
-/// The SPEC section 6.2 threshold for quantile `q` of `n` scores, given their maximum
+/// The semantics §6.2 threshold for quantile `q` of `n` scores, given their maximum
 /// and a selection of the `lo`-th and `(lo + 1)`-th smallest (the second only needed
 /// when the flag says so).
 fn interpolate(n: usize, q: f64, max: impl FnOnce() -> f64, select: impl FnOnce(usize, bool) -> (f64, f64)) -> f64 {

@@ -2,7 +2,7 @@
 //!
 //! Every message is lowercase, names the input it is about (`what`) and says what is
 //! wrong with it, so that a front end only has to add the file or argument name
-//! (SPEC section 10).
+//! (semantics §10).
 
 /// Result alias used throughout the core.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -162,7 +162,7 @@ pub enum Error {
         /// What is wrong, e.g. `must be >= 1, got 0`.
         message: String,
     },
-    // Inputs of the extensions (descriptors, positions), not of the SPEC pipeline.
+    // Inputs of the extensions (descriptors, positions), not of the quantile-transfer pipeline.
     /// A descriptor or position matrix holds a NaN or infinite value.
     #[error("{what} contains {value} at row {row}, column {col}; every value must be finite")]
     NotFiniteValue {

@@ -1,4 +1,4 @@
-//! SPEC section 8: the evaluation protocol of the paper's Table I.
+//! semantics §8: the evaluation protocol of the paper's Table I.
 //!
 //! One similarity matrix with ground truth for every query is split in query order:
 //! the first queries calibrate, the deployment set is cut into full segments of
@@ -37,10 +37,10 @@ use crate::names::SIMILARITY;
 use crate::online::{Online, OnlineParams};
 use crate::transfer::{Calibration, DEFAULT_K, Params};
 
-/// Tolerance of the "meets the target" test (SPEC section 8.3).
+/// Tolerance of the "meets the target" test (semantics §8.3).
 const EPS: f64 = 1e-12;
 
-/// A way of choosing each segment's threshold (SPEC sections 4-7).
+/// A way of choosing each segment's threshold (semantics §4-§7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Method {
     /// Quantile transfer (sections 4-6), each segment its own batch.
@@ -111,7 +111,7 @@ pub enum Split {
     Count(usize),
 }
 
-/// The protocol's parameters (SPEC section 8.1); [`Default`] is the paper's.
+/// The protocol's parameters (semantics §8.1); [`Default`] is the paper's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Protocol {
@@ -270,7 +270,7 @@ impl Protocol {
     }
 }
 
-/// One segment under one method (SPEC section 8.6).
+/// One segment under one method (semantics §8.6).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SegmentResult {
@@ -290,7 +290,7 @@ pub struct SegmentResult {
     pub meets: bool,
 }
 
-/// A method's results over every full segment (SPEC section 8).
+/// A method's results over every full segment (semantics §8).
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct MethodResult {
@@ -371,7 +371,7 @@ impl Evaluation {
 
     /// The precision-recall curve of the deployment set (every full segment pooled,
     /// one threshold for all), from the highest threshold down, evaluated at the end of
-    /// each group of equal scores as in SPEC section 3.
+    /// each group of equal scores as in semantics §3.
     ///
     /// To keep a plot light, a point is kept only when precision or recall has moved
     /// by at least `1 / resolution` since the last kept point (the first and last
@@ -628,7 +628,7 @@ pub fn ablation_with_progress<T: Score>(
     Ok(Ablation { runs })
 }
 
-/// Count every segment at its threshold and summarise (SPEC sections 8.2-8.6).
+/// Count every segment at its threshold and summarise (semantics §8-§8).
 fn score(
     method: Method,
     deployment: &Candidates,
@@ -654,7 +654,7 @@ fn score(
     summarise(method, segments)
 }
 
-/// Online quantile transfer in the protocol (SPEC section 11): one window of the
+/// Online quantile transfer in the protocol (semantics §11): one window of the
 /// segment size over the deployment queries (not reset at segment boundaries); every
 /// query decided at its own threshold; a segment's counts are the sums over its
 /// queries, and its threshold that of its last query.
@@ -705,7 +705,7 @@ fn online_segments<T: Score>(
     Ok(segments)
 }
 
-/// %Segs, AvgR@tauP and the threshold MSE of a method's segments (SPEC sections 8.3-8.6).
+/// %Segs, AvgR@tauP and the threshold MSE of a method's segments (semantics §8-§8).
 fn summarise(method: Method, segments: Vec<SegmentResult>) -> MethodResult {
     let counted: Vec<&SegmentResult> = segments.iter().filter(|g| g.counts.positives > 0).collect();
     let n = counted.len();

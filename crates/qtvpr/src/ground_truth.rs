@@ -1,9 +1,9 @@
-//! Extension (not a SPEC section): ground truth from frame tolerance or from positions.
+//! Extension (not a section of the semantics): ground truth from frame tolerance or from positions.
 //!
 //! Datasets rarely ship a ground-truth matrix. They ship either frame-aligned traverses
 //! (Nordland, SFU, Oxford: query `j` shows the place of database image `j`, give or take
 //! a few frames) or positions (UTM east/north, a match within 25 m). These functions make
-//! the |DB| x |Q| bool matrix of SPEC section 1 from either. A soft ground truth
+//! the |DB| x |Q| bool matrix of semantics §1 from either. A soft ground truth
 //! (VPR_Tutorial's `GTsoft`) is the same function with a larger tolerance or radius.
 //!
 //! [`GtSpec::matrices`] is the one place that turns "a tolerance or positions" (hard and

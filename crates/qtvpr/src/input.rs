@@ -1,4 +1,4 @@
-//! SPEC section 1: scores, ground truth and their validation.
+//! semantics §1: scores, ground truth and their validation.
 //!
 //! Scores are read where they lie (any [`ArrayView2`], any strides) as `f32` or `f64`
 //! and widened to `f64` value by value; nothing is copied up front. Ground truth is

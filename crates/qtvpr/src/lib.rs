@@ -8,9 +8,9 @@
 //! those, expresses it as a quantile of their scores, and reads the batch's weighted
 //! median quantile off the deployment scores.
 //!
-//! The semantics are those of the project's SPEC, one module per section:
+//! The semantics are those of `docs/semantics.md` in the repository, one module per section:
 //!
-//! | SPEC section | module |
+//! | semantics | module |
 //! |---|---|
 //! | 1 terms, input validation | [`input`] |
 //! | 2 decisions and counts | [`decisions`] |
@@ -30,7 +30,7 @@
 //! | file input and output (feature `npy`) | `npy` |
 //! | the names of the matrices errors are about | [`names`] |
 //!
-//! The extensions are beyond the paper and are not SPEC sections: they make the
+//! The extensions are beyond the paper and are not sections of the semantics: they make the
 //! similarity and ground-truth matrices the method takes from what users have
 //! (descriptors, positions, frame-aligned traverses).
 //!

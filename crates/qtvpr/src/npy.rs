@@ -1,7 +1,7 @@
 //! Reading `.npy` / `.npz` files (feature `npy`): the I/O the CLI and the Python binding
 //! share, so that both accept exactly the same files with exactly the same errors.
 //!
-//! Not a SPEC section. Similarity matrices (float32/float64, little-endian, C or Fortran
+//! Not a section of the semantics. Similarity matrices (float32/float64, little-endian, C or Fortran
 //! order) are **memory-mapped** and viewed in place, so a matrix near the size of RAM
 //! costs no copy and only the pages the computation touches; anything else (big-endian,
 //! misaligned data, a file that cannot be mapped) is read into memory by npyz. Ground

@@ -1,4 +1,4 @@
-//! SPEC section 11: online thresholds over a causal window, for a system that decides
+//! semantics §11: online thresholds over a causal window, for a system that decides
 //! each query as it arrives.
 //!
 //! Deployment query `j` gets its quantile `q_j` and weight `w_j` from the calibration

@@ -1,4 +1,4 @@
-//! SPEC section 4: calibration sampling by ranked correlation.
+//! semantics §4: calibration sampling by ranked correlation.
 //!
 //! Every query column is sorted into a *ranked profile*; the Pearson correlation of two
 //! profiles is the dot product of their centred, unit-norm forms. Each deployment query
@@ -484,7 +484,7 @@ pub(crate) fn screened_top_k(screen: &[f64], k: usize, error: f64, exact: impl F
     top_k_of(pairs, k)
 }
 
-/// The full |Qval| x |Qcal| ranked-correlation matrix `R` of SPEC section 4, in `f64`,
+/// The full |Qval| x |Qcal| ranked-correlation matrix `R` of semantics §4, in `f64`,
 /// the same values the transfer ranks neighbours by.
 ///
 /// # Errors

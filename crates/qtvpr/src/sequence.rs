@@ -1,4 +1,4 @@
-//! Extension (not a SPEC section): SeqSLAM-style sequence matching of a similarity matrix.
+//! Extension (not a section of the semantics): SeqSLAM-style sequence matching of a similarity matrix.
 //!
 //! The paper thresholds single-frame similarity and names sequence matching as future
 //! work; this module provides it so that users of sequential traverses (Nordland, SFU,

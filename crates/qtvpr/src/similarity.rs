@@ -1,4 +1,4 @@
-//! Extension (not a SPEC section): the similarity matrix from image descriptors.
+//! Extension (not a section of the semantics): the similarity matrix from image descriptors.
 //!
 //! Researchers usually hold descriptors, not a similarity matrix: one row per image, e.g.
 //! the `database_descriptors.npy` / `queries_descriptors.npy` that VPR-methods-evaluation
@@ -10,7 +10,7 @@
 //! The rows are normalised into `f64` copies and multiplied by faer's parallel GEMM in
 //! `f64`; each result is rounded once to `f32`, the type of the output. Why `f64`, when
 //! an `f32` GEMM would be about twice as fast:
-//! - SPEC section 1 does all arithmetic on scores in `f64`; the matrix made here is the
+//! - semantics §1 does all arithmetic on scores in `f64`; the matrix made here is the
 //!   input of that pipeline, and ties or near-ties in it decide best matches.
 //! - The rounding error of an `f32` dot product grows with the descriptor dimension D
 //!   (about `sqrt(D) * 6e-8` for unit vectors): harmless for D = 756, but at D = 4096 to

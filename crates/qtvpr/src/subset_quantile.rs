@@ -1,4 +1,4 @@
-//! SPEC section 5: a subset threshold expressed as a quantile of the subset's scores.
+//! semantics §5: a subset threshold expressed as a quantile of the subset's scores.
 //!
 //! `q = (c - 1) / (n - 1)` with `c` the number of sample scores `<= t`: the exact
 //! inverse of the linear-interpolation quantile of section 6. The sample is the union

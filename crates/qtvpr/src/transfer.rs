@@ -1,4 +1,4 @@
-//! The quantile-transfer pipeline (SPEC sections 4-6) behind a calibrate-once,
+//! The quantile-transfer pipeline (semantics §4-§6) behind a calibrate-once,
 //! transfer-many API.
 //!
 //! [`Calibration::new`] does all the work that depends only on the calibration traverse:
@@ -120,7 +120,7 @@ pub struct Calibration {
     defaults: Defaults,
 }
 
-/// What the calibration gives one deployment query (SPEC sections 4 and 5).
+/// What the calibration gives one deployment query (semantics §4 and §5).
 #[derive(Debug, Clone)]
 pub(crate) struct QueryTransfer {
     /// Its calibration neighbours, most correlated first.
@@ -242,7 +242,7 @@ impl Calibration {
         Ok(ranked.screen().correlations(self.profiles.screen(), &self.reference))
     }
 
-    /// SPEC sections 4 and 5 for every column of a block ranked by
+    /// semantics §4 and §5 for every column of a block ranked by
     /// [`Calibration::rank`] (`screen` is what it returned): each query's `k`
     /// neighbours (re-scored in `f64` where the screen leaves doubt) and weight, their
     /// subset threshold at `precision`, and its quantile. The one place a deployment
@@ -292,7 +292,7 @@ impl Calibration {
         self.matching
     }
 
-    /// The SPEC section 3 threshold of the whole calibration set (today's practice of a
+    /// The semantics §3 threshold of the whole calibration set (today's practice of a
     /// threshold tuned once offline).
     ///
     /// # Errors

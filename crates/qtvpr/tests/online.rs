@@ -1,4 +1,4 @@
-//! Online thresholds (SPEC section 11) on real VPR-Bench matrices in `../shared/data`:
+//! Online thresholds (semantics §11) on real VPR-Bench matrices in `../shared/data`:
 //! every query's threshold equals the batch transfer of just its window's columns, bit
 //! for bit, in both matching modes, for f32 and f64 input; and a calibration saved and
 //! loaded gives the same decisions.

@@ -1,4 +1,4 @@
-//! Property tests of SPEC invariants on small random matrices (proptest, fixed seed).
+//! Property tests of invariants of the semantics on small random matrices (proptest, fixed seed).
 //!
 //! What is invariant under what, precisely:
 //!
