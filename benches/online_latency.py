@@ -132,7 +132,8 @@ def main() -> None:
     s, gt = nordland()
     n_cal = s.shape[1] // 10
     rows.append(measure("Nordland HOG (real)", s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:], window=36))
-    for name, n_db, n_q, window in (("paper scale (synthetic)", 27592, 2760, 28), ("MSLS val scale (synthetic)", 18871, 11084, 111)):
+    scales = (("paper scale (synthetic)", 27592, 2760, 28), ("MSLS val scale (synthetic)", 18871, 11084, 111))
+    for name, n_db, n_q, window in scales:
         with tempfile.TemporaryDirectory() as tmp:
             s_cal, gt_cal, s_val = synthetic_case(Path(tmp), n_db, n_q, min(args.queries, n_q - n_q // 10))
             rows.append(measure(name, s_cal, gt_cal, s_val, window=window))
@@ -143,7 +144,8 @@ def main() -> None:
         "push pays at least (one sort of the column; one float64 correlation pass over every calibration profile), "
         "on the same machine, as a yardstick.",
         "",
-        "| case | \\|DB\\| | calibration queries | window | pushes | median | 99th percentile | NumPy sort | NumPy correlation pass |",
+        "| case | \\|DB\\| | calibration queries | window | pushes | median | 99th percentile | NumPy sort "
+        "| NumPy correlation pass |",
         "|---|--:|--:|--:|--:|--:|--:|--:|--:|",
     ]
     for r in rows:
@@ -155,7 +157,8 @@ def main() -> None:
     print(text)
     if not args.no_readme:
         readme = REPO / "README.md"
-        new, n = re.subn(f"({re.escape(START)}\n).*?({re.escape(END)})", lambda m: m[1] + text + "\n" + m[2], readme.read_text(), flags=re.S)
+        block = f"({re.escape(START)}\n).*?({re.escape(END)})"
+        new, n = re.subn(block, lambda m: m[1] + text + "\n" + m[2], readme.read_text(), flags=re.S)
         if n != 1:
             sys.exit(f"README.md has no {START} ... {END} block")
         readme.write_text(new)

@@ -101,7 +101,7 @@ def assert_same_evaluation(got: dict, want: dict) -> None:
 def assert_same_ablation(got: dict, want: dict) -> None:
     assert list(got) == ["dataset", "ablation"]
     assert len(got["ablation"]) == len(want["ablation"])
-    for g, w in zip(got["ablation"], want["ablation"]):
+    for g, w in zip(got["ablation"], want["ablation"], strict=True):
         assert_same_run(g, w)
 
 

@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 
 import qtvpr
 from qtvpr import reference as ref
-from test_cli import cli, run_cli  # noqa: F401  (the session fixture that finds the binary)
+from test_cli import run_cli
 
 T, F = True, False
 
@@ -391,7 +391,11 @@ BAD_FILES = {
     "gt-shape": (dict(s=CAL_S, gt=CAL_GT[:2], meta=META), ValueError, "gt shape 2x2 does not match s shape 3x2"),
     "soft-shape": (dict(GOOD, gt_soft=CAL_GT[:, :1], meta=META), ValueError, "gt_soft shape 3x1"),
     "s-1d": (dict(s=CAL_S[:, 0], gt=CAL_GT, meta=META), ValueError, "s must be a 2-D matrix"),
-    "s-nan": (dict(s=np.where(CAL_S > 0.5, np.nan, CAL_S), gt=CAL_GT, meta=META), ValueError, "s contains NaN at row 0, column 0"),
+    "s-nan": (
+        dict(s=np.where(CAL_S > 0.5, np.nan, CAL_S), gt=CAL_GT, meta=META),
+        ValueError,
+        "s contains NaN at row 0, column 0",
+    ),
     "s-int": (dict(s=(CAL_S * 10).astype(np.int64), gt=CAL_GT, meta=META), TypeError, "s must be float32 or float64"),
     "gt-int": (dict(s=CAL_S, gt=CAL_GT.astype(np.int8), meta=META), TypeError, "gt must be bool"),
     "soft-int": (dict(GOOD, gt_soft=CAL_GT.astype(np.uint8), meta=META), TypeError, "gt_soft must be bool"),
@@ -404,8 +408,16 @@ BAD_FILES = {
     "meta-list": (dict(GOOD, meta="[1, 2]"), ValueError, "meta must be a JSON object"),
     "meta-bytes": (dict(GOOD, meta=None), ValueError, "meta must be a 0-d string array"),
     "params-k": (dict(GOOD, meta={**META, "params": {"k": 0, "precision": 1.0}}), ValueError, "k must be >= 1"),
-    "params-precision": (dict(GOOD, meta={**META, "params": {"k": 1, "precision": 2.0}}), ValueError, "precision must be in"),
-    "params-window": (dict(GOOD, meta={**META, "params": {"k": 1, "precision": 1.0, "window": "28"}}), ValueError, "window must be an integer"),
+    "params-precision": (
+        dict(GOOD, meta={**META, "params": {"k": 1, "precision": 2.0}}),
+        ValueError,
+        "precision must be in",
+    ),
+    "params-window": (
+        dict(GOOD, meta={**META, "params": {"k": 1, "precision": 1.0, "window": "28"}}),
+        ValueError,
+        "window must be an integer",
+    ),
 }
 
 

@@ -23,8 +23,12 @@ __all__ = [
     "ground_truth_positions",
     "evaluate",
     "schubert_threshold",
+    "ablation",
     "Calibration",
     "TransferResult",
+    "Online",
+    "OnlineDecision",
+    "OnlineDecisions",
 ]
 
 __version__: str
@@ -221,15 +225,15 @@ class OnlineDecisions:
 
 @final
 class Online:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         calibration: Calibration,
         *,
         k: int | None = None,
         precision: float | None = None,
         window: int | None = None,
         min_window: int = 1,
-    ) -> None: ...
+    ) -> Online: ...
     def push(self, column: _Column) -> OnlineDecision: ...
     def push_many(self, s_val: _Matrix, *, query_major: bool = False) -> OnlineDecisions: ...
     @property
