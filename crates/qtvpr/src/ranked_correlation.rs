@@ -598,22 +598,26 @@ mod tests {
         // Profiles long enough for several product blocks, with an offset far from zero
         // (the hard case for centring) and near-identical columns (correlations near 1,
         // where the reference profile must make the bound tight), against the mean
-        // calibration profile and against zero.
+        // calibration profile and against zero; for a block of deployment columns and
+        // for one column alone (an online push, which takes another product kernel).
         let mut rand = lcg(3);
         let n_db = 2 * DEPTH + 77;
         let base: Vec<f64> = (0..n_db).map(|_| rand()).collect();
         let cal = Array2::from_shape_fn((n_db, 7), |(i, j)| 100.0 + base[i] + 0.01 * j as f64 * rand());
-        let val = Array2::from_shape_fn((n_db, 5), |(i, _)| (100.0 + base[i] + 0.02 * rand()) as f32);
+        let block = Array2::from_shape_fn((n_db, 5), |(i, _)| (100.0 + base[i] + 0.02 * rand()) as f32);
         let zero = Reference::zero(n_db);
         let mut cal = Ranked::new("c", cal.view(), 0, &zero).unwrap();
-        for mean in [false, true] {
+        for (mean, val) in [false, true]
+            .into_iter()
+            .flat_map(|m| [(m, block.view()), (m, block.slice(s![.., 2..3]))])
+        {
             let reference = if mean {
                 Reference::mean_of(&cal)
             } else {
                 Reference::zero(n_db)
             };
             cal.rescreen(&reference);
-            let val = Ranked::new("v", val.view(), 0, &reference).unwrap();
+            let val = Ranked::new("v", val, 0, &reference).unwrap();
             let screen = val.screen().correlations(cal.screen(), &reference);
             let mut u = vec![0.0; n_db];
             for j in 0..val.ncols() {
