@@ -4,12 +4,12 @@
 //! and file, no output file).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use tempfile::TempDir;
 
 mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f32, npy_f64, npy_raw};
+use common::{assert_clean_failure, f64s, npy_bool, npy_f32, npy_f64, npy_raw, ok_in, run_in};
 
 struct Dir(TempDir);
 
@@ -25,20 +25,11 @@ impl Dir {
     /// Run `qtvpr-cli` with `args`; a bare file name in `args` stays as it is, so
     /// the command runs inside the directory.
     fn run(&self, args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
-            .current_dir(self.0.path())
-            .args(args)
-            .output()
-            .unwrap()
+        run_in(self.0.path(), args)
     }
 
     fn ok(&self, args: &[&str]) {
-        let out = self.run(args);
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        ok_in(self.0.path(), args);
     }
 
     fn fails(&self, args: &[&str], outputs: &[&str], needles: &[&str]) {

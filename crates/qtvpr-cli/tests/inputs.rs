@@ -3,13 +3,13 @@
 //! `evaluate`, and the exact wording of messages that were once wrong.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
 use tempfile::TempDir;
 
 mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw};
+use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw, ok_in, run_in};
 
 struct Dir(TempDir);
 
@@ -40,21 +40,11 @@ impl Dir {
     }
 
     fn run(&self, args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
-            .current_dir(self.0.path())
-            .args(args)
-            .output()
-            .unwrap()
+        run_in(self.0.path(), args)
     }
 
     fn ok(&self, args: &[&str]) -> String {
-        let out = self.run(args);
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap()
+        ok_in(self.0.path(), args)
     }
 
     /// Exit 2 with one `error:` line containing every needle, nothing written.

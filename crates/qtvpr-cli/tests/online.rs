@@ -6,7 +6,7 @@
 //! plain create.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use std::sync::Arc;
 
 use ndarray::{Array2, ArrayView2, s};
@@ -16,7 +16,7 @@ use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, 
 use tempfile::TempDir;
 
 mod common;
-use common::assert_clean_failure;
+use common::{assert_clean_failure, ok_in, run_in};
 
 fn data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -75,22 +75,11 @@ impl Case {
     }
 
     fn run(&self, args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
-            .current_dir(self.dir.path())
-            .env("RUST_BACKTRACE", "1")
-            .args(args)
-            .output()
-            .unwrap()
+        run_in(self.dir.path(), args)
     }
 
     fn ok(&self, args: &[&str]) -> String {
-        let out = self.run(args);
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap()
+        ok_in(self.dir.path(), args)
     }
 
     fn fails(&self, args: &[&str], outputs: &[&str], needles: &[&str]) {

@@ -1,9 +1,32 @@
-//! Helpers shared by the CLI integration tests: `.npy` files written by hand, and the
-//! check that a command failed cleanly.
+//! Helpers shared by the CLI integration tests: running the binary in a directory,
+//! `.npy` files written by hand, and the check that a command failed cleanly.
 #![allow(dead_code)] // each test binary uses its own subset
 
 use std::path::Path;
-use std::process::Output;
+use std::process::{Command, Output};
+
+/// Run `qtvpr-cli` with `args` inside `dir` (a bare file name in `args` is a file
+/// there), with backtraces on so that a panic could not pass for a clean error.
+pub fn run_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .current_dir(dir)
+        .env("RUST_BACKTRACE", "1")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Run `qtvpr-cli` with `args` inside `dir`, assert that it succeeded, and return its
+/// standard output.
+pub fn ok_in(dir: &Path, args: &[&str]) -> String {
+    let out = run_in(dir, args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
 
 /// Write a `.npy` by hand: any dtype string, shape and raw little-endian payload, so that
 /// the tests can also make the files no well-behaved writer would.
