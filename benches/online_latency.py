@@ -34,7 +34,6 @@ os.environ["OMP_NUM_THREADS"] = "1"
 os.environ["MKL_NUM_THREADS"] = "1"
 
 import argparse
-import platform
 import re
 import sys
 import tempfile
@@ -47,6 +46,7 @@ import qtvpr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import synthetic  # noqa: E402
+from compare import machine  # noqa: E402  (the one description of this machine)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
@@ -119,15 +119,6 @@ def measure(name: str, s_cal, gt_cal, s_val, window: int, k: int = 10) -> dict:
     }
 
 
-def machine() -> str:
-    cpu = "unknown CPU"
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {platform.system()}, Python {platform.python_version()}"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
@@ -145,7 +136,7 @@ def main() -> None:
             rows.append(measure(name, s_cal, gt_cal, s_val, window=window))
 
     lines = [
-        f"Measured by `benches/online_latency.py` on one thread of {machine()}; float32 columns, k = 10, tau = 1; "
+        f"Measured by `benches/online_latency.py` on one thread, on {machine()}; float32 columns, k = 10, tau = 1; "
         "the pushes after the window first fills. The last two columns are NumPy's time, on one thread of the same "
         "machine, for the two stages every push pays at least: one sort of the column, and one float32 pass of dot "
         "products over every calibration profile (what a push's screen reads: 4 x |DB| x |Qcal| bytes).",
