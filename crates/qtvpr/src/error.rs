@@ -210,6 +210,17 @@ pub enum Error {
         /// The similarity matrix's shape, |DB| x |Q|.
         shape: (usize, usize),
     },
+    /// An image name does not carry UTM coordinates
+    /// ([`image_names`](crate::image_names)).
+    #[error("{at}: image name '{name}' {problem}; names must look like @utm_east@utm_north@...@.jpg")]
+    ImageName {
+        /// Where the name came from: its index, its line in a text file, or its directory.
+        at: crate::image_names::NameAt,
+        /// The name (the path as given).
+        name: String,
+        /// What is wrong, phrased to follow the name: `has fewer than two '@'`, ...
+        problem: String,
+    },
     /// A position matrix has neither 2 nor 3 columns.
     #[error("{what} has {cols} columns; positions must be x, y (2 columns) or x, y, z (3 columns)")]
     PositionColumns {

@@ -184,6 +184,31 @@ fn count(name: &'static str, n: usize) -> Result<usize> {
     Ok(n)
 }
 
+impl Split {
+    /// The number of calibration queries, the first ones, this split names among `n_q`
+    /// queries: `floor(f n_q)` for a fraction `f`, `n` for a count. The same rule for
+    /// [`Protocol::layout`] and for a front end that splits one matrix (or one set of
+    /// query descriptors) into calibration and deployment queries.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a fraction outside (0, 1) or a count of 0;
+    /// [`Error::Protocol`] when the result leaves no calibration query or no query
+    /// after it (it must be between 1 and `n_q - 1`).
+    pub fn calibration_size(self, n_q: usize) -> Result<usize> {
+        let n_cal = match self {
+            Split::Fraction(f) => (fraction("cal fraction", f)? * n_q as f64).floor() as usize,
+            Split::Count(n) => count("cal queries", n)?,
+        };
+        if !(1..n_q).contains(&n_cal) {
+            return Err(Error::Protocol(format!(
+                "the calibration set must have between 1 and {} of the {n_q} queries, got {n_cal}",
+                n_q.saturating_sub(1)
+            )));
+        }
+        Ok(n_cal)
+    }
+}
+
 impl Protocol {
     /// Check the parameters that do not depend on the matrix: `k >= 1`, tau in (0, 1],
     /// fractions in (0, 1), counts >= 1.
@@ -220,16 +245,7 @@ impl Protocol {
     pub fn layout(&self, database_size: usize, queries: usize) -> Result<Layout> {
         self.validate()?;
         let n_q = queries;
-        let n_cal = match self.calibration {
-            Split::Fraction(f) => (f * n_q as f64).floor() as usize,
-            Split::Count(n) => n,
-        };
-        if !(1..n_q).contains(&n_cal) {
-            return Err(Error::Protocol(format!(
-                "the calibration set must have between 1 and {} of the {n_q} queries, got {n_cal}",
-                n_q.saturating_sub(1)
-            )));
-        }
+        let n_cal = self.calibration.calibration_size(n_q)?;
         let n_dep = match self.deploy_fraction {
             None => n_q - n_cal,
             Some(f) => {

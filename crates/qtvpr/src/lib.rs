@@ -27,6 +27,7 @@
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
+//! | extension: positions from image names (`@utm_east@utm_north@...@.jpg`) | [`image_names`] |
 //! | file input and output (feature `npy`) | `npy` |
 //! | the names of the matrices errors are about | [`names`] |
 //!
@@ -64,6 +65,7 @@ pub mod deployment;
 mod error;
 pub mod evaluate;
 pub mod ground_truth;
+pub mod image_names;
 pub mod input;
 mod kd_tree;
 pub mod names;
@@ -87,7 +89,7 @@ pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
 pub use online::{Decision, Online, OnlineParams, Outcome};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
-pub use similarity::{cosine_similarity, cosine_similarity_with_progress};
+pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
 
 /// Call generic code on the typed view inside a [`ScoresView`]: `$body` is compiled

@@ -5,11 +5,15 @@
 //! writes. [`cosine_similarity`] turns them into the |DB| x |Q| matrix the rest of the
 //! crate takes: `S[i, j]` is the cosine of database row `i` and query row `j`, i.e. the
 //! dot product of the L2-normalised rows, `normalize(db) @ normalize(q).T` in NumPy.
+//! [`Descriptors`] holds the two descriptor matrices so that the transfer
+//! ([`Calibration::transfer_descriptors`](crate::Calibration::transfer_descriptors))
+//! can compute the similarity chunk by chunk instead: the |DB| x |Q| matrix then never
+//! exists.
 //!
 //! # Arithmetic: f64, rounded once to f32
-//! The rows are normalised into `f64` copies and multiplied by faer's parallel GEMM in
-//! `f64`; each result is rounded once to `f32`, the type of the output. Why `f64`, when
-//! an `f32` GEMM would be about twice as fast:
+//! Each row is normalised into an `f64` copy and the rows are multiplied by faer's GEMM
+//! in `f64`; each result is rounded once to `f32`, the type of the output. Why `f64`,
+//! when an `f32` GEMM would be about twice as fast:
 //! - semantics §1 does all arithmetic on scores in `f64`; the matrix made here is the
 //!   input of that pipeline, and ties or near-ties in it decide best matches.
 //! - The rounding error of an `f32` dot product grows with the descriptor dimension D
@@ -17,24 +21,41 @@
 //!   32768 (NetVLAD, SALAD, BoQ) it approaches the 1e-5 this project promises against
 //!   NumPy. In `f64` the result is the correctly rounded `f32` cosine up to ~1e-15,
 //!   whatever D, whatever the input type, and whatever the thread count.
-//! - Normalising needs a copy of the descriptors anyway (NumPy's `normalize` makes one
-//!   too), so widening while copying costs no extra pass; the copy is |DB|·D + |Q|·D,
-//!   small next to the |DB|·|Q|·D product.
 //!
-//! The product runs in blocks of database rows, so the `f64` scratch stays at 32 MB
-//! whatever the size of the `f32` result.
+//! # One kernel, one shape: the same bits whichever columns are asked for
+//! The product is cut into tiles of [`TILE`] queries (aligned at multiples of [`TILE`]
+//! from query 0) and blocks of [`BLOCK_ROWS`] database rows (aligned from row 0). Each
+//! block is normalised and widened on the fly, and the last tile and block are padded
+//! with zero rows, so that every GEMM call has exactly the same shape
+//! ([`BLOCK_ROWS`] x D times D x [`TILE`]): faer's order of summation could otherwise
+//! depend on the shape. Score `S[i, j]` is therefore always computed by the same call on
+//! the same operands, and [`cosine_similarity`], [`Descriptors::similarity`] of any
+//! range of queries and the fused transfer give identical bits by construction.
+//!
+//! # Checked up front, memory
+//! The descriptors are checked (finite values, no all-zero row) in one cheap pass before
+//! any product, so an error is never reported after minutes of work. Beyond the
+//! descriptors (which may be memory-mapped) and the output, the work takes one `f64`
+//! copy of the query tiles being computed and, per thread, one normalised block of
+//! database rows and one block of results (a few MB).
+
+use std::ops::Range;
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
-use ndarray::{Array2, ArrayView1, ArrayView2};
+use ndarray::{Array2, ArrayView1, ArrayView2, ArrayViewMut2, Axis, ShapeBuilder};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::input::{Score, check_nonempty};
+use crate::input::{Score, ScoresView, check_nonempty};
 use crate::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
 
-/// `f64` elements of the scratch block of the product (32 MB).
-const BLOCK_ELEMENTS: usize = 1 << 22;
+/// Queries per tile of the product: the width of every GEMM call.
+pub const TILE: usize = 64;
+/// Database rows per block of the product: the height of every GEMM call.
+pub const BLOCK_ROWS: usize = 256;
+/// Scores per step of [`cosine_similarity_with_progress`] (about 16 MB of `f32`).
+const STEP_SCORES: usize = 1 << 22;
 
 /// Cosine similarity of every database descriptor with every query descriptor.
 ///
@@ -51,10 +72,10 @@ const BLOCK_ELEMENTS: usize = 1 << 22;
 ///
 /// Errors in `db` are reported before errors in `queries`.
 pub fn cosine_similarity<T: Score, U: Score>(db: ArrayView2<'_, T>, queries: ArrayView2<'_, U>) -> Result<Array2<f32>> {
-    cosine_in_blocks(db, queries, BLOCK_ELEMENTS, |_, _| ())
+    cosine_similarity_with_progress(db, queries, |_, _| ())
 }
 
-/// [`cosine_similarity`], calling `progress(done, total)` after each block of database
+/// [`cosine_similarity`], calling `progress(done, total)` after each step of database
 /// rows: `done` of the `total` = |DB| rows of the result are finished (for a progress
 /// bar; called from the calling thread, not at all when the input is rejected).
 ///
@@ -65,16 +86,40 @@ pub fn cosine_similarity_with_progress<T: Score, U: Score>(
     queries: ArrayView2<'_, U>,
     progress: impl Fn(usize, usize),
 ) -> Result<Array2<f32>> {
-    cosine_in_blocks(db, queries, BLOCK_ELEMENTS, progress)
+    check(db, queries)?;
+    let n_q = queries.nrows();
+    Ok(similarity_in_steps(db, queries, 0..n_q, step_rows(n_q), progress))
 }
 
-/// [`cosine_similarity_with_progress`] with a scratch of `block_elements` (at least one row).
-fn cosine_in_blocks<T: Score, U: Score>(
+/// Database rows per step of a product with `n_cols` query columns: whole blocks of
+/// about [`STEP_SCORES`] scores.
+fn step_rows(n_cols: usize) -> usize {
+    (STEP_SCORES / n_cols.max(1) / BLOCK_ROWS).max(1) * BLOCK_ROWS
+}
+
+/// Columns `cols` of the similarity of checked descriptors, |DB| x `cols.len()` in C
+/// order, computed `step` database rows at a time (a multiple of [`BLOCK_ROWS`]), with
+/// `progress` after each step.
+fn similarity_in_steps<T: Score, U: Score>(
     db: ArrayView2<'_, T>,
     queries: ArrayView2<'_, U>,
-    block_elements: usize,
+    cols: Range<usize>,
+    step: usize,
     progress: impl Fn(usize, usize),
-) -> Result<Array2<f32>> {
+) -> Array2<f32> {
+    let n_db = db.nrows();
+    let mut out = Array2::zeros((n_db, cols.len()));
+    let tiles = QueryTiles::new(queries, cols.clone());
+    for (s, dst) in out.axis_chunks_iter_mut(Axis(0), step).enumerate() {
+        fill(db, s * step, &tiles, dst);
+        progress((s * step + step).min(n_db), n_db);
+    }
+    out
+}
+
+/// Check descriptors before any product: both non-empty, of one dimension, every value
+/// finite and no row all zeros; `db` first, then `queries`, each in row order.
+fn check<T: Score, U: Score>(db: ArrayView2<'_, T>, queries: ArrayView2<'_, U>) -> Result<()> {
     check_nonempty(DB_DESCRIPTORS, db.dim())?;
     check_nonempty(QUERY_DESCRIPTORS, queries.dim())?;
     if queries.ncols() != db.ncols() {
@@ -85,50 +130,22 @@ fn cosine_in_blocks<T: Score, U: Score>(
             other_cols: db.ncols(),
         });
     }
-    let dim = db.ncols();
-    let db_unit = unit_rows(DB_DESCRIPTORS, db)?;
-    let q_unit = unit_rows(QUERY_DESCRIPTORS, queries)?;
-    let (n_db, n_q) = (db.nrows(), queries.nrows());
-    let q_mat = MatRef::from_row_major_slice(&q_unit, n_q, dim);
-
-    // Row-major |DB| x |Q|, filled one block of database rows at a time.
-    let mut out = vec![0.0f32; n_db * n_q];
-    let block_rows = (block_elements / n_q).clamp(1, n_db);
-    let mut scratch = vec![0.0f64; block_rows * n_q];
-    for (b, out_block) in out.chunks_mut(block_rows * n_q).enumerate() {
-        let rows = out_block.len() / n_q;
-        let first = b * block_rows;
-        let lhs = MatRef::from_row_major_slice(&db_unit[first * dim..(first + rows) * dim], rows, dim);
-        let scratch = &mut scratch[..rows * n_q];
-        let dst = MatMut::from_row_major_slice_mut(scratch, rows, n_q);
-        matmul(dst, Accum::Replace, lhs, q_mat.transpose(), 1.0, Par::rayon(0));
-        out_block
-            .par_chunks_mut(n_q)
-            .zip(scratch.par_chunks(n_q))
-            .for_each(|(o, s)| o.iter_mut().zip(s).for_each(|(o, &s)| *o = s as f32));
-        progress(first + rows, n_db);
-    }
-    Ok(Array2::from_shape_vec((n_db, n_q), out).expect("shape matches length"))
+    check_rows(DB_DESCRIPTORS, db)?;
+    check_rows(QUERY_DESCRIPTORS, queries)
 }
 
-/// The rows of `m`, each scaled to unit L2 norm, widened to `f64`, row-major.
-fn unit_rows<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<Vec<f64>> {
-    let dim = m.ncols();
-    let mut unit = vec![0.0; m.nrows() * dim];
-    let errors: Vec<Option<Error>> = unit
-        .par_chunks_mut(dim)
-        .enumerate()
-        .map(|(row, out)| unit_row(what, row, m.row(row), out).err())
-        .collect();
-    match errors.into_iter().flatten().next() {
-        Some(err) => Err(err),
-        None => Ok(unit),
-    }
+/// The first bad row of `m` (by row order), in parallel.
+fn check_rows<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<()> {
+    let first = (0..m.nrows())
+        .into_par_iter()
+        .map(|row| row_scale(what, row, m.row(row)).err())
+        .find_first(Option::is_some)
+        .flatten();
+    first.map_or(Ok(()), Err)
 }
 
-/// Write `x / |x|` into `out`. The norm is taken of `x / max|x|`, so that squares
-/// neither overflow nor underflow whatever the magnitude of the descriptor.
-fn unit_row<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>, out: &mut [f64]) -> Result<()> {
+/// The largest magnitude of row `x`, or why the row has no cosine.
+fn row_scale<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>) -> Result<f64> {
     let mut scale = 0.0f64;
     for (col, v) in x.iter().enumerate() {
         let v = v.to_f64();
@@ -145,12 +162,229 @@ fn unit_row<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>, out:
     if scale == 0.0 {
         return Err(Error::ZeroNorm { what, row });
     }
+    Ok(scale)
+}
+
+/// Write `x / |x|` into `out` (a checked row: finite, not all zeros). The norm is taken
+/// of `x / max|x|`, so that squares neither overflow nor underflow whatever the
+/// magnitude of the descriptor.
+fn unit_row<T: Score>(x: ArrayView1<'_, T>, out: &mut [f64]) {
+    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.to_f64().abs()));
     for (o, v) in out.iter_mut().zip(x.iter()) {
         *o = v.to_f64() / scale;
     }
     let norm = out.iter().map(|v| v * v).sum::<f64>().sqrt();
     out.iter_mut().for_each(|o| *o /= norm);
-    Ok(())
+}
+
+/// The query tiles covering columns `cols`, normalised to `f64`, row-major
+/// [`TILE`] x D each, zero-padded past the last query.
+struct QueryTiles {
+    /// Index of the first tile.
+    first: usize,
+    /// The columns asked for.
+    cols: Range<usize>,
+    /// The tiles, one after the other.
+    unit: Vec<f64>,
+    dim: usize,
+}
+
+impl QueryTiles {
+    fn new<U: Score>(queries: ArrayView2<'_, U>, cols: Range<usize>) -> Self {
+        let dim = queries.ncols();
+        let first = cols.start / TILE;
+        let end = cols.end.div_ceil(TILE).max(first);
+        let mut unit = vec![0.0; (end - first) * TILE * dim];
+        let n_q = queries.nrows();
+        unit.par_chunks_mut(dim).enumerate().for_each(|(r, out)| {
+            let q = first * TILE + r;
+            if q < n_q {
+                unit_row(queries.row(q), out);
+            }
+        });
+        Self { first, cols, unit, dim }
+    }
+
+    /// The number of tiles.
+    fn len(&self) -> usize {
+        self.unit.len() / (TILE * self.dim)
+    }
+
+    /// Tile `t` (counted from the first) as the D x [`TILE`] right-hand side.
+    fn rhs(&self, t: usize) -> MatRef<'_, f64> {
+        let size = TILE * self.dim;
+        MatRef::from_row_major_slice(&self.unit[t * size..(t + 1) * size], TILE, self.dim).transpose()
+    }
+}
+
+/// The kernel: rows `first_row..first_row + dst.nrows()` (`first_row` a multiple of
+/// [`BLOCK_ROWS`]) of the columns `tiles.cols` into `dst` (any layout), in parallel over
+/// blocks of database rows, each normalised once and multiplied by every tile.
+fn fill<T: Score>(db: ArrayView2<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst: ArrayViewMut2<'_, f32>) {
+    let dim = db.ncols();
+    let cols = tiles.cols.clone();
+    let blocks: Vec<ArrayViewMut2<'_, f32>> = dst.axis_chunks_iter_mut(Axis(0), BLOCK_ROWS).collect();
+    blocks.into_par_iter().enumerate().for_each_init(
+        || (vec![0.0f64; BLOCK_ROWS * dim], vec![0.0f64; BLOCK_ROWS * TILE]),
+        |(lhs, prod), (b, mut out)| {
+            let row0 = first_row + b * BLOCK_ROWS;
+            let rows = out.nrows();
+            for (r, unit) in lhs.chunks_mut(dim).enumerate() {
+                if r < rows {
+                    unit_row(db.row(row0 + r), unit);
+                } else {
+                    unit.fill(0.0);
+                }
+            }
+            let lhs = MatRef::from_row_major_slice(lhs, BLOCK_ROWS, dim);
+            for t in 0..tiles.len() {
+                let dst = MatMut::from_row_major_slice_mut(prod, BLOCK_ROWS, TILE);
+                matmul(dst, Accum::Replace, lhs, tiles.rhs(t), 1.0, Par::Seq);
+                // Tile columns that are asked for, as output columns.
+                let q0 = (tiles.first + t) * TILE;
+                let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(cols.end));
+                for r in 0..rows {
+                    for q in lo..hi {
+                        out[[r, q - cols.start]] = prod[r * TILE + q - q0] as f32;
+                    }
+                }
+            }
+        },
+    );
+}
+
+/// Database and query descriptors, checked once, from which the similarity of any range
+/// of queries is computed on demand: what the fused transfer
+/// ([`Calibration::transfer_descriptors`](crate::Calibration::transfer_descriptors)) and
+/// [`Calibration::from_descriptors`](crate::Calibration::from_descriptors) take in place
+/// of a similarity matrix. Nothing is copied: the views may be memory-mapped files.
+///
+/// Columns are computed in tiles aligned at query 0 of `queries` (see the
+/// [module docs](self)), so `similarity(a..b)` is exactly columns `a..b` of
+/// [`cosine_similarity`]`(db, queries)`, whatever `a` and `b`.
+#[derive(Debug, Clone, Copy)]
+pub struct Descriptors<'a> {
+    db: ScoresView<'a>,
+    queries: ScoresView<'a>,
+}
+
+impl<'a> Descriptors<'a> {
+    /// Check `db` (|DB| x D) and `queries` (|Q| x D), `f32` or `f64`, any strides, in one
+    /// pass over each.
+    ///
+    /// # Errors
+    /// As [`cosine_similarity`]: empty, different dimensions, a NaN or infinite value, an
+    /// all-zero row; errors in `db` before errors in `queries`.
+    pub fn new(db: impl Into<ScoresView<'a>>, queries: impl Into<ScoresView<'a>>) -> Result<Self> {
+        let (db, queries) = (db.into(), queries.into());
+        crate::with_scores!(db, |d| crate::with_scores!(queries, |q| check(d, q)))?;
+        Ok(Self { db, queries })
+    }
+
+    /// The database descriptors, |DB| x D.
+    pub fn db(&self) -> ScoresView<'a> {
+        self.db
+    }
+
+    /// The query descriptors, |Q| x D.
+    pub fn queries(&self) -> ScoresView<'a> {
+        self.queries
+    }
+
+    /// The shape of their similarity matrix: (|DB|, |Q|).
+    pub fn shape(&self) -> (usize, usize) {
+        (self.db.dim().0, self.queries.dim().0)
+    }
+
+    /// Columns `queries` of the similarity: |DB| x `queries.len()`, `f32`, C order,
+    /// equal bit for bit to those columns of [`cosine_similarity`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a range that is empty or not within 0..|Q|.
+    pub fn similarity(&self, queries: Range<usize>) -> Result<Array2<f32>> {
+        self.check_range(&queries)?;
+        let step = step_rows(queries.len());
+        Ok(crate::with_scores!(self.db, |d| crate::with_scores!(
+            self.queries,
+            |q| { similarity_in_steps(d, q, queries.clone(), step, |_, _| ()) }
+        )))
+    }
+
+    /// Check that `r` is a non-empty range of queries.
+    pub(crate) fn check_range(&self, r: &Range<usize>) -> Result<()> {
+        let n_q = self.shape().1;
+        if r.is_empty() || r.end > n_q {
+            return Err(Error::param(
+                "queries",
+                format!(
+                    "must be a non-empty range of the {n_q} query descriptors, got {}..{}",
+                    r.start, r.end
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Columns `cols` into `dst` (|DB| x `cols.len()`, any layout).
+    fn fill_columns(&self, cols: Range<usize>, dst: ArrayViewMut2<'_, f32>) {
+        crate::with_scores!(self.db, |d| crate::with_scores!(self.queries, |q| {
+            fill(d, 0, &QueryTiles::new(q, cols), dst)
+        }));
+    }
+}
+
+/// The columns of a range of queries of [`Descriptors`], computed as a transfer asks for
+/// them, chunk after chunk from left to right: the columns of the last tile computed
+/// that the next chunk needs are kept, so each tile is computed once.
+pub(crate) struct DescriptorColumns<'d, 'a> {
+    descriptors: &'d Descriptors<'a>,
+    /// The first query of the range (chunks count from it).
+    offset: usize,
+    /// Column-major |DB| x (end - start): the columns of queries `start..end`.
+    buf: Vec<f32>,
+    start: usize,
+    end: usize,
+}
+
+impl<'d, 'a> DescriptorColumns<'d, 'a> {
+    /// The columns of queries `offset..`.
+    pub(crate) fn new(descriptors: &'d Descriptors<'a>, offset: usize) -> Self {
+        Self {
+            descriptors,
+            offset,
+            buf: Vec::new(),
+            start: offset,
+            end: offset,
+        }
+    }
+
+    /// Columns `r` (counted from the offset), |DB| x `r.len()`, column-major.
+    pub(crate) fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, f32> {
+        let (n_db, n_q) = self.descriptors.shape();
+        let (a, b) = (self.offset + r.start, self.offset + r.end);
+        if (self.start..self.end).contains(&a) {
+            // Keep the columns a..end computed with the last tile.
+            self.buf
+                .copy_within((a - self.start) * n_db..(self.end - self.start) * n_db, 0);
+            self.buf.truncate((self.end - a) * n_db);
+            self.start = a;
+        } else {
+            self.buf.clear();
+            (self.start, self.end) = (a, a);
+        }
+        if b > self.end {
+            let end = (b.div_ceil(TILE) * TILE).min(n_q);
+            self.buf.resize((end - self.start) * n_db, 0.0);
+            let held = (self.end - self.start) * n_db;
+            let dst = ArrayViewMut2::from_shape((n_db, end - self.end).f(), &mut self.buf[held..])
+                .expect("buffer holds the new columns");
+            self.descriptors.fill_columns(self.end..end, dst);
+            self.end = end;
+        }
+        let all =
+            ArrayView2::from_shape((n_db, self.end - self.start).f(), &self.buf[..]).expect("buffer holds its columns");
+        all.slice_move(ndarray::s![.., a - self.start..b - self.start])
+    }
 }
 
 #[cfg(test)]
@@ -160,6 +394,15 @@ mod tests {
 
     fn close(a: f32, b: f64) -> bool {
         (f64::from(a) - b).abs() < 1e-7
+    }
+
+    /// `rows` x `dim` values in [-0.5, 0.5) from a fixed LCG.
+    fn lcg(rows: usize, dim: usize, seed: u64) -> Array2<f32> {
+        let mut x = seed;
+        Array2::from_shape_simple_fn((rows, dim), || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+        })
     }
 
     #[test]
@@ -178,6 +421,9 @@ mod tests {
             }
         }
         assert!(s.is_standard_layout());
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        assert_eq!(d.shape(), (2, 3));
+        assert_eq!(d.similarity(1..3).unwrap(), s.slice(ndarray::s![.., 1..3]));
     }
 
     #[test]
@@ -196,46 +442,53 @@ mod tests {
     }
 
     #[test]
-    fn blocks_of_rows_give_the_same_result() {
-        // 1-D descriptors: every cosine is the product of the signs. Blocks of 1, 2 and
-        // 3 database rows (the last block shorter) must all give the same matrix.
-        let db = array![[2.0f32], [-0.5], [7.0], [-1.0], [3.0]];
-        let q = array![[1.0f64], [-3.0], [0.25]];
-        let want = array![
-            [1.0f32, -1.0, 1.0],
-            [-1.0, 1.0, -1.0],
-            [1.0, -1.0, 1.0],
-            [-1.0, 1.0, -1.0],
-            [1.0, -1.0, 1.0]
-        ];
-        for block in [1, 3, 6, 9, 100] {
+    fn ranges_steps_and_chunks_give_the_same_bits() {
+        // 600 database rows = blocks of 256, 256 and 88; 150 queries = tiles of 64, 64
+        // and 22. However the columns are asked for, each score comes from the same GEMM
+        // call on the same operands, so the bits are those of the whole matrix.
+        let (db, q) = (lcg(600, 7, 1), lcg(150, 7, 2));
+        let full = cosine_similarity(db.view(), q.view()).unwrap();
+        // The cosines are not trivial: they spread over most of [-1, 1].
+        assert!(full.iter().any(|&v| v > 0.8) && full.iter().any(|&v| v < -0.8));
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        for r in [0..150, 10..20, 60..70, 63..129, 64..128, 149..150] {
             assert_eq!(
-                cosine_in_blocks(db.view(), q.view(), block, |_, _| ()).unwrap(),
-                want,
-                "{block}"
+                d.similarity(r.clone()).unwrap(),
+                full.slice(ndarray::s![.., r.clone()]),
+                "{r:?}"
             );
+        }
+        for step in [256, 512, 1024] {
+            assert_eq!(similarity_in_steps(db.view(), q.view(), 0..150, step, |_, _| ()), full);
+        }
+        // Chunks of a transfer over queries 10..150, left to right: the second chunk
+        // reuses the first's tile, the third starts inside the second's last tile.
+        let mut columns = DescriptorColumns::new(&d, 10);
+        for r in [0..5, 5..60, 60..61, 61..140] {
+            let (a, b) = (r.start + 10, r.end + 10);
+            assert_eq!(columns.columns(r), full.slice(ndarray::s![.., a..b]), "{a}..{b}");
         }
     }
 
     #[test]
-    fn progress_after_each_block_of_rows() {
-        // 5 database rows, 3 queries: a scratch of 6 elements holds 6 / 3 = 2 rows, so
-        // blocks of rows 0..2, 2..4, 4..5, reported as 2, 4 and 5 of 5 done.
-        let db = array![[2.0f32], [-0.5], [7.0], [-1.0], [3.0]];
-        let q = array![[1.0f64], [-3.0], [0.25]];
+    fn progress_after_each_step_of_rows() {
+        // 600 database rows in steps of 256: rows 0..256, 256..512, 512..600, reported as
+        // 256, 512 and 600 of 600 done.
+        let (db, q) = (lcg(600, 3, 3), lcg(5, 3, 4));
         let calls = std::cell::RefCell::new(vec![]);
-        let s = cosine_in_blocks(db.view(), q.view(), 6, |done, total| {
+        let s = similarity_in_steps(db.view(), q.view(), 0..5, 256, |done, total| {
             calls.borrow_mut().push((done, total))
         });
-        assert_eq!(s.unwrap(), cosine_similarity(db.view(), q.view()).unwrap());
-        assert_eq!(calls.into_inner(), [(2, 5), (4, 5), (5, 5)]);
-        // The public one: one block of all 5 rows (the scratch holds 2^22 elements).
+        assert_eq!(s, cosine_similarity(db.view(), q.view()).unwrap());
+        assert_eq!(calls.into_inner(), [(256, 600), (512, 600), (600, 600)]);
+        // The public one: steps of 2^22 / 5 scores, rounded down to whole blocks of 256
+        // rows (3276 blocks): one step of all 600 rows.
         let calls = std::cell::RefCell::new(vec![]);
         cosine_similarity_with_progress(db.view(), q.view(), |d, t| calls.borrow_mut().push((d, t))).unwrap();
-        assert_eq!(calls.into_inner(), [(5, 5)]);
+        assert_eq!(calls.into_inner(), [(600, 600)]);
         // Rejected input: no call.
         let calls = std::cell::Cell::new(0);
-        let zero = array![[0.0f32]];
+        let zero = array![[0.0f32, 0.0, 0.0]];
         assert!(cosine_similarity_with_progress(zero.view(), q.view(), |_, _| calls.set(calls.get() + 1)).is_err());
         assert_eq!(calls.get(), 0);
     }
@@ -268,6 +521,14 @@ mod tests {
             err.to_string().split(';').next(),
             Some("query descriptor matrix row 1 is all zeros")
         );
+        // Database errors come first, whatever the queries hold.
+        assert_eq!(
+            Descriptors::new(zero.view(), nan.view()).unwrap_err(),
+            Error::ZeroNorm {
+                what: DB_DESCRIPTORS,
+                row: 1
+            }
+        );
         let inf = array![[1.0f32, f32::NEG_INFINITY]];
         assert_eq!(
             cosine_similarity(good.view(), inf.view()).unwrap_err().to_string(),
@@ -283,5 +544,15 @@ mod tests {
             cosine_similarity(good.view(), no_dims.view()),
             Err(Error::Empty { .. })
         ));
+        let d = Descriptors::new(good.view(), good.view()).unwrap();
+        for r in [1..1, 1..3] {
+            assert_eq!(
+                d.similarity(r.clone()).unwrap_err().to_string(),
+                format!(
+                    "queries must be a non-empty range of the 2 query descriptors, got {}..{}",
+                    r.start, r.end
+                )
+            );
+        }
     }
 }

@@ -11,6 +11,13 @@
 //! chunk holds whole segments and their thresholds are read off the chunk's sorted
 //! copy, so the deployment scores are read once; a larger batch is read again where it
 //! lies. Memory beyond the inputs is the calibration profiles plus one chunk.
+//!
+//! The deployment scores may also come from descriptors
+//! ([`Calibration::transfer_descriptors`]): each chunk's columns are then computed
+//! when the chunk is needed, by the kernel of [`cosine_similarity`](crate::cosine_similarity),
+//! so the |DB| x |Qval| matrix never exists and the result is that of the matrix, bit
+//! for bit. Such a source has no random access, so a chunk then always holds whole
+//! segments (one segment when a segment is larger than the base chunk).
 
 use std::ops::Range;
 
@@ -25,6 +32,7 @@ use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
+use crate::similarity::{DescriptorColumns, Descriptors};
 use crate::subset_quantile::subset_quantile;
 
 /// The paper gives no value of `k`; 10 is this project's default.
@@ -163,7 +171,7 @@ impl Calibration {
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         let ranked = Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?;
         check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
-        Ok(Self::from_ranked(ranked, s, gt.clone(), matching))
+        Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
     }
 
     /// [`Calibration::new`] on labels already known to have the shape of `s`.
@@ -174,14 +182,15 @@ impl Calibration {
     ) -> Result<Self> {
         Ok(Self::from_ranked(
             Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?,
-            s,
+            T::to_matrix(s),
             GroundTruth::from_truth(gt.to_owned()),
             matching,
         ))
     }
 
-    /// Screen `ranked` (screened against zero) against its own mean profile.
-    fn from_ranked<T: Score>(mut ranked: Ranked<T>, s: ArrayView2<'_, T>, gt: GroundTruth, matching: Matching) -> Self {
+    /// Screen `ranked` (screened against zero) against its own mean profile; `scores`
+    /// is the calibration similarity it was ranked from, kept to be saved.
+    fn from_ranked<T: Score>(mut ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
         let reference = Reference::mean_of(&ranked);
         ranked.rescreen(&reference);
         Self {
@@ -189,9 +198,12 @@ impl Calibration {
             cal_spread: ranked.screen().max_spread(),
             profiles: Box::new(ranked),
             reference,
-            candidates: Candidates::new(s, gt.view(), matching),
-            n_db: s.nrows(),
-            scores: T::to_matrix(s),
+            candidates: match &scores {
+                ScoreMatrix::F32(s) => Candidates::new(s.view(), gt.view(), matching),
+                ScoreMatrix::F64(s) => Candidates::new(s.view(), gt.view(), matching),
+            },
+            n_db: scores.dim().0,
+            scores,
             gt,
             defaults: Defaults::default(),
         }
@@ -336,14 +348,104 @@ impl Calibration {
     ) -> Result<Transfer> {
         params.validate()?;
         check_nonempty(DEPLOYMENT_SIMILARITY, s.dim())?;
-        if s.nrows() != self.n_db {
+        self.transfer_from(s, params, progress, chunk_scores)
+    }
+
+    /// Prepare the similarity of query descriptors `queries` of `d` (the calibration
+    /// queries) with their ground truth (|DB| x `queries.len()`): the calibration matrix
+    /// is computed in memory (the calibration holds it anyway), bit for bit as
+    /// [`cosine_similarity`](crate::cosine_similarity) computes those columns.
+    ///
+    /// # Errors
+    /// A range of queries that is empty or beyond |Q| ([`Error::InvalidParameter`]), or
+    /// ground truth of another shape.
+    pub fn from_descriptors(
+        d: &Descriptors<'_>,
+        queries: Range<usize>,
+        gt: &GroundTruth,
+        matching: Matching,
+    ) -> Result<Self> {
+        d.check_range(&queries)?;
+        check_gt_shape(gt, CAL_SIMILARITY, (d.shape().0, queries.len()))?;
+        // The computed matrix becomes the calibration's own copy: no second one.
+        let s = d.similarity(queries)?;
+        let ranked = Ranked::new(CAL_SIMILARITY, s.view(), 0, &Reference::zero(s.nrows()))?;
+        Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
+    }
+
+    /// Transfer thresholds to the deployment queries `queries` of descriptors `d`,
+    /// never holding their |DB| x |Qval| similarity: each chunk of columns is computed
+    /// when the transfer needs it, with the kernel of
+    /// [`cosine_similarity`](crate::cosine_similarity), so the result is exactly
+    /// [`Calibration::transfer`] of `cosine_similarity(db, q)` columns `queries`.
+    /// Segments and query indices count from `queries.start`.
+    ///
+    /// Each chunk holds whole segments (one segment when a segment is larger than the
+    /// base chunk of about 2^22 scores), so memory beyond the descriptors and the
+    /// calibration is one chunk of scores, with its sorted copy.
+    ///
+    /// # Errors
+    /// As [`Calibration::transfer`], and a range of queries that is empty or beyond |Q|.
+    pub fn transfer_descriptors(
+        &self,
+        d: &Descriptors<'_>,
+        queries: Range<usize>,
+        params: &Params,
+    ) -> Result<Transfer> {
+        self.transfer_descriptors_with_progress(d, queries, params, |_, _| ())
+    }
+
+    /// [`Calibration::transfer_descriptors`], calling `progress(done, total)` as
+    /// deployment queries are processed (called from the calling thread).
+    ///
+    /// # Errors
+    /// As [`Calibration::transfer_descriptors`].
+    pub fn transfer_descriptors_with_progress(
+        &self,
+        d: &Descriptors<'_>,
+        queries: Range<usize>,
+        params: &Params,
+        progress: impl Fn(usize, usize),
+    ) -> Result<Transfer> {
+        self.transfer_descriptors_in_chunks(d, queries, params, progress, CHUNK_SCORES)
+    }
+
+    /// The fused transfer, with base chunks of about `chunk_scores` scores.
+    fn transfer_descriptors_in_chunks(
+        &self,
+        d: &Descriptors<'_>,
+        queries: Range<usize>,
+        params: &Params,
+        progress: impl Fn(usize, usize),
+        chunk_scores: usize,
+    ) -> Result<Transfer> {
+        params.validate()?;
+        d.check_range(&queries)?;
+        let columns = Fused {
+            columns: DescriptorColumns::new(d, queries.start),
+            dim: (d.shape().0, queries.len()),
+        };
+        self.transfer_from(columns, params, progress, chunk_scores)
+    }
+
+    /// The transfer, reading deployment scores from `source` in chunks of about
+    /// `chunk_scores` scores.
+    fn transfer_from<S: Deployment>(
+        &self,
+        mut source: S,
+        params: &Params,
+        progress: impl Fn(usize, usize),
+        chunk_scores: usize,
+    ) -> Result<Transfer> {
+        let (n_db, n_val) = source.dim();
+        if n_db != self.n_db {
             return Err(Error::DatabaseMismatch {
                 calibration: self.n_db,
-                deployment: s.nrows(),
+                deployment: n_db,
             });
         }
-        let ranges = segments(s.ncols(), params.segment_size)?;
-        let (n_val, k) = (s.ncols(), params.k.min(self.len()));
+        let ranges = segments(n_val, params.segment_size)?;
+        let k = params.k.min(self.len());
 
         let mut query_quantiles = vec![0.0; n_val];
         let mut query_thresholds = vec![0.0; n_val];
@@ -352,20 +454,23 @@ impl Calibration {
         let mut segments = Vec::with_capacity(ranges.len());
         // Chunks bound the working memory whatever the matrix size. Where segments are
         // smaller, a chunk holds whole segments, whose thresholds are then read off the
-        // chunk's sorted copy while it is at hand: one pass over the data.
+        // chunk's sorted copy while it is at hand: one pass over the data. A source
+        // without random access (descriptors) always works so, a chunk of one segment
+        // when segments are larger.
         let base = (chunk_scores / self.n_db).clamp(16, 4096);
         let segment_size = ranges[0].len();
-        let in_chunks = segment_size <= base;
-        let chunk = if in_chunks {
+        let in_chunks = segment_size <= base || !source.random_access();
+        let chunk = if segment_size <= base {
             base / segment_size * segment_size
+        } else if in_chunks {
+            segment_size
         } else {
             base
         };
         let mut ranked = Ranked::default();
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            let chunk = s.slice(ndarray::s![.., start..end]);
-            let screen = self.rank(&mut ranked, chunk, start)?;
+            let screen = self.rank(&mut ranked, source.columns(start..end), start)?;
             for (j, r) in (start..end).zip(self.queries(&ranked, &screen, k, params.precision)) {
                 neighbours
                     .row_mut(j)
@@ -387,6 +492,7 @@ impl Calibration {
             progress(end, n_val);
         }
         if !in_chunks {
+            let s = source.columns(0..n_val);
             segments = ranges
                 .into_par_iter()
                 .map(|r| {
@@ -402,6 +508,52 @@ impl Calibration {
             query_weights,
             neighbours,
         })
+    }
+}
+
+/// Where a transfer reads its deployment scores: a matrix (random access), or
+/// descriptors whose columns are computed chunk by chunk, left to right.
+trait Deployment {
+    /// The score type.
+    type T: Score;
+    /// (|DB|, |Qval|).
+    fn dim(&self) -> (usize, usize);
+    /// Whether [`Deployment::columns`] may be asked for any columns, any number of
+    /// times, at no cost (a matrix), or only for consecutive chunks (descriptors).
+    fn random_access(&self) -> bool;
+    /// The scores of deployment queries `r`, |DB| x `r.len()`.
+    fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, Self::T>;
+}
+
+impl<T: Score> Deployment for ArrayView2<'_, T> {
+    type T = T;
+    fn dim(&self) -> (usize, usize) {
+        ArrayView2::dim(self)
+    }
+    fn random_access(&self) -> bool {
+        true
+    }
+    fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, T> {
+        self.slice(ndarray::s![.., r])
+    }
+}
+
+/// The deployment similarity of a range of query descriptors.
+struct Fused<'d, 'a> {
+    columns: DescriptorColumns<'d, 'a>,
+    dim: (usize, usize),
+}
+
+impl Deployment for Fused<'_, '_> {
+    type T = f32;
+    fn dim(&self) -> (usize, usize) {
+        self.dim
+    }
+    fn random_access(&self) -> bool {
+        false
+    }
+    fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, f32> {
+        self.columns.columns(r)
     }
 }
 
@@ -585,6 +737,82 @@ mod tests {
                 assert_eq!(calls.get(), 3, "45 queries in chunks of 16 (or 15)");
             }
         }
+    }
+
+    #[test]
+    fn descriptors_give_the_bits_of_their_matrix() {
+        // 40 database and 130 query descriptors (3 tiles of 64) of dimension 5 from a
+        // fixed LCG; the first 23 queries calibrate, 107 deploy. With base chunks of 16
+        // queries (chunk_scores 0), segments of 3 and 7 fit chunks, segments of 20 and
+        // the whole batch of 107 do not: the fused transfer then takes one segment per
+        // chunk where the matrix path reads each segment again where it lies.
+        let mut x = 7u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f64 / 1000.0 - 0.5
+        };
+        let db = Array2::from_shape_fn((40, 5), |_| next());
+        let q = Array2::from_shape_fn((130, 5), |_| next()).mapv(|v| v as f32);
+        let s = crate::cosine_similarity(db.view(), q.view()).unwrap();
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        let gt = GroundTruth::new(Array2::from_shape_fn((40, 23), |(i, j)| i % 23 == j).view()).unwrap();
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Calibration::new(s.slice(ndarray::s![.., ..23]), &gt, matching).unwrap();
+            let fused_cal = Calibration::from_descriptors(&d, 0..23, &gt, matching).unwrap();
+            assert_eq!(fused_cal.scores(), cal.scores());
+            for segment_size in [Some(3), Some(7), Some(20), None] {
+                let p = Params {
+                    k: 4,
+                    precision: 0.8,
+                    segment_size,
+                };
+                let want = cal.transfer(s.slice(ndarray::s![.., 23..]), &p).unwrap();
+                for chunk_scores in [0, usize::MAX] {
+                    let calls = std::cell::RefCell::new(vec![]);
+                    let got = fused_cal
+                        .transfer_descriptors_in_chunks(
+                            &d,
+                            23..130,
+                            &p,
+                            |a, _| calls.borrow_mut().push(a),
+                            chunk_scores,
+                        )
+                        .unwrap();
+                    assert_eq!(got, want, "{matching:?} {segment_size:?} {chunk_scores}");
+                    // Chunks of 16 queries hold 5 segments of 3 (15) or 2 of 7 (14);
+                    // segments of 20 are a chunk each; the batch is one chunk.
+                    let last = calls.borrow().last().copied();
+                    assert_eq!(last, Some(107));
+                    if chunk_scores == 0 {
+                        let first = calls.borrow()[0];
+                        assert_eq!(
+                            first,
+                            [15, 14, 20, 107][[Some(3), Some(7), Some(20), None]
+                                .iter()
+                                .position(|&x| x == segment_size)
+                                .unwrap()]
+                        );
+                    }
+                }
+            }
+        }
+        // Errors: a range beyond the queries, an empty range, another database.
+        let p = params(1, None);
+        let cal = Calibration::from_descriptors(&d, 0..23, &gt, Matching::Single).unwrap();
+        assert_eq!(
+            cal.transfer_descriptors(&d, 100..131, &p).unwrap_err().to_string(),
+            "queries must be a non-empty range of the 130 query descriptors, got 100..131"
+        );
+        assert!(cal.transfer_descriptors(&d, 5..5, &p).is_err());
+        assert!(Calibration::from_descriptors(&d, 0..22, &gt, Matching::Single).is_err());
+        let small = Descriptors::new(db.slice(ndarray::s![..39, ..]), q.view()).unwrap();
+        assert_eq!(
+            cal.transfer_descriptors(&small, 23..130, &p).unwrap_err(),
+            Error::DatabaseMismatch {
+                calibration: 40,
+                deployment: 39
+            }
+        );
     }
 
     #[test]

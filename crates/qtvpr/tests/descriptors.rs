@@ -1,0 +1,145 @@
+//! The similarity from descriptors on real Nordland HOG descriptors (`../shared/data`):
+//! the tiled kernel agrees with the previous one-block implementation to within one
+//! ulp of `f32`, and the fused transfer and calibration (descriptors in, no similarity
+//! matrix) give the bits of `cosine_similarity` followed by the matrix path, for `f32`
+//! and `f64` descriptors, several segment sizes and a calibration split that is not a
+//! multiple of the tile width.
+#![cfg(feature = "npy")]
+
+use std::path::{Path, PathBuf};
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+use ndarray::{Array2, ArrayView2, s};
+use qtvpr::npy::{FloatMatrix, read_float_matrix};
+use qtvpr::similarity::TILE;
+use qtvpr::{Calibration, Descriptors, GroundTruth, Matching, Params, ScoresView, cosine_similarity};
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel)
+}
+
+/// Database (winter) and the first `n_q` query (summer) descriptors, 756-D float32.
+fn nordland(n_q: usize) -> (Array2<f32>, Array2<f32>) {
+    let read = |name: &str| match read_float_matrix(&data(name), FloatMatrix::Descriptors).unwrap().view() {
+        ScoresView::F32(v) => v.to_owned(),
+        ScoresView::F64(_) => panic!("{name} is float32"),
+    };
+    let (db, q) = (
+        read("nordland-hog/db_winter.npy"),
+        read("nordland-hog/query_summer.npy"),
+    );
+    assert_eq!((db.dim(), q.dim()), ((3576, 756), (3576, 756)));
+    (db, q.slice(s![..n_q, ..]).to_owned())
+}
+
+/// The implementation before the tiled kernel: every row normalised into one `f64`
+/// copy, one GEMM of all database rows with all queries.
+fn old_cosine(db: ArrayView2<'_, f32>, q: ArrayView2<'_, f32>) -> Array2<f32> {
+    let unit = |m: ArrayView2<'_, f32>| -> Vec<f64> {
+        let mut out = Vec::with_capacity(m.len());
+        for row in m.rows() {
+            let scale = row.iter().fold(0.0f64, |a, &v| a.max(f64::from(v).abs()));
+            let x: Vec<f64> = row.iter().map(|&v| f64::from(v) / scale).collect();
+            let norm = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            out.extend(x.iter().map(|v| v / norm));
+        }
+        out
+    };
+    let (n_db, n_q, dim) = (db.nrows(), q.nrows(), db.ncols());
+    let (a, b) = (unit(db), unit(q));
+    let mut prod = vec![0.0f64; n_db * n_q];
+    matmul(
+        MatMut::from_row_major_slice_mut(&mut prod, n_db, n_q),
+        Accum::Replace,
+        MatRef::from_row_major_slice(&a, n_db, dim),
+        MatRef::from_row_major_slice(&b, n_q, dim).transpose(),
+        1.0,
+        Par::rayon(0),
+    );
+    Array2::from_shape_vec((n_db, n_q), prod.into_iter().map(|v| v as f32).collect()).unwrap()
+}
+
+#[test]
+fn tiled_kernel_matches_the_previous_implementation() {
+    let (db, q) = nordland(1000);
+    let new = cosine_similarity(db.view(), q.view()).unwrap();
+    let old = old_cosine(db.view(), q.view());
+    // Both round an f64 dot product (error ~1e-15) once to f32, so they can differ
+    // only where the f64 value lies within ~1e-15 of a rounding boundary: by one ulp.
+    let ulps: Vec<u32> = new
+        .iter()
+        .zip(&old)
+        .map(|(a, b)| a.to_bits().abs_diff(b.to_bits()))
+        .collect();
+    assert!(ulps.iter().all(|&u| u <= 1), "max ulps {:?}", ulps.iter().max());
+    let differ = ulps.iter().filter(|&&u| u > 0).count();
+    println!(
+        "{differ} of {} scores differ from the previous kernel's by one ulp",
+        ulps.len()
+    );
+    // 3576 x 1000 scores; at most a handful may land on a boundary.
+    assert!(differ * 10_000 < ulps.len(), "{differ} of {} differ", ulps.len());
+    // The scores are real cosines: HOG descriptors are non-negative, R@1 is low.
+    assert!(new.iter().all(|&v| (0.0..=1.0).contains(&v)));
+}
+
+/// Calibrate on the first `n_cal` queries and transfer to the rest, from the matrix
+/// and from the descriptors: every result bit for bit the same.
+fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize) {
+    let (n_db, n_q) = s.dim();
+    let gt = GroundTruth::new(Array2::from_shape_fn((n_db, n_cal), |(i, j)| i.abs_diff(j) <= 1).view()).unwrap();
+    for matching in [Matching::Single, Matching::Multi] {
+        let cal = Calibration::new(s.slice(s![.., ..n_cal]), &gt, matching).unwrap();
+        let fused = Calibration::from_descriptors(d, 0..n_cal, &gt, matching).unwrap();
+        assert_eq!(fused.scores(), cal.scores());
+        // Segments of 1, of 10 (dividing neither the tile of 64 nor the chunk), of
+        // the tile width, of 100, and one batch of every deployment query.
+        for segment_size in [Some(1), Some(10), Some(TILE), Some(100), None] {
+            let p = Params {
+                k: 10,
+                precision: 1.0,
+                segment_size,
+            };
+            let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
+            let got = fused.transfer_descriptors(d, n_cal..n_q, &p).unwrap();
+            assert_eq!(got, want, "{matching:?} {segment_size:?}");
+            let bits = |t: &qtvpr::Transfer| -> Vec<u64> { t.segments.iter().map(|g| g.threshold.to_bits()).collect() };
+            assert_eq!(bits(&got), bits(&want));
+        }
+    }
+}
+
+#[test]
+fn fused_transfer_gives_the_bits_of_the_matrix_path() {
+    // 600 queries: 137 calibrate (not a multiple of 64, so the deployment queries
+    // start inside a tile), 463 deploy.
+    let (db, q) = nordland(600);
+    let s = cosine_similarity(db.view(), q.view()).unwrap();
+    fused_equals_matrix(&Descriptors::new(db.view(), q.view()).unwrap(), s.view(), 137);
+    // float64 descriptors (the same values widened) give the same f32 scores.
+    let (db64, q64) = (db.mapv(f64::from), q.mapv(f64::from));
+    assert_eq!(cosine_similarity(db64.view(), q64.view()).unwrap(), s);
+    fused_equals_matrix(&Descriptors::new(db64.view(), q64.view()).unwrap(), s.view(), 200);
+}
+
+#[test]
+fn errors_name_the_row() {
+    let (mut db, q) = nordland(10);
+    db.row_mut(17).fill(0.0);
+    let err = Descriptors::new(db.view(), q.view()).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "database descriptor matrix row 17 is all zeros; the cosine similarity of a zero vector is undefined"
+    );
+    let mut q = q;
+    db.row_mut(17).fill(1.0);
+    q[[3, 5]] = f32::NAN;
+    assert_eq!(
+        Descriptors::new(db.view(), q.view()).unwrap_err().to_string(),
+        "query descriptor matrix contains NaN at row 3, column 5; every value must be finite"
+    );
+    assert!(Descriptors::new(db.view(), q.slice(s![.., ..755])).is_err());
+}
