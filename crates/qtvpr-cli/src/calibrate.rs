@@ -4,24 +4,51 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Matching};
+use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::npy::{FloatMatrix, read_float_matrix};
+use qtvpr::{Calibration, Defaults, Descriptors, Matching, Split};
 
 use crate::gt_source::{CalGtSource, GtSource};
-use crate::threshold::MatchingArg;
+use crate::inputs::blame;
+use crate::threshold::{MatchingArg, split_ground_truth};
 use qtvpr::npy::read_scores;
 use qtvpr::with_scores;
 
 /// Arguments of `calibrate`.
 #[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("cal-input").args(["cal", "db_descriptors"]).required(true).multiple(false)))]
+#[command(group(clap::ArgGroup::new("split").args(["cal_queries", "cal_fraction"]).multiple(false).requires("db_descriptors")))]
 pub struct CalibrateArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|.
     #[arg(long, value_name = "S_cal.npy")]
-    cal: PathBuf,
+    cal: Option<PathBuf>,
     /// Calibration ground truth: --cal-gt, --cal-gt-tolerance or --cal-gt-db-positions.
+    /// With descriptors it labels every query descriptor (|DB| x |Q|); only the
+    /// calibration queries' columns are used.
     #[command(flatten)]
     cal_gt: CalGtSource,
+    /// Database descriptors (.npy, float32/float64), |DB| x D, in place of --cal: the
+    /// calibration similarity (cosine of L2-normalised rows, bit for bit as `similarity`
+    /// computes it) is computed in memory, never written.
+    #[arg(
+        long,
+        value_name = "DB.npy",
+        requires = "query_descriptors",
+        conflicts_with = "query_major"
+    )]
+    db_descriptors: Option<PathBuf>,
+    /// Query descriptors (.npy), |Q| x D, with --db-descriptors; every query calibrates
+    /// unless --cal-queries or --cal-fraction says how many of the first ones do.
+    #[arg(long, value_name = "Q.npy", requires = "db_descriptors")]
+    query_descriptors: Option<PathBuf>,
+    /// With descriptors: the first N queries calibrate.
+    #[arg(long, value_name = "N")]
+    cal_queries: Option<usize>,
+    /// With descriptors: the first floor(F x |Q|) queries calibrate.
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    cal_fraction: Option<f64>,
     /// single: one decision per query on its best match; multi: every entry is a candidate.
     #[arg(long, value_enum, default_value_t = MatchingArg::Single)]
     matching: MatchingArg,
@@ -52,9 +79,57 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         window: args.window,
     };
     defaults.validate()?;
+    let split = match (args.cal_queries, args.cal_fraction) {
+        (Some(n), _) => Some((Split::Count(n), "--cal-queries")),
+        (_, Some(f)) => Some((Split::Fraction(f), "--cal-fraction")),
+        _ => None,
+    };
+    if let Some((split, flag)) = split {
+        split.calibration_size(usize::MAX).context(flag)?;
+    }
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
-    let cal = from_matrix(&args.cal, gt_source, Matching::from(args.matching), args.query_major)?;
+    let matching = Matching::from(args.matching);
+    let cal = match (
+        &args.cal,
+        args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref()),
+    ) {
+        (Some(path), _) => from_matrix(path, gt_source, matching, args.query_major)?,
+        (None, Some((db, q))) => from_descriptors(db, q, split, gt_source, matching)?,
+        (None, None) => bail!("give --cal, or --db-descriptors and --query-descriptors"),
+    };
     cal.save(&args.output, &defaults).context("--output")
+}
+
+/// The calibration of the first queries (`split`, or all of them) of descriptor files
+/// `db` and `q`, with ground truth for every query from `gt_source`.
+fn from_descriptors(
+    db: &Path,
+    q: &Path,
+    split: Option<(Split, &str)>,
+    gt_source: GtSource<'_>,
+    matching: Matching,
+) -> Result<Calibration> {
+    let db_file = read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?;
+    let q_file = read_float_matrix(q, FloatMatrix::Descriptors).context("--query-descriptors")?;
+    let sources = [
+        (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
+        (QUERY_DESCRIPTORS, format!("--query-descriptors {}", q.display())),
+    ];
+    let input = || sources.iter().map(|(_, s)| s.as_str()).collect::<Vec<_>>().join(" / ");
+    let d = Descriptors::new(db_file.view(), q_file.view()).map_err(|e| blame(e, &sources))?;
+    let (n_db, n_q) = d.shape();
+    let (n_cal, flag) = match split {
+        Some((split, flag)) => (
+            split
+                .calibration_size(n_q)
+                .with_context(|| format!("{flag} of {}", input()))?,
+            flag,
+        ),
+        None => (n_q, "descriptors"),
+    };
+    let gt = split_ground_truth(gt_source, (n_db, n_q), n_cal, false, flag, &input())?;
+    Calibration::from_descriptors(&d, 0..n_cal, &gt, matching)
+        .with_context(|| format!("{} / {}", input(), gt_source.describe()))
 }
 
 /// The calibration of similarity matrix `--cal PATH` with its ground truth from

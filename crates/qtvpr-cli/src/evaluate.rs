@@ -8,16 +8,19 @@
 //! formats.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::evaluate::{Ablation, Evaluation, MethodResult};
+use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::npy::{FloatMatrix, read_float_matrix};
 use qtvpr::report::Report;
-use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
+use qtvpr::{Descriptors, Matching, Method, Protocol, ScoresView, Split, with_scores};
 
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
+use crate::inputs::blame;
 use crate::output::emit;
 use crate::plot;
 use crate::threshold::MatchingArg;
@@ -29,8 +32,27 @@ pub struct EvaluateArgs {
     /// Similarity matrix (.npy, float32/float64), |DB| x |Q|, with ground truth for
     /// every query. Default: the embedded demo data (VPR-Bench Corridor, AMOSNet,
     /// 111 x 111), printed as a table.
-    #[arg(long, value_name = "S.npy", requires = "gt-source")]
+    #[arg(long, value_name = "S.npy", requires = "gt-source", group = "scores")]
     similarity: Option<PathBuf>,
+    /// Database descriptors (.npy, float32/float64), |DB| x D, in place of
+    /// --similarity: the similarity matrix (cosine of L2-normalised rows, as
+    /// `similarity` computes it) is computed in memory, never written (the protocol
+    /// needs every segment for several methods and the oracle).
+    #[arg(
+        long,
+        value_name = "DB.npy",
+        requires_all = ["gt-source", "query_descriptors"],
+        group = "scores",
+        conflicts_with = "query_major"
+    )]
+    db_descriptors: Option<PathBuf>,
+    /// Query descriptors (.npy), |Q| x D, with --db-descriptors.
+    #[arg(long, value_name = "Q.npy", requires = "db_descriptors")]
+    query_descriptors: Option<PathBuf>,
+    /// With descriptors: sequence-match the similarity over L frames (odd, >= 1) before
+    /// the protocol, as `similarity --sequence L` does.
+    #[arg(long, value_name = "L", allow_negative_numbers = true, requires = "db_descriptors")]
+    sequence: Option<i64>,
     /// Ground truth of --similarity: --gt, --gt-tolerance or --gt-db-positions.
     #[command(flatten)]
     gt: EvalGtSource,
@@ -209,12 +231,36 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         }
     }
 
+    let sequence = args
+        .sequence
+        .map(|length| {
+            let Ok(length) = usize::try_from(length) else {
+                bail!("sequence length must be odd and >= 1, got {length}");
+            };
+            let sequence = qtvpr::Sequence { length, causal: false };
+            sequence.validate()?;
+            Ok(sequence)
+        })
+        .transpose()
+        .context("--sequence")?;
+
     // The scores stay where they are read (memory-mapped) or embedded; `scores` views them.
-    let (file, embedded_scores);
+    let (file, embedded_scores, computed);
     // Embedded data is |DB| x |Q| whatever --query-major says.
     let query_major = args.query_major && args.similarity.is_some();
-    let (dataset, scores, gt, default_format) = match (&args.similarity, args.gt.source()) {
-        (Some(s_path), Some(source)) => {
+    let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
+    let (dataset, scores, gt, default_format) = match (&args.similarity, descriptors, args.gt.source()) {
+        (None, Some((db, q)), Some(source)) => {
+            computed = similarity_of(db, q, sequence)?;
+            let gt = source.load(computed.dim(), false)?;
+            (
+                format!("{} x {}", db.display(), q.display()),
+                ScoresView::F32(computed.view()),
+                gt,
+                EvalFormat::Json,
+            )
+        }
+        (Some(s_path), _, Some(source)) => {
             file = read_scores(s_path).context("--similarity")?;
             let s = file.view().oriented(query_major);
             let gt = source.load(s.dim(), query_major)?;
@@ -231,8 +277,14 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
             )
         }
     };
-    let input = || match (&args.similarity, args.gt.source()) {
-        (Some(s), Some(g)) => format!("--similarity {} / {}", s.display(), g.describe()),
+    let input = || match (&args.similarity, descriptors, args.gt.source()) {
+        (Some(s), _, Some(g)) => format!("--similarity {} / {}", s.display(), g.describe()),
+        (_, Some((db, q)), Some(g)) => format!(
+            "--db-descriptors {} / --query-descriptors {} / {}",
+            db.display(),
+            q.display(),
+            g.describe()
+        ),
         _ => "embedded data".to_string(),
     };
 
@@ -281,6 +333,23 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         EvalFormat::Csv => csv(&runs),
     };
     emit(&text, args.output.as_deref())
+}
+
+/// The similarity of descriptor files `db` and `q`, in memory (the core's kernel, so
+/// the bits of `similarity`'s output), sequence-matched if asked.
+fn similarity_of(db: &Path, q: &Path, sequence: Option<qtvpr::Sequence>) -> Result<ndarray::Array2<f32>> {
+    let db_file = read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?;
+    let q_file = read_float_matrix(q, FloatMatrix::Descriptors).context("--query-descriptors")?;
+    let sources = [
+        (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
+        (QUERY_DESCRIPTORS, format!("--query-descriptors {}", q.display())),
+    ];
+    let d = Descriptors::new(db_file.view(), q_file.view()).map_err(|e| blame(e, &sources))?;
+    let s = d.similarity(0..d.shape().1)?;
+    match sequence {
+        Some(sequence) => Ok(qtvpr::sequence_match(s.view(), sequence).context("--sequence")?),
+        None => Ok(s),
+    }
 }
 
 /// The JSON document: the core's serialisation of the run or the ablation, with the

@@ -1,5 +1,5 @@
-//! `qtvpr-cli ground-truth`: a ground-truth matrix from a frame tolerance or from
-//! positions, written as `.npy` (hard; soft to `--soft-output`) or as a VPR_Tutorial
+//! `qtvpr-cli ground-truth`: a ground-truth matrix from a frame tolerance, from
+//! positions or from image names carrying positions, written as `.npy` (hard; soft to `--soft-output`) or as a VPR_Tutorial
 //! `.npz` (`GThard`, `GTsoft`). The arithmetic is the core's
 //! ([`qtvpr::ground_truth`]).
 
@@ -10,12 +10,13 @@ use clap::{ArgGroup, Args};
 use qtvpr::ground_truth::HardSoft;
 use qtvpr::npy::matrix_shape;
 
-use crate::gt_source::{GtSource, Kind};
+use crate::gt_source::{DEFAULT_IMAGE_RADIUS, GtSource, Kind};
 use crate::matrix_io::{write_npy, write_npz};
 
 /// Arguments of `ground-truth`.
 #[derive(Debug, Args)]
-#[command(group(ArgGroup::new("source").required(true).args(["tolerance", "db_positions"])))]
+#[command(group(ArgGroup::new("source").required(true).args(["tolerance", "db_positions", "db_images"])))]
+#[command(group(ArgGroup::new("places").args(["db_positions", "db_images"])))]
 #[command(group(ArgGroup::new("shape").args(["like", "db_count"])))]
 pub struct GroundTruthArgs {
     /// Frame-aligned traverses (Nordland, SFU, Oxford): database image i matches query j
@@ -42,12 +43,22 @@ pub struct GroundTruthArgs {
     /// Query positions (.npy), |Q| x 2 or |Q| x 3.
     #[arg(long, value_name = "Q.npy", requires = "db_positions")]
     query_positions: Option<PathBuf>,
-    /// Match radius, in the unit of the positions: distance <= R (inclusive).
-    #[arg(long, value_name = "R", allow_negative_numbers = true, requires = "db_positions")]
+    /// Match radius, in the unit of the positions: distance <= R (inclusive). With
+    /// --db-images, in metres, default 25.
+    #[arg(long, value_name = "R", allow_negative_numbers = true, requires = "places")]
     radius: Option<f64>,
     /// Soft ground truth by radius R2 >= R.
-    #[arg(long, value_name = "R2", allow_negative_numbers = true, requires = "radius")]
+    #[arg(long, value_name = "R2", allow_negative_numbers = true, requires = "places")]
     soft_radius: Option<f64>,
+    /// Database images whose names carry UTM positions (@utm_east@utm_north@...@.jpg):
+    /// a directory (its .jpg/.jpeg/.png files at any depth, sorted by path, as
+    /// VPR-methods-evaluation orders its descriptors; or the lines of DIR_images_paths.txt
+    /// next to it) or a text file of one path per line. One row of the output each.
+    #[arg(long, value_name = "LIST", requires = "query_images")]
+    db_images: Option<PathBuf>,
+    /// Query images (a directory or a text file), one column of the output each.
+    #[arg(long, value_name = "LIST", requires = "db_images")]
+    query_images: Option<PathBuf>,
     /// Where to write: GT.npy (bool, |DB| x |Q|; a soft ground truth goes to
     /// --soft-output) or GT.npz (VPR_Tutorial: GThard and, if asked for, GTsoft).
     /// Written atomically.
@@ -103,6 +114,18 @@ fn source(args: &GroundTruthArgs) -> Result<HardSoft> {
             _ => bail!("--tolerance needs the shape |DB| x |Q|: --like S.npy, or --db-count N --query-count M"),
         };
         return source.matrices(Some(shape));
+    }
+    if let (Some(db), Some(queries)) = (&args.db_images, &args.query_images) {
+        let source = GtSource {
+            prefix: "",
+            kind: Kind::Images {
+                db,
+                queries,
+                radius: args.radius.unwrap_or(DEFAULT_IMAGE_RADIUS),
+                soft_radius: args.soft_radius,
+            },
+        };
+        return source.matrices(None);
     }
     let (Some(db), Some(queries), Some(radius)) = (&args.db_positions, &args.query_positions, args.radius) else {
         bail!("--db-positions, --query-positions and --radius go together");

@@ -1,13 +1,16 @@
 //! Where a command's ground truth comes from: a file, a frame tolerance, or positions.
 //!
 //! Ground truth is rarely at hand as a matrix. Every command that needs it takes one of
-//! three sources, exactly one of them (a clap `ArgGroup`):
+//! four sources, exactly one of them (a clap `ArgGroup`):
 //!
 //! | source | options (prefix `P`, e.g. `cal-gt` or `gt`) |
 //! |---|---|
 //! | a file | `--P GT.npy\|GT.npz [--P-soft GTsoft.npy]` |
 //! | frame-aligned traverses, `\|i - j\| <= N` | `--P-tolerance N [--P-soft-tolerance M]` |
 //! | positions, distance `<= R` | `--P-db-positions DB.npy --P-query-positions Q.npy --P-radius R [--P-soft-radius R2]` |
+//! | UTM positions in image names (`@east@north@...@.jpg`), distance `<= R` (default 25) | `--P-db-images LIST --P-query-images LIST [--P-radius R] [--P-soft-radius R2]` |
+//!
+//! A LIST is a directory or a text file of paths ([`qtvpr::image_names::image_paths`]).
 //!
 //! The options are one flattenable clap `Args` struct per prefix, made by
 //! [`gt_source_args!`] (a clap-derive struct cannot take its option names at run time),
@@ -20,10 +23,11 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
-use qtvpr::GroundTruth;
 use qtvpr::ground_truth::{GtSpec, HardSoft, check_radius};
+use qtvpr::image_names::image_paths;
 use qtvpr::names::{DB_POSITIONS, QUERY_POSITIONS};
 use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
+use qtvpr::{GroundTruth, ScoresView};
 
 use crate::inputs::blame;
 
@@ -31,11 +35,14 @@ use crate::inputs::blame;
 /// options under the long-option prefix `$prefix` (see the [module docs](self)).
 /// `$matrix` names the option of the similarity matrix the ground truth labels, for
 /// help texts; `required` says whether one source must be given; `requires` names
-/// the option every source needs.
+/// the option every source needs; `aliases` gives short visible aliases of the
+/// image-list options and the radius (for `evaluate`, whose one ground truth needs no
+/// prefix to be unambiguous).
 macro_rules! gt_source_args {
     (
         $(#[$doc:meta])* $name:ident, $prefix:literal, $matrix:literal,
         required = $required:literal $(, requires = $requires:literal)?
+        $(, aliases = ($db_alias:literal, $q_alias:literal, $radius_alias:literal))?
     ) => {
         $(#[$doc])*
         #[derive(Debug, Clone, clap::Args)]
@@ -44,8 +51,13 @@ macro_rules! gt_source_args {
             clap::ArgGroup::new(concat!($prefix, "-source"))
                 .required($required)
                 .multiple(false)
-                .args(["gt", "gt_tolerance", "gt_db_positions"])
+                .args(["gt", "gt_tolerance", "gt_db_positions", "gt_db_images"])
                 $(.requires($requires))?
+        ))]
+        #[command(group(
+            clap::ArgGroup::new(concat!($prefix, "-places"))
+                .multiple(false)
+                .args(["gt_db_positions", "gt_db_images"])
         ))]
         pub struct $name {
             #[arg(
@@ -101,27 +113,56 @@ macro_rules! gt_source_args {
             gt_query_positions: Option<std::path::PathBuf>,
             #[arg(
                 long = concat!($prefix, "-radius"),
+                $(visible_alias = $radius_alias,)?
                 value_name = "R",
                 allow_negative_numbers = true,
-                requires = "gt_db_positions",
-                help = "Match radius, in the unit of the positions (distance <= R)"
+                requires = concat!($prefix, "-places"),
+                help = concat!(
+                    "Match radius, in the unit of the positions (distance <= R); with --",
+                    $prefix, "-db-images, in metres, default 25"
+                )
             )]
             gt_radius: Option<f64>,
             #[arg(
                 long = concat!($prefix, "-soft-radius"),
                 value_name = "R2",
                 allow_negative_numbers = true,
-                requires = "gt_radius",
+                requires = concat!($prefix, "-places"),
                 help = "Soft ground truth by radius R2 >= R"
             )]
             gt_soft_radius: Option<f64>,
+            #[arg(
+                long = concat!($prefix, "-db-images"),
+                $(visible_alias = $db_alias,)?
+                value_name = "LIST",
+                requires = "gt_query_images",
+                help = concat!(
+                    "Instead of a file: database images whose names carry UTM positions ",
+                    "(@utm_east@utm_north@...@.jpg), one per row of ", $matrix, ": a directory ",
+                    "(its .jpg/.jpeg/.png files at any depth, sorted by path, as ",
+                    "VPR-methods-evaluation orders its descriptors) or a text file of one path per line"
+                )
+            )]
+            gt_db_images: Option<std::path::PathBuf>,
+            #[arg(
+                long = concat!($prefix, "-query-images"),
+                $(visible_alias = $q_alias,)?
+                value_name = "LIST",
+                requires = "gt_db_images",
+                help = concat!("Query images (a directory or a text file), one per column of ", $matrix)
+            )]
+            gt_query_images: Option<std::path::PathBuf>,
         }
 
         impl $name {
             /// The source the options name, if any.
             pub fn source(&self) -> Option<$crate::gt_source::GtSource<'_>> {
                 use $crate::gt_source::{GtSource, Kind};
-                if self.gt.is_none() && self.gt_tolerance.is_none() && self.gt_db_positions.is_none() {
+                if self.gt.is_none()
+                    && self.gt_tolerance.is_none()
+                    && self.gt_db_positions.is_none()
+                    && self.gt_db_images.is_none()
+                {
                     return None;
                 }
                 let kind = if let Some(hard) = &self.gt {
@@ -133,6 +174,14 @@ macro_rules! gt_source_args {
                     Kind::Tolerance {
                         hard,
                         soft: self.gt_soft_tolerance,
+                    }
+                } else if let Some(db) = self.gt_db_images.as_deref() {
+                    // The lists require each other; the radius has a default.
+                    Kind::Images {
+                        db,
+                        queries: self.gt_query_images.as_deref()?,
+                        radius: self.gt_radius.unwrap_or($crate::gt_source::DEFAULT_IMAGE_RADIUS),
+                        soft_radius: self.gt_soft_radius,
                     }
                 } else {
                     // The positions require each other and the radius.
@@ -163,7 +212,8 @@ gt_source_args!(
     "gt",
     "--similarity",
     required = false,
-    requires = "similarity"
+    requires = "scores",
+    aliases = ("db-images", "query-images", "radius")
 );
 
 gt_source_args!(
@@ -175,6 +225,10 @@ gt_source_args!(
     required = false
 );
 
+/// The radius of image-name positions when none is given: 25 m, the positive distance
+/// of VPR-methods-evaluation and the benchmarks it evaluates.
+pub const DEFAULT_IMAGE_RADIUS: f64 = 25.0;
+
 /// One ground-truth source, as given on the command line.
 #[derive(Debug, Clone, Copy)]
 pub struct GtSource<'a> {
@@ -184,7 +238,7 @@ pub struct GtSource<'a> {
     pub kind: Kind<'a>,
 }
 
-/// The three sources.
+/// The four sources.
 #[derive(Debug, Clone, Copy)]
 pub enum Kind<'a> {
     /// `.npy`/`.npz` files.
@@ -206,6 +260,17 @@ pub enum Kind<'a> {
         /// Database positions file.
         db: &'a Path,
         /// Query positions file.
+        queries: &'a Path,
+        /// Hard radius.
+        radius: f64,
+        /// Soft radius.
+        soft_radius: Option<f64>,
+    },
+    /// Positions in image names, within a radius.
+    Images {
+        /// Database image list (a directory or a text file).
+        db: &'a Path,
+        /// Query image list.
         queries: &'a Path,
         /// Hard radius.
         radius: f64,
@@ -237,6 +302,16 @@ impl GtSource<'_> {
                 self.flag("db-positions"),
                 db.display(),
                 self.flag("query-positions"),
+                queries.display(),
+                self.flag("radius")
+            ),
+            Kind::Images {
+                db, queries, radius, ..
+            } => format!(
+                "{} {} / {} {} / {} {radius}",
+                self.flag("db-images"),
+                db.display(),
+                self.flag("query-images"),
                 queries.display(),
                 self.flag("radius")
             ),
@@ -283,27 +358,94 @@ impl GtSource<'_> {
                 radius,
                 soft_radius,
             } => {
-                let (hard_flag, soft_flag) = (self.flag("radius"), self.flag("soft-radius"));
-                check_radius("radius", radius).with_context(|| hard_flag.clone())?;
-                if let Some(soft) = soft_radius {
-                    check_radius("soft radius", soft).with_context(|| soft_flag.clone())?;
-                    check_soft(&hard_flag, radius, &soft_flag, soft)?;
-                }
+                self.check_radii(radius, soft_radius)?;
                 let db_flag = format!("{} {}", self.flag("db-positions"), db.display());
                 let q_flag = format!("{} {}", self.flag("query-positions"), queries.display());
                 let db = read_float_matrix(db, FloatMatrix::Positions).with_context(|| db_flag.clone())?;
                 let queries = read_float_matrix(queries, FloatMatrix::Positions).with_context(|| q_flag.clone())?;
-                let spec = GtSpec::Positions {
-                    db: db.view(),
-                    queries: queries.view(),
+                within(db.view(), queries.view(), radius, soft_radius, shape, [db_flag, q_flag])
+            }
+            Kind::Images {
+                db,
+                queries,
+                radius,
+                soft_radius,
+            } => {
+                self.check_radii(radius, soft_radius)?;
+                let db_flag = format!("{} {}", self.flag("db-images"), db.display());
+                let q_flag = format!("{} {}", self.flag("query-images"), queries.display());
+                let read = |list: &Path, flag: &String| {
+                    image_paths(list)
+                        .and_then(|l| l.positions())
+                        .with_context(|| flag.clone())
+                };
+                let (db, queries) = (read(db, &db_flag)?, read(queries, &q_flag)?);
+                // Name the list whose length is wrong, with both counts, before the
+                // core's message about both.
+                if let Some((n_db, n_q)) = shape {
+                    let rows = self.labelled();
+                    for (flag, n, expected, what) in [
+                        (&db_flag, db.nrows(), n_db, "database images"),
+                        (&q_flag, queries.nrows(), n_q, "queries"),
+                    ] {
+                        if n != expected {
+                            bail!("{flag}: lists {n} images but {rows} has {expected} {what}");
+                        }
+                    }
+                }
+                within(
+                    ScoresView::from(db.view()),
+                    ScoresView::from(queries.view()),
                     radius,
                     soft_radius,
-                };
-                let sources = [(DB_POSITIONS, db_flag), (QUERY_POSITIONS, q_flag)];
-                spec.matrices(shape).map_err(|e| blame(e, &sources))
+                    shape,
+                    [db_flag, q_flag],
+                )
             }
         }
     }
+
+    /// What the ground truth labels, for messages: the similarity matrix (the empty
+    /// prefix of `ground-truth` has none).
+    fn labelled(&self) -> &'static str {
+        match self.prefix {
+            // --cal, or with a split every query of --similarity or the descriptors.
+            "cal-gt" => "the similarity it labels",
+            _ => "the similarity matrix",
+        }
+    }
+
+    /// The radius and soft radius, checked with messages naming the options.
+    fn check_radii(&self, radius: f64, soft_radius: Option<f64>) -> Result<()> {
+        let (hard_flag, soft_flag) = (self.flag("radius"), self.flag("soft-radius"));
+        check_radius("radius", radius).with_context(|| hard_flag.clone())?;
+        if let Some(soft) = soft_radius {
+            check_radius("soft radius", soft).with_context(|| soft_flag.clone())?;
+            check_soft(&hard_flag, radius, &soft_flag, soft)?;
+        }
+        Ok(())
+    }
+}
+
+/// Ground truth within a radius of positions read from the options `flags`
+/// (database, queries), by the core's [`GtSpec::Positions`].
+fn within<'a>(
+    db: ScoresView<'a>,
+    queries: ScoresView<'a>,
+    radius: f64,
+    soft_radius: Option<f64>,
+    shape: Option<(usize, usize)>,
+    flags: [String; 2],
+) -> Result<HardSoft> {
+    let spec = GtSpec::Positions {
+        db,
+        queries,
+        radius,
+        soft_radius,
+    };
+    let [db_flag, q_flag] = flags;
+    let sources = [(DB_POSITIONS, db_flag), (QUERY_POSITIONS, q_flag)];
+    spec.matrices(shape).map_err(|e| blame(e, &sources))
 }
 
 /// A frame count from the command line: negative values are refused here, with the

@@ -5,6 +5,13 @@
 //! holds its ground truth, matching mode and default `k` and precision). The two are
 //! told apart by the file's first bytes, not its name: a zip archive (`PK\x03\x04`) is a
 //! calibration file, anything else is read as a `.npy` matrix.
+//!
+//! In place of `--cal` and `--val`, one `--similarity` matrix or descriptor files
+//! (`--db-descriptors`, `--query-descriptors`) may be split by `--cal-queries` /
+//! `--cal-fraction` (the rule of `evaluate`, [`qtvpr::Split::calibration_size`]): the
+//! first queries calibrate, the rest are thresholded. From descriptors the deployment
+//! similarity is computed chunk by chunk by the core
+//! ([`qtvpr::Calibration::transfer_descriptors`]) and never held whole.
 
 use std::fmt::Write as _;
 use std::io::Read;
@@ -12,10 +19,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Matching, Params, Segment};
+use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::npy::{FloatMatrix, read_float_matrix};
+use qtvpr::{Calibration, Defaults, Descriptors, GroundTruth, Matching, Params, Segment, Split};
 use serde::Serialize;
 
-use crate::gt_source::OptionalCalGtSource;
+use crate::gt_source::{GtSource, Kind, OptionalCalGtSource};
+use crate::inputs::blame;
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
 use qtvpr::npy::read_scores;
@@ -23,19 +33,53 @@ use qtvpr::with_scores;
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("split").args(["cal_queries", "cal_fraction"]).multiple(false)))]
 pub struct ThresholdArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|; or a
     /// calibration file written by `calibrate` (.npz, told apart by its content), which
     /// holds its ground truth, matching mode and default k and precision.
-    #[arg(long, value_name = "S_cal.npy|cal.npz")]
-    cal: PathBuf,
+    #[arg(long, value_name = "S_cal.npy|cal.npz", conflicts_with_all = ["similarity", "split"])]
+    cal: Option<PathBuf>,
     /// Calibration ground truth of a --cal matrix: --cal-gt, --cal-gt-tolerance or
-    /// --cal-gt-db-positions (not with a calibration file).
+    /// --cal-gt-db-positions (not with a calibration file). With --cal-queries or
+    /// --cal-fraction it labels every query (|DB| x |Q|, as `evaluate`'s --gt): only
+    /// the calibration queries' columns are used.
     #[command(flatten)]
     cal_gt: OptionalCalGtSource,
     /// Deployment similarity matrix (.npy), |DB| x |Qval|; needs no ground truth.
-    #[arg(long, value_name = "S_val.npy")]
-    val: PathBuf,
+    #[arg(long, value_name = "S_val.npy", requires = "cal", conflicts_with_all = ["similarity", "db_descriptors"])]
+    val: Option<PathBuf>,
+    /// One similarity matrix (.npy), |DB| x |Q|, in place of --cal and --val: the first
+    /// queries (--cal-queries or --cal-fraction) calibrate, the rest are thresholded.
+    #[arg(long, value_name = "S.npy", requires = "split", conflicts_with = "db_descriptors")]
+    similarity: Option<PathBuf>,
+    /// Database descriptors (.npy, float32/float64), |DB| x D, in place of similarity
+    /// matrices: the similarity (cosine of L2-normalised rows, as `similarity` computes
+    /// it) is computed chunk by chunk and never written. With --cal-queries or
+    /// --cal-fraction the first queries calibrate; with a --cal calibration file every
+    /// query is thresholded.
+    #[arg(
+        long,
+        value_name = "DB.npy",
+        requires = "query_descriptors",
+        conflicts_with = "query_major"
+    )]
+    db_descriptors: Option<PathBuf>,
+    /// Query descriptors (.npy), |Q| x D, with --db-descriptors.
+    #[arg(long, value_name = "Q.npy", requires = "db_descriptors")]
+    query_descriptors: Option<PathBuf>,
+    /// The first N queries of --similarity or of the query descriptors calibrate.
+    #[arg(long, value_name = "N")]
+    cal_queries: Option<usize>,
+    /// The first floor(F x |Q|) queries of --similarity or of the query descriptors
+    /// calibrate (as `evaluate --cal-fraction`).
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    cal_fraction: Option<f64>,
+    /// Not available in `threshold`, which never holds a whole similarity matrix:
+    /// write the sequence-matched matrix with `similarity --sequence L` and pass it as
+    /// --similarity (or --cal and --val), or use `evaluate --sequence L`.
+    #[arg(long, value_name = "L", allow_negative_numbers = true, hide = true)]
+    sequence: Option<i64>,
     /// Calibration queries sampled per deployment query (clipped to |Qcal|). The paper
     /// gives no value; 10 is this project's default [default: 10, or the calibration
     /// file's].
@@ -114,23 +158,66 @@ pub fn is_calibration_file(path: &Path) -> bool {
         && &magic == b"PK\x03\x04"
 }
 
+/// Where the deployment scores come from.
+enum Deployment {
+    /// A matrix (already oriented |DB| x |Q|) and the option that named it.
+    Matrix(qtvpr::npy::Scores, &'static str, PathBuf),
+    /// Database and query descriptors.
+    Descriptors(qtvpr::npy::Scores, qtvpr::npy::Scores),
+}
+
 /// Run `threshold`.
 pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
-    let from_file = is_calibration_file(&args.cal);
+    if args.sequence.is_some() {
+        bail!(
+            "--sequence: `threshold` does not sequence-match, as it never holds the whole similarity \
+             matrix; write the sequence-matched matrix with `qtvpr-cli similarity --sequence L` and pass it \
+             as --similarity (or --cal/--val), or evaluate it with `evaluate --sequence L`"
+        );
+    }
+    let split = match (args.cal_queries, args.cal_fraction) {
+        (Some(n), _) => Some((Split::Count(n), "--cal-queries")),
+        (_, Some(f)) => Some((Split::Fraction(f), "--cal-fraction")),
+        _ => None,
+    };
+    // The split's parameter is checked before any file is read.
+    if let Some((split, flag)) = split {
+        split.calibration_size(usize::MAX).context(flag)?;
+    }
+    let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
+    if args.val.is_none() && args.similarity.is_none() && descriptors.is_none() {
+        bail!(
+            "no deployment similarity: give --cal and --val, one --similarity with --cal-queries or \
+             --cal-fraction, or --db-descriptors and --query-descriptors"
+        );
+    }
+    if split.is_none() && args.cal.is_none() {
+        bail!(
+            "no calibration: give --cal (a similarity matrix or a calibration file), or --cal-queries or \
+             --cal-fraction to calibrate on the first queries of the descriptors"
+        );
+    }
+    let from_file = args.cal.as_deref().is_some_and(is_calibration_file);
     if from_file && let Some(source) = args.cal_gt.source() {
         bail!(
             "{}: --cal {} is a calibration file, which holds its own ground truth; \
              --cal-gt... is only for a --cal similarity matrix (.npy)",
             source.describe(),
-            args.cal.display()
+            args.cal.as_deref().unwrap_or(Path::new("")).display()
         );
     }
     let gt_source = match (from_file, args.cal_gt.source()) {
-        (false, None) => bail!(
-            "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
-             --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
-            args.cal.display()
-        ),
+        (false, None) => match &args.cal {
+            Some(cal) => bail!(
+                "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
+                 --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
+                cal.display()
+            ),
+            None => bail!(
+                "the calibration queries need their ground truth: give --cal-gt, --cal-gt-tolerance or \
+                 --cal-gt-db-positions"
+            ),
+        },
         (_, source) => source,
     };
     // Parameters first, so that a typo fails before any file is read (a calibration
@@ -141,44 +228,111 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         segment_size: args.segment_size,
     };
     params(&Defaults::default()).validate()?;
+    let matching_arg = args.matching.map_or(Matching::Single, Matching::from);
     // Errors about a file's content name the file; the flag says which input it was.
     // The core reports positions and shapes in its |DB| x |Q| views; `oriented` gives
     // them back in the files' orientation.
-    let s_val = read_scores(&args.val).context("--val")?;
-    let s_val = s_val.view().oriented(args.query_major);
-    // The calibration inputs are dropped (and unmapped) once the calibration is built.
-    let cal = match gt_source {
-        None => {
-            let cal = Calibration::load(&args.cal).context("--cal")?;
-            if let Some(m) = args.matching.map(Matching::from)
-                && m != cal.matching()
-            {
-                bail!(
-                    "--matching {}: --cal {} was calibrated for {} matching",
-                    m.as_str(),
-                    args.cal.display(),
-                    cal.matching().as_str()
-                );
-            }
-            cal
+    let deployment = match (&args.val, &args.similarity, descriptors) {
+        (Some(path), _, _) => Deployment::Matrix(read_scores(path).context("--val")?, "--val", path.clone()),
+        (_, Some(path), _) => {
+            Deployment::Matrix(read_scores(path).context("--similarity")?, "--similarity", path.clone())
         }
-        Some(gt_source) => calibrate::from_matrix(
-            &args.cal,
-            gt_source,
-            args.matching.map_or(Matching::Single, Matching::from),
-            args.query_major,
-        )?,
+        (_, _, Some((db, q))) => Deployment::Descriptors(
+            read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?,
+            read_float_matrix(q, FloatMatrix::Descriptors).context("--query-descriptors")?,
+        ),
+        _ => unreachable!("checked above"),
+    };
+    let sources = descriptors.map(|(db, q)| {
+        [
+            (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
+            (QUERY_DESCRIPTORS, format!("--query-descriptors {}", q.display())),
+        ]
+    });
+    let fused = match &deployment {
+        Deployment::Descriptors(db, q) => {
+            Some(Descriptors::new(db.view(), q.view()).map_err(|e| blame(e, sources.as_ref().expect("descriptors")))?)
+        }
+        Deployment::Matrix(..) => None,
+    };
+    let scores = match &deployment {
+        Deployment::Matrix(s, ..) => Some(s.view().oriented(args.query_major)),
+        Deployment::Descriptors(..) => None,
+    };
+    let (n_db, n_q) = fused.map_or_else(|| scores.expect("a matrix").dim(), |d| d.shape());
+    let input = || match &deployment {
+        Deployment::Matrix(_, flag, path) => format!("{flag} {}", path.display()),
+        Deployment::Descriptors(..) => sources
+            .iter()
+            .flatten()
+            .map(|(_, s)| s.as_str())
+            .collect::<Vec<_>>()
+            .join(" / "),
+    };
+
+    // The calibration, and the deployment queries: all of them, or those after the split.
+    let (cal, queries) = match split {
+        Some((split, flag)) => {
+            let n_cal = split
+                .calibration_size(n_q)
+                .with_context(|| format!("{flag} of {}", input()))?;
+            let gt_source = gt_source.expect("a split needs ground truth, checked above");
+            let gt_cal = split_ground_truth(gt_source, (n_db, n_q), n_cal, args.query_major, flag, &input())?;
+            let cal = match (fused, scores) {
+                (Some(d), _) => Calibration::from_descriptors(&d, 0..n_cal, &gt_cal, matching_arg),
+                (_, Some(s)) => with_scores!(s, |v| Calibration::new(
+                    v.slice(ndarray::s![.., ..n_cal]),
+                    &gt_cal,
+                    matching_arg
+                ))
+                .map_err(|e| e.oriented(args.query_major)),
+                _ => unreachable!("one source"),
+            }
+            .with_context(|| format!("{} / {}", input(), gt_source.describe()))?;
+            (cal, n_cal..n_q)
+        }
+        None => {
+            let cal_path = args.cal.as_deref().expect("checked above");
+            let cal = match gt_source {
+                None => {
+                    let cal = Calibration::load(cal_path).context("--cal")?;
+                    if let Some(m) = args.matching.map(Matching::from)
+                        && m != cal.matching()
+                    {
+                        bail!(
+                            "--matching {}: --cal {} was calibrated for {} matching",
+                            m.as_str(),
+                            cal_path.display(),
+                            cal.matching().as_str()
+                        );
+                    }
+                    cal
+                }
+                Some(gt_source) => calibrate::from_matrix(cal_path, gt_source, matching_arg, args.query_major)?,
+            };
+            (cal, 0..n_q)
+        }
     };
     let matching = cal.matching();
     let params = params(cal.defaults());
-    let bar = progress::bar(global.quiet, s_val.dim().1, "deployment queries");
-    let transfer = with_scores!(s_val, |v| cal
-        .transfer_with_progress(v, &params, |done, _| bar.set_position(done as u64)))
-    .map_err(|e| query_major_hint(e.oriented(args.query_major), args.query_major))
-    .with_context(|| format!("--val {}", args.val.display()))?;
+    let n_val = queries.len();
+    let bar = progress::bar(global.quiet, n_val, "deployment queries");
+    let progress = |done: usize, _| bar.set_position(done as u64);
+    let transfer = match (fused, scores) {
+        (Some(d), _) => cal
+            .transfer_descriptors_with_progress(&d, queries, &params, progress)
+            .map_err(|e| blame(e, sources.as_ref().expect("descriptors"))),
+        (_, Some(s)) => with_scores!(s, |v| cal.transfer_with_progress(
+            v.slice(ndarray::s![.., queries.clone()]),
+            &params,
+            progress
+        ))
+        .map_err(|e| query_major_hint(e.oriented(args.query_major), args.query_major)),
+        _ => unreachable!("one source"),
+    }
+    .with_context(input)?;
     bar.finish_and_clear();
 
-    let (n_db, n_val) = s_val.dim();
     let report = Report {
         method: "quantile-transfer",
         params: ReportParams {
@@ -204,6 +358,40 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         }
     };
     emit(&text, args.output.as_deref())
+}
+
+/// The ground truth of the first `n_cal` of the queries of a |DB| x |Q| similarity of
+/// shape `shape`, split by `flag`: `source` labels every query (a tolerance makes just
+/// the columns needed); `input` names the similarity in errors.
+pub fn split_ground_truth(
+    source: GtSource<'_>,
+    (n_db, n_q): (usize, usize),
+    n_cal: usize,
+    query_major: bool,
+    flag: &str,
+    input: &str,
+) -> Result<GroundTruth> {
+    if let Kind::Tolerance { .. } = source.kind {
+        return source.load((n_db, n_cal), query_major);
+    }
+    let gt = source.load((n_db, n_q), query_major)?;
+    if gt.dim() != (n_db, n_q) {
+        let (r, c) = oriented_shape(gt.dim(), query_major);
+        let (sr, sc) = oriented_shape((n_db, n_q), query_major);
+        bail!(
+            "{}: ground truth shape {r}x{c} does not match the {sr}x{sc} similarity of {input}; with {flag} \
+             the calibration ground truth labels every query, and its first {n_cal} columns are used",
+            source.describe()
+        );
+    }
+    Ok(GroundTruth::from_truth(
+        gt.view().slice(ndarray::s![.., ..n_cal]).to_owned(),
+    ))
+}
+
+/// A shape as the user's files have it: transposed for `query_major`.
+fn oriented_shape((r, c): (usize, usize), query_major: bool) -> (usize, usize) {
+    if query_major { (c, r) } else { (r, c) }
 }
 
 /// A database mismatch of files not declared query-major is often a pair of query-major
