@@ -24,7 +24,9 @@ def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
         ["Calibration", "Online", "OnlineDecision", "OnlineDecisions", "TransferResult", "__version__", "ablation",
          "best_threshold", "counts", "evaluate", "quantile_transfer", "ranked_correlation", "schubert_threshold"]
-        + ["cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "sequence_match"]  # extensions
+        # extensions
+        + ["Descriptors", "cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "image_paths",
+           "sequence_match", "utm_positions"]
     )
     for name in qtvpr.__all__:
         assert hasattr(qtvpr, name), name

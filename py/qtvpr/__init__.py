@@ -46,9 +46,11 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 # The paper's functions, and extensions that meet users where their data is
-# (cosine_similarity, sequence_match, ground_truth_*: descriptors, positions, tolerance).
+# (cosine_similarity, sequence_match, ground_truth_*, utm_positions, image_paths:
+# descriptors, positions, tolerance, image names).
 from qtvpr._native import (
     Calibration,
+    Descriptors,
     Online,
     OnlineDecision,
     OnlineDecisions,
@@ -61,14 +63,17 @@ from qtvpr._native import (
     evaluate,
     ground_truth_positions,
     ground_truth_tolerance,
+    image_paths,
     quantile_transfer,
     ranked_correlation,
     schubert_threshold,
     sequence_match,
+    utm_positions,
 )
 
 __all__ = [
     "Calibration",
+    "Descriptors",
     "Online",
     "OnlineDecision",
     "OnlineDecisions",
@@ -84,8 +89,10 @@ __all__ = [
     "cosine_similarity",
     "ground_truth_positions",
     "ground_truth_tolerance",
+    "image_paths",
     "sequence_match",
     "schubert_threshold",
+    "utm_positions",
 ]
 
 if TYPE_CHECKING:

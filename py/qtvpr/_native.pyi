@@ -21,10 +21,13 @@ __all__ = [
     "sequence_match",
     "ground_truth_tolerance",
     "ground_truth_positions",
+    "utm_positions",
+    "image_paths",
     "evaluate",
     "schubert_threshold",
     "ablation",
     "Calibration",
+    "Descriptors",
     "TransferResult",
     "Online",
     "OnlineDecision",
@@ -127,12 +130,40 @@ class TransferResult:
     def query_weights(self) -> NDArray[np.float64]: ...
     @property
     def neighbours(self) -> NDArray[np.int64]: ...
+    @staticmethod
+    def _from_parts(
+        thresholds: NDArray[np.float64],
+        quantiles: NDArray[np.float64],
+        segments: Sequence[tuple[int, int]],
+        query_quantiles: NDArray[np.float64],
+        query_thresholds: NDArray[np.float64],
+        query_weights: NDArray[np.float64],
+        neighbours: NDArray[np.int64],
+    ) -> TransferResult: ...
+
+@final
+class Descriptors:
+    def __new__(
+        cls,
+        db: _Matrix,
+        queries: _Matrix,
+        *,
+        start: int = 0,
+        stop: int | None = None,
+    ) -> Descriptors: ...
+    @property
+    def shape(self) -> tuple[int, int]: ...
+    @property
+    def start(self) -> int: ...
+    @property
+    def stop(self) -> int: ...
+    def similarity(self) -> NDArray[np.float32]: ...
 
 @final
 class Calibration:
     def __new__(
         cls,
-        s_cal: _Matrix,
+        s_cal: _Matrix | Descriptors,
         gt_cal: _Matrix,
         *,
         gt_soft: _Matrix | None = None,
@@ -141,7 +172,7 @@ class Calibration:
     ) -> Calibration: ...
     def transfer(
         self,
-        s_val: _Matrix,
+        s_val: _Matrix | Descriptors,
         *,
         k: int = 10,
         precision: float = 1.0,
@@ -221,6 +252,18 @@ class OnlineDecisions:
     def accept(self) -> NDArray[np.bool_] | None: ...
     @property
     def accepted(self) -> NDArray[np.int64] | None: ...
+    @staticmethod
+    def _from_parts(
+        queries: NDArray[np.int64],
+        query_quantiles: NDArray[np.float64],
+        weights: NDArray[np.float64],
+        quantiles: NDArray[np.float64],
+        thresholds: NDArray[np.float64],
+        best: NDArray[np.int64] | None,
+        score: NDArray[np.float64] | None,
+        accept: NDArray[np.bool_] | None,
+        accepted: NDArray[np.int64] | None,
+    ) -> OnlineDecisions: ...
     def __len__(self) -> int: ...
 
 @final
@@ -312,9 +355,11 @@ def ground_truth_positions(
     query_positions: _Matrix,
     radius: float,
 ) -> NDArray[np.bool_]: ...
+def utm_positions(paths: Sequence[str | os.PathLike[str]]) -> NDArray[np.float64]: ...
+def image_paths(source: str | os.PathLike[str]) -> list[str]: ...
 def schubert_threshold(s: _Matrix) -> float: ...
 def evaluate(
-    s: _Matrix,
+    s: _Matrix | Descriptors,
     gt: _Matrix,
     *,
     gt_soft: _Matrix | None = None,

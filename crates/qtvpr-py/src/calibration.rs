@@ -4,11 +4,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use qtvpr::{Defaults, Matching, Params};
 
 use crate::convert::{GroundTruthArgs, Scores, count};
+use crate::descriptors::PyDescriptors;
 use crate::error::Args;
 use qtvpr::with_scores;
 
@@ -81,6 +83,21 @@ impl PyCalibration {
             query_major,
         };
         let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
+        if let Ok(d) = s_cal.cast::<PyDescriptors>() {
+            if query_major {
+                return Err(PyValueError::new_err(
+                    "query_major=True does not apply to Descriptors, whose similarity is |DB| x |Q|",
+                ));
+            }
+            let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
+            let gt = gt.view(false);
+            let gt = py.detach(|| gt.build())?;
+            let inner = d
+                .get()
+                .with(py, |d, r| qtvpr::Calibration::from_descriptors(d, r, &gt, matching))?
+                .map_err(|e| args.error(e))?;
+            return Ok(Self { inner: Arc::new(inner) });
+        }
         let s = Scores::extract("s_cal", s_cal)?;
         let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
         let (s, gt) = (s.view(query_major), gt.view(query_major));
@@ -212,6 +229,18 @@ impl PyCalibration {
             segment_size: segment_size.map(|m| count("segment_size", m)).transpose()?,
         };
         params.validate().map_err(|e| args.error(e))?;
+        if let Ok(d) = s_val.cast::<PyDescriptors>() {
+            if query_major {
+                return Err(PyValueError::new_err(
+                    "query_major=True does not apply to Descriptors, whose similarity is |DB| x |Q|",
+                ));
+            }
+            let out = d
+                .get()
+                .with(py, |d, r| self.inner.transfer_descriptors(d, r, &params))?
+                .map_err(|e| args.error(e))?;
+            return Ok(TransferResult::new(py, out));
+        }
         let s = Scores::extract("s_val", s_val)?;
         let s = s.view(query_major);
         let out = py
@@ -306,6 +335,49 @@ impl TransferResult {
 
 #[pymethods]
 impl TransferResult {
+    /// A result from its fields, as the properties return them (what ``qtvpr.dask``
+    /// assembles from the results of its blocks). The arrays are kept, not copied.
+    ///
+    /// Raises ``TypeError`` for an array of another dtype or dimension, and
+    /// ``ValueError`` when the per-segment fields (``thresholds``, ``quantiles``,
+    /// ``segments``) or the per-query fields (``query_quantiles``,
+    /// ``query_thresholds``, ``query_weights``, the rows of ``neighbours``) differ in
+    /// length.
+    #[staticmethod]
+    #[pyo3(signature = (thresholds, quantiles, segments, query_quantiles, query_thresholds, query_weights, neighbours))]
+    fn _from_parts(
+        thresholds: Bound<'_, PyArray1<f64>>,
+        quantiles: Bound<'_, PyArray1<f64>>,
+        segments: Vec<(usize, usize)>,
+        query_quantiles: Bound<'_, PyArray1<f64>>,
+        query_thresholds: Bound<'_, PyArray1<f64>>,
+        query_weights: Bound<'_, PyArray1<f64>>,
+        neighbours: Bound<'_, PyArray2<i64>>,
+    ) -> PyResult<Self> {
+        let per_segment = [thresholds.len(), quantiles.len(), segments.len()];
+        let per_query = [
+            query_quantiles.len(),
+            query_thresholds.len(),
+            query_weights.len(),
+            neighbours.shape()[0],
+        ];
+        if per_segment.iter().any(|&n| n != per_segment[0]) || per_query.iter().any(|&n| n != per_query[0]) {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "TransferResult parts differ in length: thresholds, quantiles, segments {per_segment:?}; \
+                 query_quantiles, query_thresholds, query_weights, neighbours rows {per_query:?}"
+            )));
+        }
+        Ok(Self {
+            thresholds: thresholds.unbind(),
+            quantiles: quantiles.unbind(),
+            segments,
+            query_quantiles: query_quantiles.unbind(),
+            query_thresholds: query_thresholds.unbind(),
+            query_weights: query_weights.unbind(),
+            neighbours: neighbours.unbind(),
+        })
+    }
+
     /// ``TransferResult(segments=89, queries=3204, k=10, thresholds=[0.881, 0.878, 0.879, ...])``:
     /// the counts and the first thresholds, each to 6 significant digits, so that a
     /// result of thousands of segments prints on one line.

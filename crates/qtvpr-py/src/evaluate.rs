@@ -11,6 +11,7 @@ use qtvpr::report::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
 use crate::convert::{GroundTruthArgs, Scores, count};
+use crate::descriptors::PyDescriptors;
 use crate::error::Args;
 use qtvpr::with_scores;
 
@@ -168,6 +169,26 @@ pub(crate) fn evaluate<'py>(
     deploy_fraction: Option<f64>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // Descriptors: the matrix is built in memory (the protocol needs all of it).
+    if let Ok(d) = s.cast::<PyDescriptors>() {
+        let m = d.get().similarity(py)?;
+        return evaluate(
+            py,
+            m.as_any(),
+            gt,
+            gt_soft,
+            methods,
+            k,
+            precision,
+            matching,
+            cal_fraction,
+            cal_queries,
+            segment_fraction,
+            segment_size,
+            deploy_fraction,
+            query_major,
+        );
+    }
     let Setup {
         methods,
         protocol,

@@ -12,9 +12,11 @@
 
 mod calibration;
 mod convert;
+mod descriptors;
 mod error;
 mod evaluate;
 mod ground_truth;
+mod image_names;
 mod online;
 mod similarity;
 
@@ -217,9 +219,12 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(similarity::sequence_match, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_tolerance, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_positions, m)?)?;
+    m.add_function(wrap_pyfunction!(image_names::utm_positions, m)?)?;
+    m.add_function(wrap_pyfunction!(image_names::image_paths, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::ablation, m)?)?;
     m.add_function(wrap_pyfunction!(schubert_threshold, m)?)?;
+    m.add_class::<descriptors::PyDescriptors>()?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
     m.add_class::<online::PyOnline>()?;

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use numpy::PyArray1;
+use numpy::{PyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use qtvpr::{Decision, Error, OnlineParams, Outcome};
@@ -374,6 +374,59 @@ impl OnlineDecisions {
 
 #[pymethods]
 impl OnlineDecisions {
+    /// Decisions from their fields, as the properties return them (what ``qtvpr.dask``
+    /// assembles from the results of its blocks). The arrays are kept, not copied.
+    /// ``best``, ``score`` and ``accept`` are given together (single matching) or
+    /// ``accepted`` alone (multi matching).
+    ///
+    /// Raises ``TypeError`` for an array of another dtype or dimension, and
+    /// ``ValueError`` for arrays of different lengths or another combination of the
+    /// optional fields.
+    #[staticmethod]
+    #[pyo3(signature = (queries, query_quantiles, weights, quantiles, thresholds, best, score, accept, accepted))]
+    #[allow(clippy::too_many_arguments)]
+    fn _from_parts(
+        queries: Bound<'_, PyArray1<i64>>,
+        query_quantiles: Bound<'_, PyArray1<f64>>,
+        weights: Bound<'_, PyArray1<f64>>,
+        quantiles: Bound<'_, PyArray1<f64>>,
+        thresholds: Bound<'_, PyArray1<f64>>,
+        best: Option<Bound<'_, PyArray1<i64>>>,
+        score: Option<Bound<'_, PyArray1<f64>>>,
+        accept: Option<Bound<'_, PyArray1<bool>>>,
+        accepted: Option<Bound<'_, PyArray1<i64>>>,
+    ) -> PyResult<Self> {
+        let len = queries.len();
+        let mut lengths = vec![query_quantiles.len(), weights.len(), quantiles.len(), thresholds.len()];
+        match (&best, &score, &accept, &accepted) {
+            (Some(b), Some(s), Some(a), None) => lengths.extend([b.len(), s.len(), a.len()]),
+            (None, None, None, Some(n)) => lengths.push(n.len()),
+            _ => {
+                return Err(PyValueError::new_err(
+                    "OnlineDecisions parts: give best, score and accept (single matching) or accepted alone \
+                     (multi matching)",
+                ));
+            }
+        }
+        if lengths.iter().any(|&n| n != len) {
+            return Err(PyValueError::new_err(format!(
+                "OnlineDecisions parts differ in length: queries {len}, the others {lengths:?}"
+            )));
+        }
+        Ok(Self {
+            queries: queries.unbind(),
+            query_quantiles: query_quantiles.unbind(),
+            weights: weights.unbind(),
+            quantiles: quantiles.unbind(),
+            thresholds: thresholds.unbind(),
+            best: best.map(Bound::unbind),
+            score: score.map(Bound::unbind),
+            accept: accept.map(Bound::unbind),
+            accepted: accepted.map(Bound::unbind),
+            len,
+        })
+    }
+
     fn __len__(&self) -> usize {
         self.len
     }
