@@ -32,7 +32,7 @@ rm -rf "$target/test-wheels"
 "$venv/bin/maturin" build --quiet --locked --profile dev --interpreter "$venv/bin/python" --out "$target/test-wheels"
 wheel=$(ls "$target"/test-wheels/qtvpr-*.whl)
 pip=("$venv/bin/python" -m pip install --quiet --disable-pip-version-check)
-"${pip[@]}" "$wheel[test,lint]"                   # the test and lint dependencies
+"${pip[@]}" "$wheel[test,lint,dask]"              # the test, lint and Dask (qtvpr.dask) dependencies
 "${pip[@]}" --force-reinstall --no-deps "$wheel"   # this build, even if the version is unchanged
 
 step "stubtest and ruff"

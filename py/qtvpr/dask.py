@@ -1,0 +1,325 @@
+"""Quantile transfer on Dask: the same results as one machine, block-parallel.
+
+A deployment similarity matrix too large for one machine (millions of database images,
+tens of thousands of queries), held as a :class:`dask.array.Array` over chunked
+storage (zarr) or computed lazily (``db_desc @ q_desc.T`` of two Dask descriptor
+arrays, so that it is never stored), is thresholded by a Dask cluster:
+
+- :func:`transfer` is :meth:`qtvpr.Calibration.transfer`: each block holds whole
+  segments (a segment's threshold depends only on its own columns), and
+- :func:`online` is :meth:`qtvpr.Online.push_many` on a fresh state: each block is
+  preceded by the ``window - 1`` queries before it (a query's threshold depends only on
+  its last ``window`` queries).
+
+Both return the one-machine object (:class:`qtvpr.TransferResult`,
+:class:`qtvpr.OnlineDecisions`), equal to it bit for bit, and raise its errors with its
+messages (a NaN at deployment query j names column j of the whole matrix, not of its
+block). The calibration is sent to the workers once (scattered to every worker when a
+:class:`distributed.Client` is active, else one task of the graph), not once per block.
+
+Blocks: the query axis of ``s_val`` keeps the input's chunks (:func:`online`), or is cut
+into blocks of whole segments of about the input's chunk size (:func:`transfer`); the
+database axis is merged into one chunk per block, since a query's threshold needs all of
+its |DB| scores. A block therefore needs ``|DB| x block`` scores of memory on its worker:
+choose the query chunks accordingly (``s_val.rechunk({1: n})``).
+
+Computation runs on the current Dask scheduler (the active ``Client``, if any) and blocks
+until the result is assembled on the caller's machine.
+
+Needs the ``dask`` extra: ``pip install "qtvpr[dask]"``.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable
+from typing import Any
+
+try:
+    import dask
+    import dask.array as da
+except ImportError as err:  # pragma: no cover - exercised only without the extra
+    raise ImportError(
+        'qtvpr.dask needs Dask: pip install "qtvpr[dask]" (dask[array] and distributed)'
+    ) from err
+
+import numpy as np
+
+from qtvpr._native import Calibration, Online, OnlineDecisions, TransferResult
+
+__all__ = ["online", "transfer"]
+
+# A block's result, or the exception it raised: (class, message).
+_Part = dict[str, Any]
+
+
+def transfer(
+    calibration: Calibration,
+    s_val: da.Array,
+    *,
+    k: int = 10,
+    precision: float = 1.0,
+    segment_size: int | None = None,
+    query_major: bool = False,
+) -> TransferResult:
+    """:meth:`qtvpr.Calibration.transfer` of a Dask array, block-parallel.
+
+    ``s_val`` is the |DB| x |Qval| deployment similarity (|Qval| x |DB| with
+    ``query_major=True``), a :class:`dask.array.Array` of float32 or float64, possibly
+    lazy. The query axis is cut into blocks of whole segments of ``segment_size``
+    queries, about as long as its largest chunk (at least one segment); each block is
+    one task that runs the compiled transfer on it, and the results are assembled into
+    the :class:`qtvpr.TransferResult` of ``calibration.transfer(s_val.compute(), ...)``,
+    identical to it. Without a segment size the whole deployment set is one segment,
+    hence one task.
+
+    Raises what :meth:`qtvpr.Calibration.transfer` raises on the whole matrix, with the
+    same messages (positions in the whole matrix), and ``TypeError`` when ``s_val`` is
+    not a Dask array.
+    """
+    s_val = _check_array(s_val)
+    n_db, n = _oriented_shape(s_val, query_major)
+    args: dict[str, Any] = {"k": k, "precision": precision, "query_major": query_major}
+    if n_db == 0 or n == 0 or not _fits(segment_size, n):
+        # Errors found before any score is read (the segment size is checked against
+        # the number of queries, not a block's): the compiled call raises them on a
+        # stand-in of no memory, in the one-machine order.
+        calibration.transfer(_stand_in(s_val), segment_size=segment_size, **args)
+    if segment_size is None:
+        starts = [0]
+    else:
+        per_block = segment_size * max(1, round(_largest_chunk(s_val, query_major) / segment_size))
+        starts = list(range(0, n, per_block))
+    bounds = list(zip(starts, [*starts[1:], n], strict=True))
+    cal = _send(calibration)
+    tasks = []
+    for start, end in bounds:
+        # A shorter last block is the last segment, kept whole.
+        size = segment_size if segment_size is not None and end - start >= segment_size else None
+        block = _block(s_val, start, end, query_major)
+        tasks.append(dask.delayed(_transfer_block)(cal, block, start, size, args))
+    parts = _computed(tasks)
+    return TransferResult._from_parts(
+        np.concatenate([p["thresholds"] for p in parts]),
+        np.concatenate([p["quantiles"] for p in parts]),
+        [(a + start, b + start) for p, (start, _) in zip(parts, bounds, strict=True) for a, b in p["segments"]],
+        np.concatenate([p["query_quantiles"] for p in parts]),
+        np.concatenate([p["query_thresholds"] for p in parts]),
+        np.concatenate([p["query_weights"] for p in parts]),
+        np.concatenate([p["neighbours"] for p in parts]),
+    )
+
+
+def online(
+    calibration: Calibration,
+    s_val: da.Array,
+    *,
+    k: int | None = None,
+    precision: float | None = None,
+    window: int | None = None,
+    min_window: int = 1,
+    query_major: bool = False,
+) -> OnlineDecisions:
+    """:meth:`qtvpr.Online.push_many` of a Dask array on a fresh state, block-parallel.
+
+    ``s_val`` is as in :func:`transfer`. ``k``, ``precision``, ``window`` and
+    ``min_window`` are those of :class:`qtvpr.Online` (``None``: the calibration's
+    :attr:`qtvpr.Calibration.defaults`). Each chunk of the query axis is one task: a
+    fresh :class:`qtvpr.Online` is pushed the ``window - 1`` queries before the chunk
+    (fewer at the start of the stream; none for the first chunk, so that the warm-up of
+    ``min_window`` applies to the stream's first queries only), then the chunk. As a
+    query's window holds only its last ``window`` queries, the decisions are those of
+    ``Online(calibration, ...).push_many(s_val.compute())``, identical to them, with
+    ``queries`` numbered over the whole stream.
+
+    Raises what :class:`qtvpr.Online` and :meth:`qtvpr.Online.push_many` raise on the
+    whole matrix, with the same messages (positions in the whole matrix), and
+    ``TypeError`` when ``s_val`` is not a Dask array.
+    """
+    s_val = _check_array(s_val)
+    # Built here for its errors and resolved parameters (the window may come from the
+    # calibration's defaults); each block builds its own.
+    state = Online(calibration, k=k, precision=precision, window=window, min_window=min_window)
+    n_db, n = _oriented_shape(s_val, query_major)
+    if n_db == 0 or n == 0:
+        return state.push_many(np.zeros(s_val.shape, s_val.dtype), query_major=query_major)
+    params: dict[str, Any] = {
+        "k": state.k,
+        "precision": state.precision,
+        "window": state.window,
+        "min_window": state.min_window,
+    }
+    chunks = s_val.chunks[0 if query_major else 1]
+    starts = np.cumsum([0, *chunks[:-1]]).tolist()
+    bounds = [(s, s + c) for s, c in zip(starts, chunks, strict=True) if c > 0]
+    cal = _send(calibration)
+    tasks = []
+    for start, end in bounds:
+        first = max(0, start - (state.window - 1))
+        block = _block(s_val, first, end, query_major)
+        tasks.append(dask.delayed(_online_block)(cal, block, first, start, params, query_major))
+    parts = _computed(tasks)
+    single = parts[0]["best"] is not None
+    optional = ("best", "score", "accept") if single else ("accepted",)
+    fields = {
+        name: np.concatenate([p[name] for p in parts]) if name in optional else None
+        for name in ("best", "score", "accept", "accepted")
+    }
+    return OnlineDecisions._from_parts(
+        np.concatenate([p["queries"] for p in parts]),
+        np.concatenate([p["query_quantiles"] for p in parts]),
+        np.concatenate([p["weights"] for p in parts]),
+        np.concatenate([p["quantiles"] for p in parts]),
+        np.concatenate([p["thresholds"] for p in parts]),
+        **fields,
+    )
+
+
+def _check_array(s_val: object) -> da.Array:
+    if not isinstance(s_val, da.Array):
+        raise TypeError(
+            f"s_val: expected a dask.array.Array, got {type(s_val).__name__}; "
+            "for a NumPy array or a .npy file use qtvpr.Calibration.transfer or qtvpr.Online.push_many"
+        )
+    if s_val.ndim != 2:
+        raise ValueError(f"s_val: expected a 2-D similarity matrix, got {s_val.ndim} dimensions")
+    if any(np.isnan(c) for axis in s_val.chunks for c in axis):
+        raise ValueError("s_val: unknown chunk sizes; call s_val.compute_chunk_sizes() first")
+    return s_val
+
+
+def _oriented_shape(s_val: da.Array, query_major: bool) -> tuple[int, int]:
+    """(|DB|, number of queries)."""
+    rows, cols = s_val.shape
+    return (cols, rows) if query_major else (rows, cols)
+
+
+def _largest_chunk(s_val: da.Array, query_major: bool) -> int:
+    return max(s_val.chunks[0 if query_major else 1])
+
+
+def _fits(segment_size: object, n: int) -> bool:
+    """Whether ``segment_size`` is ``None`` or an integer in ``1..=n``."""
+    if segment_size is None:
+        return True
+    try:
+        return 1 <= operator.index(segment_size) <= n  # type: ignore[arg-type]
+    except TypeError:
+        return False
+
+
+def _stand_in(s_val: da.Array) -> np.ndarray:
+    """An array of the shape and dtype of ``s_val`` that takes no memory (every entry
+    is the same zero), for the errors the compiled call finds from the shape alone."""
+    return np.broadcast_to(np.zeros((), s_val.dtype), s_val.shape)
+
+
+def _block(s_val: da.Array, start: int, end: int, query_major: bool) -> da.Array:
+    """Queries ``start..end`` with all their |DB| scores: one chunk, on one worker."""
+    part = s_val[start:end] if query_major else s_val[:, start:end]
+    return part.rechunk(part.shape)
+
+
+def _send(calibration: Calibration) -> Any:
+    """The calibration as a task argument, sent to the workers once: scattered to
+    every worker of the active distributed client, else one task of the graph."""
+    if not isinstance(calibration, Calibration):
+        raise TypeError(f"calibration: expected a qtvpr.Calibration, got {type(calibration).__name__}")
+    try:
+        from distributed import default_client
+
+        client = default_client()
+    except (ImportError, ValueError):
+        return dask.delayed(calibration)
+    return client.scatter(calibration, broadcast=True, hash=False)
+
+
+def _computed(tasks: list[Any]) -> list[_Part]:
+    """Compute the blocks; raise the error of the first failed one, in query order (the
+    one the one-machine call, which reads the queries in order, would raise)."""
+    parts: list[_Part] = list(dask.compute(*tasks))
+    for part in parts:
+        if "error" in part:
+            kind, message = part["error"]
+            raise kind(message)
+    return parts
+
+
+def _caught(block: np.ndarray, first: int, query_major: bool, run: Callable[[], _Part]) -> _Part:
+    """``run()``, or its ``ValueError`` or ``TypeError`` as a result: with the position
+    of a NaN or infinite score moved from the block (whose first query is ``first``) to
+    the whole matrix."""
+    try:
+        return run()
+    except (TypeError, ValueError) as err:
+        return {"error": (type(err), _relocated(str(err), block, first, query_major))}
+
+
+def _relocated(message: str, block: np.ndarray, first: int, query_major: bool) -> str:
+    """``message`` with the block-local position of the block's first non-finite score
+    (in query order, then database order, as the compiled code looks for it) replaced
+    by its position in the whole matrix; unchanged when it names no such position."""
+    scores = block.T if query_major else block
+    if scores.dtype.kind != "f" or scores.size == 0:
+        return message
+    bad = ~np.isfinite(scores)
+    columns = np.flatnonzero(bad.any(axis=0))
+    if columns.size == 0:
+        return message
+    col = int(columns[0])
+    row = int(np.flatnonzero(bad[:, col])[0])
+    if query_major:
+        local, whole = f"at row {col}, column {row};", f"at row {first + col}, column {row};"
+    else:
+        local, whole = f"at row {row}, column {col};", f"at row {row}, column {first + col};"
+    return message.replace(local, whole, 1)
+
+
+def _transfer_block(
+    calibration: Calibration, block: np.ndarray, start: int, segment_size: int | None, args: dict[str, Any]
+) -> _Part:
+    """The transfer of one block of whole segments whose first query is ``start``."""
+
+    def run() -> _Part:
+        r = calibration.transfer(block, segment_size=segment_size, **args)
+        return {
+            "thresholds": r.thresholds,
+            "quantiles": r.quantiles,
+            "segments": r.segments,
+            "query_quantiles": r.query_quantiles,
+            "query_thresholds": r.query_thresholds,
+            "query_weights": r.query_weights,
+            "neighbours": r.neighbours,
+        }
+
+    return _caught(block, start, args["query_major"], run)
+
+
+def _online_block(
+    calibration: Calibration, block: np.ndarray, first: int, start: int, params: dict[str, Any], query_major: bool
+) -> _Part:
+    """The decisions of queries ``start..`` of ``block`` (whose first query is
+    ``first``), after its queries ``first..start`` are pushed as the window's warm-up."""
+    warm = start - first
+    head, body = (block[:warm], block[warm:]) if query_major else (block[:, :warm], block[:, warm:])
+
+    def run() -> _Part:
+        state = Online(calibration, **params)
+        if warm:
+            state.push_many(head, query_major=query_major)
+        d = state.push_many(body, query_major=query_major)
+        return {
+            # Numbered from `first` here: shifted to the whole stream.
+            "queries": d.queries + first,
+            "query_quantiles": d.query_quantiles,
+            "weights": d.weights,
+            "quantiles": d.quantiles,
+            "thresholds": d.thresholds,
+            "best": d.best,
+            "score": d.score,
+            "accept": d.accept,
+            "accepted": d.accepted,
+        }
+
+    # An error in the warm-up is the previous block's, reported by it first.
+    return _caught(body, start, query_major, run)
