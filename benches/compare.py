@@ -15,8 +15,6 @@ import argparse
 import json
 import math
 import os
-import platform
-import re
 import subprocess
 import sys
 import tempfile
@@ -30,6 +28,7 @@ from qtvpr import reference
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import synthetic  # noqa: E402
+from report import machine, write_block  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
@@ -153,15 +152,6 @@ def scale_case(cli: Path, work: Path) -> list[str]:
     return rows
 
 
-def machine() -> str:
-    cpu = "unknown CPU"
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{os.cpu_count()} cores ({cpu}), {platform.system()}, Python {platform.python_version()}"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cli", type=Path, default=REPO / "target" / "release" / "qtvpr-cli")
@@ -186,13 +176,7 @@ def main() -> None:
     text = "\n".join(report)
     print(text)
     if not args.no_readme:
-        readme = REPO / "docs" / "performance.md"
-        body = readme.read_text()
-        new, n = re.subn(r"(<!-- bench:start -->\n).*?(<!-- bench:end -->)", lambda m: m[1] + text + "\n" + m[2],
-                         body, flags=re.S)
-        if n != 1:
-            sys.exit("docs/performance.md has no <!-- bench:start --> ... <!-- bench:end --> block")
-        readme.write_text(new)
+        write_block(REPO / "docs" / "performance.md", "bench", text)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,6 @@ os.environ["OMP_NUM_THREADS"] = "1"
 os.environ["MKL_NUM_THREADS"] = "1"
 
 import argparse
-import re
 import sys
 import tempfile
 import time
@@ -46,11 +45,10 @@ import qtvpr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import synthetic  # noqa: E402
-from compare import machine  # noqa: E402  (the one description of this machine)
+from report import machine, write_block  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
-START, END = "<!-- online-bench:start -->", "<!-- online-bench:end -->"
 
 
 def nordland() -> tuple[np.ndarray, np.ndarray]:
@@ -153,12 +151,7 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     if not args.no_readme:
-        readme = REPO / "README.md"
-        block = f"({re.escape(START)}\n).*?({re.escape(END)})"
-        new, n = re.subn(block, lambda m: m[1] + text + "\n" + m[2], readme.read_text(), flags=re.S)
-        if n != 1:
-            sys.exit(f"README.md has no {START} ... {END} block")
-        readme.write_text(new)
+        write_block(REPO / "README.md", "online-bench", text)
 
 
 if __name__ == "__main__":

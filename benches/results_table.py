@@ -20,12 +20,16 @@ Uses the installed wheel (``pip install .``) and NumPy only. Writes the table be
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 import qtvpr
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import write_block  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 TECHNIQUES = [
@@ -44,7 +48,6 @@ SHORT = {
     "calibration-threshold": "Cal-thr",
     "oracle": "Oracle",
 }
-START, END = "<!-- results:start -->", "<!-- results:end -->"
 
 
 def normalize(x: np.ndarray) -> np.ndarray:
@@ -124,12 +127,7 @@ def main() -> None:
         "Regenerate with `python benches/results_table.py`.\n\n" + table(rows)
     )
     print(f"\n{text}")
-    readme = args.readme.read_text()
-    if START not in readme or END not in readme:
-        raise SystemExit(f"{args.readme} has no {START} ... {END} markers")
-    before, rest = readme.split(START, 1)
-    _, after = rest.split(END, 1)
-    args.readme.write_text(f"{before}{START}\n{text}{END}{after}")
+    write_block(args.readme, "results", text)
     print(f"total {time.perf_counter() - start:.1f} s; table written to {args.readme}")
 
 
