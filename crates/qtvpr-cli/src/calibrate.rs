@@ -6,12 +6,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
-use qtvpr::npy::{FloatMatrix, read_float_matrix};
-use qtvpr::{Calibration, Defaults, Descriptors, Matching, Split};
+use qtvpr::{Calibration, Defaults, Matching, Split};
 
 use crate::gt_source::{CalGtSource, GtSource};
-use crate::inputs::blame;
+use crate::inputs::{DescriptorFiles, SplitArgs};
 use crate::threshold::{MatchingArg, split_ground_truth};
 use qtvpr::npy::read_scores;
 use qtvpr::with_scores;
@@ -19,10 +17,9 @@ use qtvpr::with_scores;
 /// Arguments of `calibrate`.
 #[derive(Debug, Args)]
 #[command(group(clap::ArgGroup::new("cal-input").args(["cal", "db_descriptors"]).required(true).multiple(false)))]
-#[command(group(clap::ArgGroup::new("split").args(["cal_queries", "cal_fraction"]).multiple(false).requires("db_descriptors")))]
 pub struct CalibrateArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|.
-    #[arg(long, value_name = "S_cal.npy")]
+    #[arg(long, value_name = "S_cal.npy", conflicts_with = "split")]
     cal: Option<PathBuf>,
     /// Calibration ground truth: --cal-gt, --cal-gt-tolerance or --cal-gt-db-positions.
     /// With descriptors it labels every query descriptor (|DB| x |Q|); only the
@@ -43,12 +40,9 @@ pub struct CalibrateArgs {
     /// unless --cal-queries or --cal-fraction says how many of the first ones do.
     #[arg(long, value_name = "Q.npy", requires = "db_descriptors")]
     query_descriptors: Option<PathBuf>,
-    /// With descriptors: the first N queries calibrate.
-    #[arg(long, value_name = "N")]
-    cal_queries: Option<usize>,
-    /// With descriptors: the first floor(F x |Q|) queries calibrate.
-    #[arg(long, value_name = "F", allow_negative_numbers = true)]
-    cal_fraction: Option<f64>,
+    /// With descriptors: how many of the first queries calibrate (default: all).
+    #[command(flatten)]
+    split: SplitArgs,
     /// single: one decision per query on its best match; multi: every entry is a candidate.
     #[arg(long, value_enum, default_value_t = MatchingArg::Single)]
     matching: MatchingArg,
@@ -79,14 +73,7 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         window: args.window,
     };
     defaults.validate()?;
-    let split = match (args.cal_queries, args.cal_fraction) {
-        (Some(n), _) => Some((Split::Count(n), "--cal-queries")),
-        (_, Some(f)) => Some((Split::Fraction(f), "--cal-fraction")),
-        _ => None,
-    };
-    if let Some((split, flag)) = split {
-        split.calibration_size(usize::MAX).context(flag)?;
-    }
+    let split = args.split.split()?;
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
     let matching = Matching::from(args.matching);
     let cal = match (
@@ -109,27 +96,21 @@ fn from_descriptors(
     gt_source: GtSource<'_>,
     matching: Matching,
 ) -> Result<Calibration> {
-    let db_file = read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?;
-    let q_file = read_float_matrix(q, FloatMatrix::Descriptors).context("--query-descriptors")?;
-    let sources = [
-        (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
-        (QUERY_DESCRIPTORS, format!("--query-descriptors {}", q.display())),
-    ];
-    let input = || sources.iter().map(|(_, s)| s.as_str()).collect::<Vec<_>>().join(" / ");
-    let d = Descriptors::new(db_file.view(), q_file.view()).map_err(|e| blame(e, &sources))?;
+    let files = DescriptorFiles::read(db, q)?;
+    let d = files.descriptors()?;
     let (n_db, n_q) = d.shape();
     let (n_cal, flag) = match split {
         Some((split, flag)) => (
             split
                 .calibration_size(n_q)
-                .with_context(|| format!("{flag} of {}", input()))?,
+                .with_context(|| format!("{flag} of {}", files.describe()))?,
             flag,
         ),
         None => (n_q, "descriptors"),
     };
-    let gt = split_ground_truth(gt_source, (n_db, n_q), n_cal, false, flag, &input())?;
+    let gt = split_ground_truth(gt_source, (n_db, n_q), n_cal, false, flag, &files.describe())?;
     Calibration::from_descriptors(&d, 0..n_cal, &gt, matching)
-        .with_context(|| format!("{} / {}", input(), gt_source.describe()))
+        .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()))
 }
 
 /// The calibration of similarity matrix `--cal PATH` with its ground truth from

@@ -13,14 +13,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::evaluate::{Ablation, Evaluation, MethodResult};
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
-use qtvpr::npy::{FloatMatrix, read_float_matrix};
 use qtvpr::report::Report;
-use qtvpr::{Descriptors, Matching, Method, Protocol, ScoresView, Split, with_scores};
+use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
 
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
-use crate::inputs::blame;
+use crate::inputs::DescriptorFiles;
 use crate::output::emit;
 use crate::plot;
 use crate::threshold::MatchingArg;
@@ -231,18 +229,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         }
     }
 
-    let sequence = args
-        .sequence
-        .map(|length| {
-            let Ok(length) = usize::try_from(length) else {
-                bail!("sequence length must be odd and >= 1, got {length}");
-            };
-            let sequence = qtvpr::Sequence { length, causal: false };
-            sequence.validate()?;
-            Ok(sequence)
-        })
-        .transpose()
-        .context("--sequence")?;
+    let sequence = crate::inputs::sequence(args.sequence, false)?;
 
     // The scores stay where they are read (memory-mapped) or embedded; `scores` views them.
     let (file, embedded_scores, computed);
@@ -338,13 +325,8 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
 /// The similarity of descriptor files `db` and `q`, in memory (the core's kernel, so
 /// the bits of `similarity`'s output), sequence-matched if asked.
 fn similarity_of(db: &Path, q: &Path, sequence: Option<qtvpr::Sequence>) -> Result<ndarray::Array2<f32>> {
-    let db_file = read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?;
-    let q_file = read_float_matrix(q, FloatMatrix::Descriptors).context("--query-descriptors")?;
-    let sources = [
-        (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
-        (QUERY_DESCRIPTORS, format!("--query-descriptors {}", q.display())),
-    ];
-    let d = Descriptors::new(db_file.view(), q_file.view()).map_err(|e| blame(e, &sources))?;
+    let files = DescriptorFiles::read(db, q)?;
+    let d = files.descriptors()?;
     let s = d.similarity(0..d.shape().1)?;
     match sequence {
         Some(sequence) => Ok(qtvpr::sequence_match(s.view(), sequence).context("--sequence")?),

@@ -1,4 +1,13 @@
-//! Core errors named after the command line: which option and file a matrix came from.
+//! Inputs shared by several commands, and core errors named after the command line:
+//! which option and file a matrix came from.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::npy::{FloatMatrix, Scores, read_float_matrix};
+use qtvpr::{Descriptors, Sequence, Split};
 
 /// Attach to a core error the options and files of the matrices it is about:
 /// `sources` maps [`qtvpr::names`] constants to `--option FILE`, looked up by
@@ -11,4 +20,88 @@ pub fn blame(err: qtvpr::Error, sources: &[(&'static str, String)]) -> anyhow::E
         let context = context.join(" / ");
         anyhow::Error::new(err).context(context)
     }
+}
+
+/// `--cal-queries` / `--cal-fraction`: the first queries of one matrix or of the query
+/// descriptors calibrate (the rule of `evaluate`, [`Split::calibration_size`]).
+#[derive(Debug, Args)]
+#[group(id = "split", multiple = false)]
+pub struct SplitArgs {
+    /// The first N queries calibrate (of the query descriptors, or of `threshold
+    /// --similarity`).
+    #[arg(long, value_name = "N")]
+    cal_queries: Option<usize>,
+    /// The first floor(F x |Q|) queries calibrate, as `evaluate --cal-fraction` counts
+    /// them.
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    cal_fraction: Option<f64>,
+}
+
+impl SplitArgs {
+    /// The split asked for, with the option that asked; its parameter is checked here,
+    /// before any file is read.
+    pub fn split(&self) -> Result<Option<(Split, &'static str)>> {
+        let split = match (self.cal_queries, self.cal_fraction) {
+            (Some(n), _) => Some((Split::Count(n), "--cal-queries")),
+            (_, Some(f)) => Some((Split::Fraction(f), "--cal-fraction")),
+            _ => None,
+        };
+        if let Some((split, flag)) = split {
+            split.calibration_size(usize::MAX).context(flag)?;
+        }
+        Ok(split)
+    }
+}
+
+/// `--db-descriptors` and `--query-descriptors`, read (memory-mapped where possible) and
+/// held for the [`Descriptors`] that view them.
+pub struct DescriptorFiles {
+    db: Scores,
+    queries: Scores,
+    /// `--option FILE` of each, for [`blame`].
+    sources: [(&'static str, String); 2],
+}
+
+impl DescriptorFiles {
+    /// Read the two files; an error names the option and the file.
+    pub fn read(db: &Path, queries: &Path) -> Result<Self> {
+        Ok(Self {
+            db: read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?,
+            queries: read_float_matrix(queries, FloatMatrix::Descriptors).context("--query-descriptors")?,
+            sources: [
+                (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
+                (QUERY_DESCRIPTORS, format!("--query-descriptors {}", queries.display())),
+            ],
+        })
+    }
+
+    /// The descriptors, checked by the core (a bad row is named with its file).
+    pub fn descriptors(&self) -> Result<Descriptors<'_>> {
+        Descriptors::new(self.db.view(), self.queries.view()).map_err(|e| self.blame(e))
+    }
+
+    /// A core error, with the option and file of the descriptors it is about.
+    pub fn blame(&self, err: qtvpr::Error) -> anyhow::Error {
+        blame(err, &self.sources)
+    }
+
+    /// `--db-descriptors DB / --query-descriptors Q`, to say what an error is about.
+    pub fn describe(&self) -> String {
+        format!("{} / {}", self.sources[0].1, self.sources[1].1)
+    }
+}
+
+/// `--sequence L` (with `causal`), checked before anything is read; `None` without it.
+pub fn sequence(length: Option<i64>, causal: bool) -> Result<Option<Sequence>> {
+    length
+        .map(|length| {
+            let Ok(length) = usize::try_from(length) else {
+                anyhow::bail!("sequence length must be odd and >= 1, got {length}");
+            };
+            let sequence = Sequence { length, causal };
+            sequence.validate()?;
+            Ok(sequence)
+        })
+        .transpose()
+        .context("--sequence")
 }

@@ -4,11 +4,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
 use qtvpr::npy::{FloatMatrix, read_float_matrix};
-use qtvpr::{Sequence, with_scores};
+use qtvpr::with_scores;
 
 use crate::inputs::blame;
 use crate::matrix_io::write_npy;
@@ -42,21 +42,7 @@ pub struct SimilarityArgs {
 /// Run `similarity`.
 pub fn run(args: &SimilarityArgs, global: &Global) -> Result<()> {
     // Check the cheap parameter before reading anything.
-    let sequence = args
-        .sequence
-        .map(|length| {
-            let Ok(length) = usize::try_from(length) else {
-                bail!("sequence length must be odd and >= 1, got {length}");
-            };
-            let sequence = Sequence {
-                length,
-                causal: args.causal,
-            };
-            sequence.validate()?;
-            Ok(sequence)
-        })
-        .transpose()
-        .context("--sequence")?;
+    let sequence = crate::inputs::sequence(args.sequence, args.causal)?;
     let db = read_float_matrix(&args.db, FloatMatrix::Descriptors).context("--db")?;
     let queries = read_float_matrix(&args.queries, FloatMatrix::Descriptors).context("--queries")?;
     let sources = [

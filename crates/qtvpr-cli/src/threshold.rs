@@ -19,13 +19,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
-use qtvpr::npy::{FloatMatrix, read_float_matrix};
-use qtvpr::{Calibration, Defaults, Descriptors, GroundTruth, Matching, Params, Segment, Split};
+use qtvpr::{Calibration, Defaults, Descriptors, GroundTruth, Matching, Params, ScoresView, Segment};
 use serde::Serialize;
 
 use crate::gt_source::{GtSource, Kind, OptionalCalGtSource};
-use crate::inputs::blame;
+use crate::inputs::{DescriptorFiles, SplitArgs};
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
 use qtvpr::npy::read_scores;
@@ -33,7 +31,6 @@ use qtvpr::with_scores;
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
-#[command(group(clap::ArgGroup::new("split").args(["cal_queries", "cal_fraction"]).multiple(false)))]
 pub struct ThresholdArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|; or a
     /// calibration file written by `calibrate` (.npz, told apart by its content), which
@@ -68,13 +65,9 @@ pub struct ThresholdArgs {
     /// Query descriptors (.npy), |Q| x D, with --db-descriptors.
     #[arg(long, value_name = "Q.npy", requires = "db_descriptors")]
     query_descriptors: Option<PathBuf>,
-    /// The first N queries of --similarity or of the query descriptors calibrate.
-    #[arg(long, value_name = "N")]
-    cal_queries: Option<usize>,
-    /// The first floor(F x |Q|) queries of --similarity or of the query descriptors
-    /// calibrate (as `evaluate --cal-fraction`).
-    #[arg(long, value_name = "F", allow_negative_numbers = true)]
-    cal_fraction: Option<f64>,
+    /// In place of --cal: how many of the first queries calibrate.
+    #[command(flatten)]
+    split: SplitArgs,
     /// Not available in `threshold`, which never holds a whole similarity matrix:
     /// write the sequence-matched matrix with `similarity --sequence L` and pass it as
     /// --similarity (or --cal and --val), or use `evaluate --sequence L`.
@@ -158,12 +151,30 @@ pub fn is_calibration_file(path: &Path) -> bool {
         && &magic == b"PK\x03\x04"
 }
 
-/// Where the deployment scores come from.
-enum Deployment {
-    /// A matrix (already oriented |DB| x |Q|) and the option that named it.
-    Matrix(qtvpr::npy::Scores, &'static str, PathBuf),
-    /// Database and query descriptors.
-    Descriptors(qtvpr::npy::Scores, qtvpr::npy::Scores),
+/// Where the scores come from.
+enum Source<'a> {
+    /// A matrix, oriented |DB| x |Q|, and `--option FILE` that named it.
+    Matrix(ScoresView<'a>, String),
+    /// Database and query descriptors, and their files.
+    Descriptors(Descriptors<'a>, &'a DescriptorFiles),
+}
+
+impl Source<'_> {
+    /// (|DB|, |Q|) of the similarity.
+    fn shape(&self) -> (usize, usize) {
+        match self {
+            Source::Matrix(s, _) => s.dim(),
+            Source::Descriptors(d, _) => d.shape(),
+        }
+    }
+
+    /// The options and files of the input, to say what an error is about.
+    fn describe(&self) -> String {
+        match self {
+            Source::Matrix(_, named) => named.clone(),
+            Source::Descriptors(_, files) => files.describe(),
+        }
+    }
 }
 
 /// Run `threshold`.
@@ -175,15 +186,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
              as --similarity (or --cal/--val), or evaluate it with `evaluate --sequence L`"
         );
     }
-    let split = match (args.cal_queries, args.cal_fraction) {
-        (Some(n), _) => Some((Split::Count(n), "--cal-queries")),
-        (_, Some(f)) => Some((Split::Fraction(f), "--cal-fraction")),
-        _ => None,
-    };
-    // The split's parameter is checked before any file is read.
-    if let Some((split, flag)) = split {
-        split.calibration_size(usize::MAX).context(flag)?;
-    }
+    let split = args.split.split()?;
     let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
     if args.val.is_none() && args.similarity.is_none() && descriptors.is_none() {
         bail!(
@@ -231,64 +234,52 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     let matching_arg = args.matching.map_or(Matching::Single, Matching::from);
     // Errors about a file's content name the file; the flag says which input it was.
     // The core reports positions and shapes in its |DB| x |Q| views; `oriented` gives
-    // them back in the files' orientation.
-    let deployment = match (&args.val, &args.similarity, descriptors) {
-        (Some(path), _, _) => Deployment::Matrix(read_scores(path).context("--val")?, "--val", path.clone()),
-        (_, Some(path), _) => {
-            Deployment::Matrix(read_scores(path).context("--similarity")?, "--similarity", path.clone())
+    // them back in the files' orientation. The inputs stay where they are read
+    // (memory-mapped); `source` views them.
+    let matrix_arg =
+        (args.val.as_ref().map(|p| ("--val", p))).or(args.similarity.as_ref().map(|p| ("--similarity", p)));
+    let (matrix, files);
+    let source = match (matrix_arg, descriptors) {
+        (Some((flag, path)), _) => {
+            matrix = read_scores(path).context(flag)?;
+            Source::Matrix(
+                matrix.view().oriented(args.query_major),
+                format!("{flag} {}", path.display()),
+            )
         }
-        (_, _, Some((db, q))) => Deployment::Descriptors(
-            read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?,
-            read_float_matrix(q, FloatMatrix::Descriptors).context("--query-descriptors")?,
-        ),
-        _ => unreachable!("checked above"),
-    };
-    let sources = descriptors.map(|(db, q)| {
-        [
-            (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
-            (QUERY_DESCRIPTORS, format!("--query-descriptors {}", q.display())),
-        ]
-    });
-    let fused = match &deployment {
-        Deployment::Descriptors(db, q) => {
-            Some(Descriptors::new(db.view(), q.view()).map_err(|e| blame(e, sources.as_ref().expect("descriptors")))?)
+        (None, Some((db, q))) => {
+            files = DescriptorFiles::read(db, q)?;
+            Source::Descriptors(files.descriptors()?, &files)
         }
-        Deployment::Matrix(..) => None,
+        (None, None) => unreachable!("checked above"),
     };
-    let scores = match &deployment {
-        Deployment::Matrix(s, ..) => Some(s.view().oriented(args.query_major)),
-        Deployment::Descriptors(..) => None,
-    };
-    let (n_db, n_q) = fused.map_or_else(|| scores.expect("a matrix").dim(), |d| d.shape());
-    let input = || match &deployment {
-        Deployment::Matrix(_, flag, path) => format!("{flag} {}", path.display()),
-        Deployment::Descriptors(..) => sources
-            .iter()
-            .flatten()
-            .map(|(_, s)| s.as_str())
-            .collect::<Vec<_>>()
-            .join(" / "),
-    };
+    let (n_db, n_q) = source.shape();
 
     // The calibration, and the deployment queries: all of them, or those after the split.
     let (cal, queries) = match split {
         Some((split, flag)) => {
             let n_cal = split
                 .calibration_size(n_q)
-                .with_context(|| format!("{flag} of {}", input()))?;
+                .with_context(|| format!("{flag} of {}", source.describe()))?;
             let gt_source = gt_source.expect("a split needs ground truth, checked above");
-            let gt_cal = split_ground_truth(gt_source, (n_db, n_q), n_cal, args.query_major, flag, &input())?;
-            let cal = match (fused, scores) {
-                (Some(d), _) => Calibration::from_descriptors(&d, 0..n_cal, &gt_cal, matching_arg),
-                (_, Some(s)) => with_scores!(s, |v| Calibration::new(
+            let gt_cal = split_ground_truth(
+                gt_source,
+                (n_db, n_q),
+                n_cal,
+                args.query_major,
+                flag,
+                &source.describe(),
+            )?;
+            let cal = match &source {
+                Source::Descriptors(d, _) => Calibration::from_descriptors(d, 0..n_cal, &gt_cal, matching_arg),
+                Source::Matrix(s, _) => with_scores!(*s, |v| Calibration::new(
                     v.slice(ndarray::s![.., ..n_cal]),
                     &gt_cal,
                     matching_arg
                 ))
                 .map_err(|e| e.oriented(args.query_major)),
-                _ => unreachable!("one source"),
             }
-            .with_context(|| format!("{} / {}", input(), gt_source.describe()))?;
+            .with_context(|| format!("{} / {}", source.describe(), gt_source.describe()))?;
             (cal, n_cal..n_q)
         }
         None => {
@@ -318,19 +309,18 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     let n_val = queries.len();
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
     let progress = |done: usize, _| bar.set_position(done as u64);
-    let transfer = match (fused, scores) {
-        (Some(d), _) => cal
-            .transfer_descriptors_with_progress(&d, queries, &params, progress)
-            .map_err(|e| blame(e, sources.as_ref().expect("descriptors"))),
-        (_, Some(s)) => with_scores!(s, |v| cal.transfer_with_progress(
+    let transfer = match &source {
+        Source::Descriptors(d, files) => cal
+            .transfer_descriptors_with_progress(d, queries, &params, progress)
+            .map_err(|e| files.blame(e)),
+        Source::Matrix(s, _) => with_scores!(*s, |v| cal.transfer_with_progress(
             v.slice(ndarray::s![.., queries.clone()]),
             &params,
             progress
         ))
         .map_err(|e| query_major_hint(e.oriented(args.query_major), args.query_major)),
-        _ => unreachable!("one source"),
     }
-    .with_context(input)?;
+    .with_context(|| source.describe())?;
     bar.finish_and_clear();
 
     let report = Report {
