@@ -11,9 +11,11 @@
 //! exists.
 //!
 //! # Arithmetic: f64, rounded once to f32
-//! Each row is normalised into an `f64` copy and the rows are multiplied by faer's GEMM
-//! in `f64`; each result is rounded once to `f32`, the type of the output. Why `f64`,
-//! when an `f32` GEMM would be about twice as fast:
+//! Each row is widened to `f64` and made a unit vector as `(x * 2^-e) * (1 / |x 2^-e|)`,
+//! with `2^e` the power of two at its largest magnitude (an exact scaling that keeps the
+//! squares of the norm from overflowing or underflowing); the rows are multiplied by
+//! faer's GEMM in `f64`, and each result is rounded once to `f32`, the type of the
+//! output. Why `f64`, when an `f32` GEMM would be about twice as fast:
 //! - semantics §1 does all arithmetic on scores in `f64`; the matrix made here is the
 //!   input of that pipeline, and ties or near-ties in it decide best matches.
 //! - The rounding error of an `f32` dot product grows with the descriptor dimension D
@@ -34,16 +36,18 @@
 //!
 //! # Checked up front, memory
 //! The descriptors are checked (finite values, no all-zero row) in one cheap pass before
-//! any product, so an error is never reported after minutes of work. Beyond the
-//! descriptors (which may be memory-mapped) and the output, the work takes one `f64`
-//! copy of the query tiles being computed and, per thread, one normalised block of
-//! database rows and one block of results (a few MB).
+//! any product, so an error is never reported after minutes of work; the same pass
+//! computes each row's two factors, so that a block of database rows is normalised with
+//! two multiplications per value each time a tile of queries needs it. Beyond the
+//! descriptors (which may be memory-mapped) and the output, the work takes the factors
+//! (16 bytes a row), one `f64` copy of the query tiles being computed and, per thread,
+//! one normalised block of database rows and one block of results (a few MB).
 
 use std::ops::Range;
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
-use ndarray::{Array2, ArrayView1, ArrayView2, ArrayViewMut2, Axis, ShapeBuilder};
+use ndarray::{Array2, ArrayView1, ArrayView2, ArrayViewMut1, ArrayViewMut2, Axis, ShapeBuilder, Zip, s};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -86,8 +90,9 @@ pub fn cosine_similarity_with_progress<T: Score, U: Score>(
     queries: ArrayView2<'_, U>,
     progress: impl Fn(usize, usize),
 ) -> Result<Array2<f32>> {
-    check(db, queries)?;
+    let (db_scales, q_scales) = scales(db, queries)?;
     let n_q = queries.nrows();
+    let (db, queries) = (Rows::new(db, &db_scales), Rows::new(queries, &q_scales));
     Ok(similarity_in_steps(db, queries, 0..n_q, step_rows(n_q), progress))
 }
 
@@ -101,13 +106,13 @@ fn step_rows(n_cols: usize) -> usize {
 /// order, computed `step` database rows at a time (a multiple of [`BLOCK_ROWS`]), with
 /// `progress` after each step.
 fn similarity_in_steps<T: Score, U: Score>(
-    db: ArrayView2<'_, T>,
-    queries: ArrayView2<'_, U>,
+    db: Rows<'_, T>,
+    queries: Rows<'_, U>,
     cols: Range<usize>,
     step: usize,
     progress: impl Fn(usize, usize),
 ) -> Array2<f32> {
-    let n_db = db.nrows();
+    let n_db = db.m.nrows();
     let mut out = Array2::zeros((n_db, cols.len()));
     let tiles = QueryTiles::new(queries, cols.clone());
     for (s, dst) in out.axis_chunks_iter_mut(Axis(0), step).enumerate() {
@@ -117,9 +122,27 @@ fn similarity_in_steps<T: Score, U: Score>(
     out
 }
 
+/// How a checked row `x` becomes a unit vector: `(x * pow2) * inv_norm`, in `f64`.
+///
+/// `pow2` is a power of two that brings the row's largest magnitude into [1, 2) (for
+/// rows of subnormal values, as close as `f64` allows), so that multiplying by it is
+/// exact and the squares of the norm neither overflow nor underflow whatever the
+/// magnitude of the descriptor. Both factors are computed once per row, in one pass
+/// with the check; the product then only multiplies, where dividing every value of every
+/// database row once per tile of queries took a third of a fused transfer's time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RowScale {
+    pow2: f64,
+    inv_norm: f64,
+}
+
 /// Check descriptors before any product: both non-empty, of one dimension, every value
-/// finite and no row all zeros; `db` first, then `queries`, each in row order.
-fn check<T: Score, U: Score>(db: ArrayView2<'_, T>, queries: ArrayView2<'_, U>) -> Result<()> {
+/// finite and no row all zeros; `db` first, then `queries`, each in row order. Returns
+/// the scaling of every row of each.
+fn scales<T: Score, U: Score>(
+    db: ArrayView2<'_, T>,
+    queries: ArrayView2<'_, U>,
+) -> Result<(Vec<RowScale>, Vec<RowScale>)> {
     check_nonempty(DB_DESCRIPTORS, db.dim())?;
     check_nonempty(QUERY_DESCRIPTORS, queries.dim())?;
     if queries.ncols() != db.ncols() {
@@ -130,23 +153,22 @@ fn check<T: Score, U: Score>(db: ArrayView2<'_, T>, queries: ArrayView2<'_, U>) 
             other_cols: db.ncols(),
         });
     }
-    check_rows(DB_DESCRIPTORS, db)?;
-    check_rows(QUERY_DESCRIPTORS, queries)
+    Ok((row_scales(DB_DESCRIPTORS, db)?, row_scales(QUERY_DESCRIPTORS, queries)?))
 }
 
-/// The first bad row of `m` (by row order), in parallel.
-fn check_rows<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<()> {
-    let first = (0..m.nrows())
+/// The scaling of every row of `m`, in parallel, or the error of its first bad row (by
+/// row order).
+fn row_scales<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<Vec<RowScale>> {
+    let rows: Vec<Result<RowScale>> = (0..m.nrows())
         .into_par_iter()
-        .map(|row| row_scale(what, row, m.row(row)).err())
-        .find_first(Option::is_some)
-        .flatten();
-    first.map_or(Ok(()), Err)
+        .map(|row| row_scale(what, row, m.row(row)))
+        .collect();
+    rows.into_iter().collect()
 }
 
-/// The largest magnitude of row `x`, or why the row has no cosine.
-fn row_scale<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>) -> Result<f64> {
-    let mut scale = 0.0f64;
+/// The scaling of row `x`, or why the row has no cosine.
+fn row_scale<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>) -> Result<RowScale> {
+    let mut largest = 0.0f64;
     for (col, v) in x.iter().enumerate() {
         let v = v.to_f64();
         if !v.is_finite() {
@@ -157,24 +179,61 @@ fn row_scale<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>) -> 
                 value: v,
             });
         }
-        scale = scale.max(v.abs());
+        largest = largest.max(v.abs());
     }
-    if scale == 0.0 {
+    if largest == 0.0 {
         return Err(Error::ZeroNorm { what, row });
     }
-    Ok(scale)
+    let pow2 = inverse_power_of_two(largest);
+    let norm = x.iter().map(|v| (v.to_f64() * pow2).powi(2)).sum::<f64>().sqrt();
+    Ok(RowScale {
+        pow2,
+        inv_norm: 1.0 / norm,
+    })
 }
 
-/// Write `x / |x|` into `out` (a checked row: finite, not all zeros). The norm is taken
-/// of `x / max|x|`, so that squares neither overflow nor underflow whatever the
-/// magnitude of the descriptor.
-fn unit_row<T: Score>(x: ArrayView1<'_, T>, out: &mut [f64]) {
-    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.to_f64().abs()));
-    for (o, v) in out.iter_mut().zip(x.iter()) {
-        *o = v.to_f64() / scale;
+/// A power of two `p` with `x * p` in [1, 2) for a positive finite `x` of normal
+/// magnitude, `2^1022` for a subnormal `x` (`x * p` is then in [2^-52, 1): still far
+/// from underflow when squared). Read off the exponent bits: exact, where `powi` or
+/// `log2` would round.
+fn inverse_power_of_two(x: f64) -> f64 {
+    // x is in [2^(biased - 1023), 2^(biased - 1022)) for biased >= 1; subnormal x has 0.
+    let biased = ((x.to_bits() >> 52) & 0x7ff) as i64;
+    let e = (1023 - biased).min(1022);
+    if e >= -1022 {
+        f64::from_bits(((e + 1023) as u64) << 52)
+    } else {
+        f64::from_bits(1 << 51) // 2^-1023: subnormal, but exact
     }
-    let norm = out.iter().map(|v| v * v).sum::<f64>().sqrt();
-    out.iter_mut().for_each(|o| *o /= norm);
+}
+
+/// A checked descriptor matrix with the scaling of each of its rows.
+struct Rows<'a, T> {
+    m: ArrayView2<'a, T>,
+    scales: &'a [RowScale],
+}
+
+impl<T> Clone for Rows<'_, T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<T> Copy for Rows<'_, T> {}
+
+impl<'a, T: Score> Rows<'a, T> {
+    fn new(m: ArrayView2<'a, T>, scales: &'a [RowScale]) -> Self {
+        Self { m, scales }
+    }
+
+    /// Row `r` as a unit vector, into `out` (its length is D). `Zip` runs a contiguous
+    /// row as a slice, so the loop is vectorised.
+    fn unit(&self, r: usize, out: &mut [f64]) {
+        let RowScale { pow2, inv_norm } = self.scales[r];
+        Zip::from(ArrayViewMut1::from(out))
+            .and(self.m.row(r))
+            .for_each(|o, v| *o = (v.to_f64() * pow2) * inv_norm);
+    }
 }
 
 /// The query tiles covering columns `cols`, normalised to `f64`, row-major
@@ -190,16 +249,16 @@ struct QueryTiles {
 }
 
 impl QueryTiles {
-    fn new<U: Score>(queries: ArrayView2<'_, U>, cols: Range<usize>) -> Self {
-        let dim = queries.ncols();
+    fn new<U: Score>(queries: Rows<'_, U>, cols: Range<usize>) -> Self {
+        let dim = queries.m.ncols();
         let first = cols.start / TILE;
         let end = cols.end.div_ceil(TILE).max(first);
         let mut unit = vec![0.0; (end - first) * TILE * dim];
-        let n_q = queries.nrows();
+        let n_q = queries.m.nrows();
         unit.par_chunks_mut(dim).enumerate().for_each(|(r, out)| {
             let q = first * TILE + r;
             if q < n_q {
-                unit_row(queries.row(q), out);
+                queries.unit(q, out);
             }
         });
         Self { first, cols, unit, dim }
@@ -220,8 +279,8 @@ impl QueryTiles {
 /// The kernel: rows `first_row..first_row + dst.nrows()` (`first_row` a multiple of
 /// [`BLOCK_ROWS`]) of the columns `tiles.cols` into `dst` (any layout), in parallel over
 /// blocks of database rows, each normalised once and multiplied by every tile.
-fn fill<T: Score>(db: ArrayView2<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst: ArrayViewMut2<'_, f32>) {
-    let dim = db.ncols();
+fn fill<T: Score>(db: Rows<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst: ArrayViewMut2<'_, f32>) {
+    let dim = db.m.ncols();
     let cols = tiles.cols.clone();
     let blocks: Vec<ArrayViewMut2<'_, f32>> = dst.axis_chunks_iter_mut(Axis(0), BLOCK_ROWS).collect();
     blocks.into_par_iter().enumerate().for_each_init(
@@ -231,7 +290,7 @@ fn fill<T: Score>(db: ArrayView2<'_, T>, first_row: usize, tiles: &QueryTiles, m
             let rows = out.nrows();
             for (r, unit) in lhs.chunks_mut(dim).enumerate() {
                 if r < rows {
-                    unit_row(db.row(row0 + r), unit);
+                    db.unit(row0 + r, unit);
                 } else {
                     unit.fill(0.0);
                 }
@@ -240,14 +299,13 @@ fn fill<T: Score>(db: ArrayView2<'_, T>, first_row: usize, tiles: &QueryTiles, m
             for t in 0..tiles.len() {
                 let dst = MatMut::from_row_major_slice_mut(prod, BLOCK_ROWS, TILE);
                 matmul(dst, Accum::Replace, lhs, tiles.rhs(t), 1.0, Par::Seq);
-                // Tile columns that are asked for, as output columns.
+                // The tile's columns that are asked for, as output columns.
                 let q0 = (tiles.first + t) * TILE;
                 let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(cols.end));
-                for r in 0..rows {
-                    for q in lo..hi {
-                        out[[r, q - cols.start]] = prod[r * TILE + q - q0] as f32;
-                    }
-                }
+                let prod = ArrayView2::from_shape((BLOCK_ROWS, TILE), &prod[..]).expect("a block of the tile");
+                Zip::from(out.slice_mut(s![.., lo - cols.start..hi - cols.start]))
+                    .and(prod.slice(s![..rows, lo - q0..hi - q0]))
+                    .for_each(|o, &p| *o = p as f32);
             }
         },
     );
@@ -257,15 +315,19 @@ fn fill<T: Score>(db: ArrayView2<'_, T>, first_row: usize, tiles: &QueryTiles, m
 /// of queries is computed on demand: what the fused transfer
 /// ([`Calibration::transfer_descriptors`](crate::Calibration::transfer_descriptors)) and
 /// [`Calibration::from_descriptors`](crate::Calibration::from_descriptors) take in place
-/// of a similarity matrix. Nothing is copied: the views may be memory-mapped files.
+/// of a similarity matrix. The descriptors are not copied (the views may be
+/// memory-mapped files); what is kept beside them is two `f64` factors per row (16 MB
+/// per million descriptors).
 ///
 /// Columns are computed in tiles aligned at query 0 of `queries` (see the
 /// [module docs](self)), so `similarity(a..b)` is exactly columns `a..b` of
 /// [`cosine_similarity`]`(db, queries)`, whatever `a` and `b`.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Descriptors<'a> {
     db: ScoresView<'a>,
     queries: ScoresView<'a>,
+    db_scales: Vec<RowScale>,
+    q_scales: Vec<RowScale>,
 }
 
 impl<'a> Descriptors<'a> {
@@ -277,8 +339,13 @@ impl<'a> Descriptors<'a> {
     /// all-zero row; errors in `db` before errors in `queries`.
     pub fn new(db: impl Into<ScoresView<'a>>, queries: impl Into<ScoresView<'a>>) -> Result<Self> {
         let (db, queries) = (db.into(), queries.into());
-        crate::with_scores!(db, |d| crate::with_scores!(queries, |q| check(d, q)))?;
-        Ok(Self { db, queries })
+        let (db_scales, q_scales) = crate::with_scores!(db, |d| crate::with_scores!(queries, |q| scales(d, q)))?;
+        Ok(Self {
+            db,
+            queries,
+            db_scales,
+            q_scales,
+        })
     }
 
     /// The database descriptors, |DB| x D.
@@ -306,7 +373,15 @@ impl<'a> Descriptors<'a> {
         let step = step_rows(queries.len());
         Ok(crate::with_scores!(self.db, |d| crate::with_scores!(
             self.queries,
-            |q| { similarity_in_steps(d, q, queries.clone(), step, |_, _| ()) }
+            |q| {
+                similarity_in_steps(
+                    Rows::new(d, &self.db_scales),
+                    Rows::new(q, &self.q_scales),
+                    queries.clone(),
+                    step,
+                    |_, _| (),
+                )
+            }
         )))
     }
 
@@ -328,7 +403,12 @@ impl<'a> Descriptors<'a> {
     /// Columns `cols` into `dst` (|DB| x `cols.len()`, any layout).
     fn fill_columns(&self, cols: Range<usize>, dst: ArrayViewMut2<'_, f32>) {
         crate::with_scores!(self.db, |d| crate::with_scores!(self.queries, |q| {
-            fill(d, 0, &QueryTiles::new(q, cols), dst)
+            fill(
+                Rows::new(d, &self.db_scales),
+                0,
+                &QueryTiles::new(Rows::new(q, &self.q_scales), cols),
+                dst,
+            )
         }));
     }
 }
@@ -392,6 +472,18 @@ mod tests {
     use super::*;
     use ndarray::array;
 
+    /// [`similarity_in_steps`] of unchecked descriptors.
+    fn in_steps(
+        db: ArrayView2<'_, f32>,
+        q: ArrayView2<'_, f32>,
+        cols: Range<usize>,
+        step: usize,
+        progress: impl Fn(usize, usize),
+    ) -> Array2<f32> {
+        let (db_scales, q_scales) = scales(db, q).unwrap();
+        similarity_in_steps(Rows::new(db, &db_scales), Rows::new(q, &q_scales), cols, step, progress)
+    }
+
     fn close(a: f32, b: f64) -> bool {
         (f64::from(a) - b).abs() < 1e-7
     }
@@ -427,6 +519,26 @@ mod tests {
     }
 
     #[test]
+    fn powers_of_two_bring_the_largest_value_into_1_2() {
+        // 3 in [2, 4): 1/2, 3/2 = 1.5. 0.3 in [1/4, 1/2): 4, 1.2. 1: 1.
+        assert_eq!(inverse_power_of_two(3.0), 0.5);
+        assert_eq!(inverse_power_of_two(0.3), 4.0);
+        assert_eq!(inverse_power_of_two(1.0), 1.0);
+        // The extremes: f64::MAX in [2^1023, 2^1024) takes the subnormal 2^-1023 and
+        // lands in [1, 2); the smallest normal 2^-1022 takes 2^1022 and lands on 1; the
+        // smallest subnormal 2^-1074 takes 2^1022 too and lands on 2^-52.
+        let max = inverse_power_of_two(f64::MAX);
+        assert_eq!(max, 2f64.powi(-1023));
+        assert!((1.0..2.0).contains(&(f64::MAX * max)));
+        assert_eq!(inverse_power_of_two(f64::MIN_POSITIVE), 2f64.powi(1022));
+        assert_eq!(f64::MIN_POSITIVE * 2f64.powi(1022), 1.0);
+        assert_eq!(
+            inverse_power_of_two(f64::from_bits(1)) * f64::from_bits(1),
+            2f64.powi(-52)
+        );
+    }
+
+    #[test]
     fn any_strides_and_scale_invariance() {
         // db is the transposed view of [[1, 3, 5], [2, 4, 6]]: rows (1,2), (3,4), (5,6).
         // Scaling a row by 1e200 or 1e-200 leaves its cosine unchanged:
@@ -459,7 +571,7 @@ mod tests {
             );
         }
         for step in [256, 512, 1024] {
-            assert_eq!(similarity_in_steps(db.view(), q.view(), 0..150, step, |_, _| ()), full);
+            assert_eq!(in_steps(db.view(), q.view(), 0..150, step, |_, _| ()), full);
         }
         // Chunks of a transfer over queries 10..150, left to right: the second chunk
         // reuses the first's tile, the third starts inside the second's last tile.
@@ -476,7 +588,7 @@ mod tests {
         // 256, 512 and 600 of 600 done.
         let (db, q) = (lcg(600, 3, 3), lcg(5, 3, 4));
         let calls = std::cell::RefCell::new(vec![]);
-        let s = similarity_in_steps(db.view(), q.view(), 0..5, 256, |done, total| {
+        let s = in_steps(db.view(), q.view(), 0..5, 256, |done, total| {
             calls.borrow_mut().push((done, total))
         });
         assert_eq!(s, cosine_similarity(db.view(), q.view()).unwrap());
