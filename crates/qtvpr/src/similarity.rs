@@ -130,7 +130,7 @@ fn similarity_in_steps<T: Score, U: Score>(
 /// magnitude of the descriptor. Both factors are computed once per row, in one pass
 /// with the check; the product then only multiplies, where dividing every value of every
 /// database row once per tile of queries took a third of a fused transfer's time.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct RowScale {
     pow2: f64,
     inv_norm: f64,
@@ -159,11 +159,12 @@ fn scales<T: Score, U: Score>(
 /// The scaling of every row of `m`, in parallel, or the error of its first bad row (by
 /// row order).
 fn row_scales<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<Vec<RowScale>> {
-    let rows: Vec<Result<RowScale>> = (0..m.nrows())
-        .into_par_iter()
-        .map(|row| row_scale(what, row, m.row(row)))
-        .collect();
-    rows.into_iter().collect()
+    let mut scales = vec![RowScale::default(); m.nrows()];
+    let bad = scales
+        .par_iter_mut()
+        .enumerate()
+        .find_map_first(|(row, out)| row_scale(what, row, m.row(row)).map(|s| *out = s).err());
+    bad.map_or(Ok(scales), Err)
 }
 
 /// The scaling of row `x`, or why the row has no cosine.
