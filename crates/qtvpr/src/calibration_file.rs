@@ -241,11 +241,8 @@ mod file {
             let soft = npy::read_bool_matrix(npy, &member)?;
             gt = gt.with_soft(soft.view()).map_err(|e| in_file(path, e))?;
         }
-        let calibration = match &s {
-            ScoreMatrix::F32(m) => Calibration::new(m.view(), &gt, matching),
-            ScoreMatrix::F64(m) => Calibration::new(m.view(), &gt, matching),
-        }
-        .map_err(|e| in_file(path, e))?;
+        let calibration =
+            crate::with_scores!(s.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
         calibration.with_defaults(defaults).map_err(|e| in_file(path, e))
     }
 

@@ -53,6 +53,14 @@ impl ScoreMatrix {
             ScoreMatrix::F64(_) => f64::DTYPE,
         }
     }
+
+    /// A view of it, for generic code through [`with_scores!`](crate::with_scores).
+    pub fn view(&self) -> ScoresView<'_> {
+        match self {
+            ScoreMatrix::F32(m) => ScoresView::F32(m.view()),
+            ScoreMatrix::F64(m) => ScoresView::F64(m.view()),
+        }
+    }
 }
 
 impl sealed::Sealed for f32 {}

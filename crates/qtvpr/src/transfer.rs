@@ -198,10 +198,7 @@ impl Calibration {
             cal_spread: ranked.screen().max_spread(),
             profiles: Box::new(ranked),
             reference,
-            candidates: match &scores {
-                ScoreMatrix::F32(s) => Candidates::new(s.view(), gt.view(), matching),
-                ScoreMatrix::F64(s) => Candidates::new(s.view(), gt.view(), matching),
-            },
+            candidates: crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching)),
             n_db: scores.dim().0,
             scores,
             gt,
