@@ -90,3 +90,8 @@ def test_bad_descriptors_name_the_row(nordland):
         cal.transfer(qtvpr.Descriptors(db[:100], q))
     with pytest.raises(ValueError, match="query_major"):
         cal.transfer(qtvpr.Descriptors(db, q), query_major=True)
+    # The same refusal wherever Descriptors stand for a matrix.
+    with pytest.raises(ValueError, match="query_major=True does not apply to Descriptors"):
+        qtvpr.Calibration(qtvpr.Descriptors(db, q, stop=10), np.eye(3576, 10, dtype=bool), query_major=True)
+    with pytest.raises(ValueError, match="query_major=True does not apply to Descriptors"):
+        qtvpr.evaluate(qtvpr.Descriptors(db, q), np.eye(3576, 600, dtype=bool), query_major=True)

@@ -4,7 +4,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use qtvpr::{Defaults, Matching, Params};
@@ -83,12 +82,7 @@ impl PyCalibration {
             query_major,
         };
         let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-        if let Ok(d) = s_cal.cast::<PyDescriptors>() {
-            if query_major {
-                return Err(PyValueError::new_err(
-                    "query_major=True does not apply to Descriptors, whose similarity is |DB| x |Q|",
-                ));
-            }
+        if let Some(d) = PyDescriptors::of(s_cal, query_major)? {
             let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
             let gt = gt.view(false);
             let gt = py.detach(|| gt.build())?;
@@ -229,12 +223,7 @@ impl PyCalibration {
             segment_size: segment_size.map(|m| count("segment_size", m)).transpose()?,
         };
         params.validate().map_err(|e| args.error(e))?;
-        if let Ok(d) = s_val.cast::<PyDescriptors>() {
-            if query_major {
-                return Err(PyValueError::new_err(
-                    "query_major=True does not apply to Descriptors, whose similarity is |DB| x |Q|",
-                ));
-            }
+        if let Some(d) = PyDescriptors::of(s_val, query_major)? {
             let out = d
                 .get()
                 .with(py, |d, r| self.inner.transfer_descriptors(d, r, &params))?

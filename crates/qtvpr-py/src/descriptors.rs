@@ -102,6 +102,21 @@ impl PyDescriptors {
 }
 
 impl PyDescriptors {
+    /// `s` as descriptors, if it is a ``Descriptors``: the one check of every function
+    /// that takes them in place of a matrix. ``query_major=True`` with descriptors is a
+    /// ``ValueError``: their similarity is |DB| x |Q| by construction.
+    pub(crate) fn of<'a, 'py>(s: &'a Bound<'py, PyAny>, query_major: bool) -> PyResult<Option<&'a Bound<'py, Self>>> {
+        let Ok(d) = s.cast::<Self>() else {
+            return Ok(None);
+        };
+        if query_major {
+            return Err(PyValueError::new_err(
+                "query_major=True does not apply to Descriptors, whose similarity is |DB| x |Q|",
+            ));
+        }
+        Ok(Some(d))
+    }
+
     /// Run `f` (without the GIL) on the core's descriptors and the selected queries.
     /// The outer error is about the descriptors (named `db` / `queries`); the inner one
     /// is `f`'s, for the caller to name.

@@ -170,7 +170,7 @@ pub(crate) fn evaluate<'py>(
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     // Descriptors: the matrix is built in memory (the protocol needs all of it).
-    if let Ok(d) = s.cast::<PyDescriptors>() {
+    if let Some(d) = PyDescriptors::of(s, query_major)? {
         let m = d.get().similarity(py)?;
         return evaluate(
             py,
