@@ -216,33 +216,62 @@ mod file {
     }
 
     /// A calibration from an opened archive; `path` names it in errors.
+    ///
+    /// Integrity first: every member's `.npy` header is read (and checked against the
+    /// zip directory's size) and the shapes compared before any array data is
+    /// decompressed; each member is then read to its end, so that its CRC-32 is checked,
+    /// and never past its declared size.
     fn read<R: Read + Seek>(mut npz: npyz::npz::NpzArchive<R>, path: &Path) -> Result<Calibration> {
-        let (matching, defaults) = {
-            let (npy, member) = npy::npz_member(&mut npz, "meta", path)?
-                .ok_or_else(|| file_error(path, "has no array meta: it is not a qtvpr calibration file"))?;
-            read_meta(&npy::read_string(npy, &member)?, path)?
-        };
         let missing = |name: &str| {
             file_error(
                 path,
                 format!("has no array {name}; a calibration file holds s, gt and meta (and optionally gt_soft)"),
             )
         };
-        let s = {
-            let (npy, member) = npy::npz_member(&mut npz, "s", path)?.ok_or_else(|| missing("s"))?;
-            npy::read_owned_scores(npy, &member)?
+        let meta = npy::npz_member_header(&mut npz, "meta", path)?
+            .ok_or_else(|| file_error(path, "has no array meta: it is not a qtvpr calibration file"))?;
+        let s = npy::npz_member_header(&mut npz, "s", path)?.ok_or_else(|| missing("s"))?;
+        let hard = npy::npz_member_header(&mut npz, "gt", path)?.ok_or_else(|| missing("gt"))?;
+        let soft = npy::npz_member_header(&mut npz, "gt_soft", path)?;
+        // The shapes agree before any array is decompressed (the same messages as the
+        // checks on the arrays themselves).
+        let dims = |m: &npy::MemberHeader| match m.shape[..] {
+            [r, c] => Some((r as usize, c as usize)),
+            _ => None,
         };
-        let hard = {
-            let (npy, member) = npy::npz_member(&mut npz, "gt", path)?.ok_or_else(|| missing("gt"))?;
-            npy::read_bool_matrix(npy, &member)?
+        let pairs = [
+            (Some(&hard), &s, "ground truth", "calibration similarity"),
+            (soft.as_ref(), &hard, "soft ground truth", "ground truth"),
+        ];
+        for (member, other, what, other_what) in pairs {
+            if let Some(member) = member
+                && let (Some(shape), Some(other_shape)) = (dims(member), dims(other))
+                && shape != other_shape
+            {
+                return Err(in_file(
+                    path,
+                    Error::ShapeMismatch {
+                        what,
+                        shape,
+                        other: other_what,
+                        other_shape,
+                    },
+                ));
+            }
+        }
+        let (matching, defaults) = {
+            let npy = npy::npz_member_data(&mut npz, "meta", &meta)?;
+            read_meta(&npy::read_string(npy, &meta.label)?, path)?
         };
-        let mut gt = GroundTruth::new(hard.view()).map_err(|e| in_file(path, e))?;
-        if let Some((npy, member)) = npy::npz_member(&mut npz, "gt_soft", path)? {
-            let soft = npy::read_bool_matrix(npy, &member)?;
-            gt = gt.with_soft(soft.view()).map_err(|e| in_file(path, e))?;
+        let scores = npy::read_owned_scores(npy::npz_member_data(&mut npz, "s", &s)?, &s.label)?;
+        let hard_gt = npy::read_bool_matrix(npy::npz_member_data(&mut npz, "gt", &hard)?, &hard.label)?;
+        let mut gt = GroundTruth::new(hard_gt.view()).map_err(|e| in_file(path, e))?;
+        if let Some(soft) = &soft {
+            let soft_gt = npy::read_bool_matrix(npy::npz_member_data(&mut npz, "gt_soft", soft)?, &soft.label)?;
+            gt = gt.with_soft(soft_gt.view()).map_err(|e| in_file(path, e))?;
         }
         let calibration =
-            crate::with_scores!(s.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
+            crate::with_scores!(scores.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
         calibration.with_defaults(defaults).map_err(|e| in_file(path, e))
     }
 

@@ -235,6 +235,23 @@ const MAX_NESTING: usize = 6;
 /// Parse a `.npy` header. The header is read and checked here first (magic, length,
 /// nesting), then handed to npyz, followed by the rest of `reader`.
 fn parse<R: Read>(mut reader: R, path: &Path) -> Result<NpyFile<io::Chain<Cursor<Vec<u8>>, R>>> {
+    let header = read_header(&mut reader, path)?;
+    NpyFile::new(Cursor::new(header).chain(reader)).map_err(|e| {
+        // Header parse errors span several lines; the first says what is wrong.
+        let e = e.to_string();
+        file_error(
+            path,
+            format!(
+                "is not a valid .npy file: {}",
+                e.lines().next().unwrap_or_default().trim()
+            ),
+        )
+    })
+}
+
+/// The bytes of a `.npy` header (magic, version, length, text), checked for length and
+/// nesting.
+fn read_header<R: Read>(mut reader: R, path: &Path) -> Result<Vec<u8>> {
     let invalid = |what: &str| file_error(path, format!("is not a valid .npy file: {what}"));
     let mut header = vec![0u8; 8];
     reader
@@ -286,11 +303,7 @@ fn parse<R: Read>(mut reader: R, path: &Path) -> Result<NpyFile<io::Chain<Cursor
     if deepest > MAX_NESTING {
         return Err(invalid(&format!("its header nests brackets {deepest} deep")));
     }
-    NpyFile::new(Cursor::new(header).chain(reader)).map_err(|e| {
-        // Header parse errors span several lines; the first says what is wrong.
-        let e = e.to_string();
-        invalid(e.lines().next().unwrap_or_default().trim())
-    })
+    Ok(header)
 }
 
 /// Array `name` of an `.npz` archive, if it has one, read through [`parse`].
@@ -356,9 +369,25 @@ fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path, layout: &str) -> Result<(usi
 fn read_matrix<T: npyz::Deserialize, R: Read>(npy: NpyFile<R>, path: &Path, layout: &str) -> Result<Matrix<T>> {
     let dim = shape_2d(&npy, path, layout)?;
     let fortran = npy.order() == Order::Fortran;
-    let data: Vec<T> = npy
-        .into_vec()
+    // The header decides the allocation: one that cannot be made is an error, never an
+    // abort (npyz's `into_vec` would reserve it infallibly).
+    let n = dim.0 * dim.1;
+    let mut data: Vec<T> = Vec::new();
+    data.try_reserve_exact(n).map_err(|_| {
+        file_error(
+            path,
+            format!(
+                "declares a {}x{} matrix, more memory than can be allocated",
+                dim.0, dim.1
+            ),
+        )
+    })?;
+    let values = npy
+        .data::<T>()
         .map_err(|e| file_error(path, format!("is truncated or corrupt: {e}")))?;
+    for value in values {
+        data.push(value.map_err(|e| file_error(path, format!("is truncated or corrupt: {e}")))?);
+    }
     if data.len() != dim.0 * dim.1 {
         return Err(file_error(
             path,
@@ -586,15 +615,126 @@ fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<io::BufReader<Fil
     Ok((gt, npz))
 }
 
-/// Array `name` of an `.npz` archive: `Ok(None)` if there is none; errors name it in
-/// the file (`FILE (array NAME)`).
-pub(crate) fn npz_member<'a, R: Read + Seek>(
+/// The longest `meta` member a calibration file may have (its JSON is under 200 bytes).
+const MAX_META_BYTES: u64 = 1 << 20;
+
+/// What a calibration member's `.npy` header declares, read before any of its data.
+pub(crate) struct MemberHeader {
+    /// The array's shape.
+    pub shape: Vec<u64>,
+    /// The member's uncompressed size: header and data, as both the zip directory and
+    /// the `.npy` header declare it.
+    pub size: u64,
+    /// `FILE (array NAME)`, for errors.
+    pub label: PathBuf,
+}
+
+/// The zip member `NAME.npy` of `npz`, refused unless stored or deflated.
+fn zip_member<'a, R: Read + Seek>(
     npz: &'a mut NpzArchive<R>,
     name: &str,
+    label: &Path,
+) -> Result<Option<npyz::zip::read::ZipFile<'a>>> {
+    let zip = npz.zip_archive();
+    let member = format!("{name}.npy");
+    if !zip.file_names().any(|n| n == member) {
+        return Ok(None);
+    }
+    let file = zip
+        .by_name(&member)
+        .map_err(|e| file_error(label, format!("cannot be read: {e}")))?;
+    match file.compression() {
+        npyz::zip::CompressionMethod::Stored | npyz::zip::CompressionMethod::Deflated => Ok(Some(file)),
+        method => Err(file_error(
+            label,
+            format!(
+                "cannot be decompressed: compression method {method} is not supported; \
+                 a calibration file holds stored or deflated members"
+            ),
+        )),
+    }
+}
+
+/// The `.npy` header of member `name` of a calibration archive, checked against the
+/// member's uncompressed size in the zip directory; no array data is decompressed.
+pub(crate) fn npz_member_header<R: Read + Seek>(
+    npz: &mut NpzArchive<R>,
+    name: &str,
     path: &Path,
-) -> Result<Option<(NpyFile<impl Read + 'a>, PathBuf)>> {
-    let member = PathBuf::from(format!("{} (array {name})", path.display()));
-    Ok(npz_array(npz, name, path)?.map(|npy| (npy, member)))
+) -> Result<Option<MemberHeader>> {
+    let label = PathBuf::from(format!("{} (array {name})", path.display()));
+    let Some(mut file) = zip_member(npz, name, &label)? else {
+        return Ok(None);
+    };
+    let size = file.size();
+    let header = read_header(&mut file, &label)?;
+    let header_len = header.len() as u64;
+    let npy = parse(Cursor::new(header), &label)?;
+    let shape = npy.shape().to_vec();
+    let claim = npy.dtype().num_bytes().and_then(|item| {
+        shape
+            .iter()
+            .try_fold(item as u64, |n, &d| n.checked_mul(d))
+            .and_then(|n| n.checked_add(header_len))
+    });
+    match claim {
+        Some(claim) if claim == size => {}
+        Some(claim) => {
+            return Err(file_error(
+                &label,
+                format!(
+                    "is corrupt: the zip directory says it holds {size} bytes, its .npy header \
+                     declares {claim}"
+                ),
+            ));
+        }
+        None => return Err(too_large(&label, &shape)),
+    }
+    if name == "meta" && size > MAX_META_BYTES {
+        return Err(file_error(
+            &label,
+            format!("is {size} bytes; a calibration's meta is under {MAX_META_BYTES}"),
+        ));
+    }
+    Ok(Some(MemberHeader { shape, size, label }))
+}
+
+/// Member `header` of a calibration archive read whole: never past its declared size,
+/// to its end, so that the zip reader checks its CRC-32; then parsed.
+pub(crate) fn npz_member_data<R: Read + Seek>(
+    npz: &mut NpzArchive<R>,
+    name: &str,
+    header: &MemberHeader,
+) -> Result<NpyFile<io::Chain<Cursor<Vec<u8>>, Cursor<Vec<u8>>>>> {
+    let label = &header.label;
+    let file = zip_member(npz, name, label)?.ok_or_else(|| file_error(label, "is missing"))?;
+    let size = usize::try_from(header.size).map_err(|_| too_large(label, &header.shape))?;
+    let mut bytes = Vec::new();
+    bytes.try_reserve_exact(size).map_err(|_| {
+        file_error(
+            label,
+            format!("declares {size} bytes, more memory than can be allocated"),
+        )
+    })?;
+    // One byte more than declared, to tell a member that expands further.
+    file.take(header.size + 1).read_to_end(&mut bytes).map_err(|e| {
+        if e.to_string().contains("Invalid checksum") {
+            file_error(label, "is corrupt: its CRC-32 does not match its data")
+        } else {
+            file_error(label, format!("is corrupt: {e}"))
+        }
+    })?;
+    match bytes.len().cmp(&size) {
+        std::cmp::Ordering::Less => Err(file_error(
+            label,
+            format!("is truncated: it holds {} of its {size} bytes", bytes.len()),
+        )),
+        std::cmp::Ordering::Greater => Err(file_error(
+            label,
+            format!("is corrupt: it decompresses past its declared {size} bytes"),
+        )),
+        std::cmp::Ordering::Equal => parse(Cursor::new(bytes), label),
+    }
 }
 
 /// Open an `.npz` archive, naming `path` if it is not one.
