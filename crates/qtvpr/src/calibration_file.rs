@@ -772,4 +772,163 @@ mod tests {
             "{e}"
         );
     }
+
+    /// Every single-bit flip of a small calibration file is an error naming the file, or
+    /// loads a calibration that decides bit-identically (a flip in a field the reader
+    /// does not use, such as a local header's copy of the name).
+    #[test]
+    fn every_bit_flip_is_an_error_or_changes_nothing() {
+        let cal = calibration(Matching::Single, false);
+        let bytes = cal.to_bytes(&DEFAULTS).unwrap();
+        let (mut refused, mut loaded) = (0, 0);
+        for i in 0..bytes.len() {
+            for bit in 0..8 {
+                let mut b = bytes.clone();
+                b[i] ^= 1 << bit;
+                match Calibration::from_bytes(&b, "flipped.npz") {
+                    Err(e) => {
+                        assert!(e.to_string().contains("flipped.npz"), "byte {i} bit {bit}: {e}");
+                        refused += 1;
+                    }
+                    Ok(c) => {
+                        assert_eq!(c.defaults(), &DEFAULTS, "byte {i} bit {bit}");
+                        assert_eq!(c.matching(), Matching::Single, "byte {i} bit {bit}");
+                        same_results(&cal, &c);
+                        loaded += 1;
+                    }
+                }
+            }
+        }
+        // Most fields are covered by a CRC or a size check; what loads is a flip in a field
+        // the reader never uses (times, versions, a local header's copy of a name).
+        assert!(refused > 8 * bytes.len() * 3 / 4, "{refused} refused, {loaded} loaded");
+    }
+
+    /// A calibration archive of `s.npy` (its raw bytes, written with `method`), a 1x1
+    /// `gt` and a good `meta`.
+    fn archive(s: &[u8], method: npyz::zip::CompressionMethod) -> Vec<u8> {
+        let mut out = Cursor::new(Vec::new());
+        let mut zip = npyz::zip::ZipWriter::new(&mut out);
+        let stored = npyz::zip::write::FileOptions::default().compression_method(npyz::zip::CompressionMethod::Stored);
+        zip.start_file(
+            "s.npy",
+            stored
+                .compression_method(method)
+                .large_file(s.len() > u32::MAX as usize),
+        )
+        .unwrap();
+        std::io::Write::write_all(&mut zip, s).unwrap();
+        zip.start_file("gt.npy", stored).unwrap();
+        NpyArray::Bool(array![[true]].view()).write_to(&mut zip).unwrap();
+        zip.start_file("meta.npy", stored).unwrap();
+        let meta = r#"{"format": "qtvpr-calibration", "version": 1, "matching": "single", "params": {"k": 1, "precision": 1.0, "window": null}}"#;
+        NpyArray::Str(meta).write_to(&mut zip).unwrap();
+        zip.finish().unwrap();
+        drop(zip);
+        out.into_inner()
+    }
+
+    /// A `.npy` header for a float64 matrix of `shape`, followed by `zeros` zero bytes.
+    fn npy_bytes(shape: (u64, u64), zeros: usize) -> Vec<u8> {
+        let mut h = format!(
+            "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, {}), }}",
+            shape.0, shape.1
+        );
+        while (h.len() + 11) % 64 != 0 {
+            h.push(' ');
+        }
+        h.push('\n');
+        let mut b = b"\x93NUMPY\x01\x00".to_vec();
+        b.extend((h.len() as u16).to_le_bytes());
+        b.extend(h.as_bytes());
+        b.resize(b.len() + zeros, 0);
+        b
+    }
+
+    #[test]
+    fn members_other_than_stored_or_deflated_are_refused() {
+        let s = npy_bytes((1, 1), 8);
+        for method in [npyz::zip::CompressionMethod::Bzip2, npyz::zip::CompressionMethod::Zstd] {
+            let e = Calibration::from_bytes(&archive(&s, method), "c.npz")
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(
+                e.starts_with("c.npz (array s) cannot be decompressed: compression method")
+                    && e.contains("a calibration file holds stored or deflated members"),
+                "{method}: {e}"
+            );
+        }
+        // Deflated is read.
+        let e = Calibration::from_bytes(&archive(&s, npyz::zip::CompressionMethod::Deflated), "c.npz");
+        assert!(e.is_ok(), "{:?}", e.err().map(|e| e.to_string()));
+    }
+
+    /// A deflate bomb (40 MB of zeros in a few kB) whose shape disagrees with `gt` is
+    /// refused before it is decompressed; one whose header claims more than the zip
+    /// directory says is refused before it is read.
+    #[test]
+    fn bombs_are_refused_before_decompressing() {
+        let s = npy_bytes((5000, 1000), 5000 * 1000 * 8);
+        let bomb = archive(&s, npyz::zip::CompressionMethod::Deflated);
+        assert!(bomb.len() < 200_000, "{}", bomb.len());
+        let start = std::time::Instant::now();
+        let e = Calibration::from_bytes(&bomb, "bomb.npz").err().unwrap().to_string();
+        assert_eq!(
+            e,
+            "bomb.npz: ground truth shape 1x1 does not match calibration similarity shape 5000x1000"
+        );
+        assert!(
+            start.elapsed() < std::time::Duration::from_millis(500),
+            "{:?}",
+            start.elapsed()
+        );
+        // A header claiming 80 GB over 8 bytes of data.
+        let mut claim = npy_bytes((100_000, 100_000), 8);
+        let e = Calibration::from_bytes(&archive(&claim, npyz::zip::CompressionMethod::Deflated), "c.npz")
+            .err()
+            .unwrap()
+            .to_string();
+        assert_eq!(
+            e,
+            "c.npz (array s) is corrupt: the zip directory says it holds 136 bytes, its .npy header \
+             declares 80000000128"
+        );
+        claim = npy_bytes((1, 2), 8);
+        let e = Calibration::from_bytes(&archive(&claim, npyz::zip::CompressionMethod::Deflated), "c.npz")
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "c.npz (array s) is corrupt: the zip directory says it holds 136 bytes, its .npy header declares 144"
+            ),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_truncated_member_is_named() {
+        let cal = calibration(Matching::Single, false);
+        let bytes = cal.to_bytes(&DEFAULTS).unwrap();
+        // Shrink s.npy's sizes in the central directory by 8: its data ends early.
+        let mut zip = npyz::zip::ZipArchive::new(Cursor::new(&bytes[..])).unwrap();
+        let size = zip.by_name("s.npy").unwrap().size() as u32;
+        drop(zip);
+        let cd = bytes.windows(4).rposition(|w| w == b"PK\x01\x02").unwrap();
+        let first_cd = bytes.windows(4).position(|w| w == b"PK\x01\x02").unwrap();
+        assert!(first_cd <= cd);
+        let mut b = bytes.clone();
+        let at = first_cd; // s.npy is the first member
+        assert_eq!(&b[at + 46..at + 51], b"s.npy");
+        for field in [at + 20, at + 24] {
+            assert_eq!(u32::from_le_bytes(b[field..field + 4].try_into().unwrap()), size);
+            b[field..field + 4].copy_from_slice(&(size - 8).to_le_bytes());
+        }
+        let e = Calibration::from_bytes(&b, "t.npz").err().unwrap().to_string();
+        assert!(
+            e.starts_with("t.npz (array s) is corrupt: the zip directory says it holds"),
+            "{e}"
+        );
+    }
 }
