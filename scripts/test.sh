@@ -23,6 +23,10 @@ step "cargo test"
 cargo test --workspace --locked
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
+step "fuzz targets compile"
+# Not a workspace member (libFuzzer needs a sanitizer build to run); stable can check it.
+cargo check --manifest-path fuzz/Cargo.toml --locked
+
 step "wheel into a virtualenv"
 venv="$target/test-venv"
 # A venv is kept between local runs (a fresh clone has none); the wheel is always rebuilt.

@@ -12,7 +12,8 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
-use qtvpr::npy::{Scores, ScoresView, add_soft_ground_truth, read_ground_truth, read_hard_ground_truth, read_scores};
+use qtvpr::ScoresView;
+use qtvpr::npy::{Scores, add_soft_ground_truth, read_ground_truth, read_hard_ground_truth, read_scores};
 use qtvpr::{GroundTruth, Truth};
 
 /// A directory of this process's own, for the file under test.

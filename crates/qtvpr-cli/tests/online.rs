@@ -529,6 +529,15 @@ fn bad_calibration_files_name_the_file() {
         "-o",
         "cal.npz",
     ]);
+    // One flipped bit in a score: the member's CRC-32 fails, in stream and threshold.
+    let mut bytes = std::fs::read(case.path("cal.npz")).unwrap();
+    let s_data = bytes.windows(6).position(|w| w == b"\x93NUMPY").unwrap() + 200;
+    bytes[s_data] ^= 0x01;
+    std::fs::write(case.path("flipped.npz"), &bytes).unwrap();
+    fails(
+        "flipped.npz",
+        "flipped.npz (array s) is corrupt: its CRC-32 does not match its data",
+    );
     let mut val = case.s.slice(s![.., N_CAL..]).to_owned();
     val[[7, 42]] = f64::INFINITY;
     write_npy(&case.path("bad_val.npy"), val.view()).unwrap();
