@@ -705,7 +705,7 @@ pub(crate) fn npz_member_data<R: Read + Seek>(
     npz: &mut NpzArchive<R>,
     name: &str,
     header: &MemberHeader,
-) -> Result<NpyFile<io::Chain<Cursor<Vec<u8>>, Cursor<Vec<u8>>>>> {
+) -> Result<NpyFile<impl Read>> {
     let label = &header.label;
     let file = zip_member(npz, name, label)?.ok_or_else(|| file_error(label, "is missing"))?;
     let size = usize::try_from(header.size).map_err(|_| too_large(label, &header.shape))?;
