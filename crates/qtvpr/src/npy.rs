@@ -814,10 +814,20 @@ fn write_error(path: &Path, e: &io::Error) -> Error {
 pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>) -> Result<()> {
     let target = resolve_output(path)?;
     if let Some(mut file) = open_in_place(path, &target)? {
-        // A device or FIFO: streamed in place, never replaced by a regular file.
-        let mut w = BufWriter::with_capacity(1 << 20, &mut file);
-        return write(&mut w)
-            .and_then(|()| w.flush())
+        // A device or FIFO: written in place, never replaced by a regular file. The
+        // content is made in an anonymous temporary file first (the `.npz` writer
+        // seeks, a FIFO cannot), then streamed; a failure to make it sends nothing.
+        let mut tmp = tempfile::tempfile().map_err(|e| write_error(path, &e))?;
+        {
+            let mut w = BufWriter::with_capacity(1 << 20, &mut tmp);
+            write(&mut w)
+                .and_then(|()| w.flush())
+                .map_err(|e| write_error(path, &e))?;
+        }
+        return tmp
+            .rewind()
+            .and_then(|()| io::copy(&mut tmp, &mut file))
+            .and_then(|_| file.flush())
             .map_err(|e| write_error(path, &e));
     }
     let dir = match target.parent() {
