@@ -952,7 +952,25 @@ fn write_error(path: &Path, e: &io::Error) -> Error {
 /// # Errors
 /// [`Error::Write`] naming `path`.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>) -> Result<()> {
-    let dir = match path.parent() {
+    let target = resolve_output(path)?;
+    if let Some(mut file) = open_in_place(path, &target)? {
+        // A device or FIFO: written in place, never replaced by a regular file. The
+        // content is made in an anonymous temporary file first (the `.npz` writer
+        // seeks, a FIFO cannot), then streamed; a failure to make it sends nothing.
+        let mut tmp = tempfile::tempfile().map_err(|e| write_error(path, &e))?;
+        {
+            let mut w = BufWriter::with_capacity(1 << 20, &mut tmp);
+            write(&mut w)
+                .and_then(|()| w.flush())
+                .map_err(|e| write_error(path, &e))?;
+        }
+        return tmp
+            .rewind()
+            .and_then(|()| io::copy(&mut tmp, &mut file))
+            .and_then(|_| file.flush())
+            .map_err(|e| write_error(path, &e));
+    }
+    let dir = match target.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
@@ -970,8 +988,75 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File
             .and_then(|()| w.flush())
             .map_err(|e| write_error(path, &e))?;
     }
-    tmp.persist(path).map_err(|e| write_error(path, &e.error))?;
+    tmp.persist(&target).map_err(|e| write_error(path, &e.error))?;
     Ok(())
+}
+
+/// Follow `path` through any chain of symbolic links to the file really written: the
+/// link itself stays a link. A dangling link resolves to its (missing) target, which is
+/// then created.
+fn resolve_output(path: &Path) -> Result<PathBuf> {
+    let mut current = path.to_path_buf();
+    // The kernel's own limit on nested links (ELOOP past it).
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&current) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let link = std::fs::read_link(&current).map_err(|e| write_error(path, &e))?;
+                current = match current.parent() {
+                    Some(dir) if link.is_relative() => dir.join(link),
+                    _ => link,
+                };
+            }
+            _ => return Ok(current),
+        }
+    }
+    Err(write_error(
+        path,
+        &io::Error::other("too many levels of symbolic links"),
+    ))
+}
+
+/// Open `target` for writing in place when it exists and is not a regular file (a
+/// device, FIFO or socket); `None` for a regular or missing file. A directory is an
+/// error, and so is a FIFO that nobody reads: opening it never waits.
+fn open_in_place(path: &Path, target: &Path) -> Result<Option<File>> {
+    let meta = match std::fs::metadata(target) {
+        Ok(m) => m,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(write_error(path, &e)),
+    };
+    if meta.is_file() {
+        return Ok(None);
+    }
+    if meta.is_dir() {
+        return Err(write_error(path, &io::Error::other("is a directory")));
+    }
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = options.open(target).map_err(|e| {
+        #[cfg(unix)]
+        if e.raw_os_error() == Some(libc::ENXIO) {
+            return write_error(path, &io::Error::other("is a FIFO that nobody reads"));
+        }
+        write_error(path, &e)
+    })?;
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        // Writes block as usual once open: a slow reader is waited for, not an error.
+        let fd = file.as_raw_fd();
+        // SAFETY: fcntl on a descriptor this function owns, with integer arguments only.
+        let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+        if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) } < 0 {
+            return Err(write_error(path, &io::Error::last_os_error()));
+        }
+    }
+    Ok(Some(file))
 }
 
 /// Write one array as an `.npy` file (C order), atomically.
