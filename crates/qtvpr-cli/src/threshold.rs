@@ -142,13 +142,14 @@ struct ReportParams {
 
 /// Whether `path` is a zip archive (a calibration file) rather than a `.npy`: by its
 /// first bytes, whatever its name. A file that cannot be read is left to the reader
-/// that follows, which names the problem.
+/// that follows, which names the problem; so is a stream (a pipe or a device), whose
+/// first bytes cannot be read twice and which cannot hold a zip archive (it needs seeking).
 pub fn is_calibration_file(path: &Path) -> bool {
     let mut magic = [0u8; 4];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok()
-        && &magic == b"PK\x03\x04"
+    match qtvpr::npy::open_input(path) {
+        Ok((mut file, true)) => file.read_exact(&mut magic).is_ok() && &magic == b"PK\x03\x04",
+        _ => false,
+    }
 }
 
 /// Where the scores come from.

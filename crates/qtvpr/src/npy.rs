@@ -212,15 +212,94 @@ fn io_error(path: &Path, e: &io::Error) -> Error {
 }
 
 fn open_file(path: &Path) -> Result<File> {
-    let file = File::open(path).map_err(|e| io_error(path, &e))?;
-    match file.metadata() {
-        Ok(m) if m.is_dir() => Err(Error::Io {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    // Never block in open(2): a FIFO without a writer would wait for one forever.
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+    let file = options.open(path).map_err(|e| io_error(path, &e))?;
+    let kind = file.metadata().map_err(|e| io_error(path, &e))?.file_type();
+    if kind.is_dir() {
+        return Err(Error::Io {
             path: path.display().to_string(),
             kind: io::ErrorKind::IsADirectory,
             message: "is a directory, not a file".into(),
-        }),
-        _ => Ok(file),
+        });
     }
+    #[cfg(unix)]
+    {
+        if std::os::unix::fs::FileTypeExt::is_fifo(&kind) && !has_writer(&file) {
+            return Err(Error::Io {
+                path: path.display().to_string(),
+                kind: io::ErrorKind::BrokenPipe,
+                message: "is a FIFO with no writer".into(),
+            });
+        }
+        blocking(&file).map_err(|e| io_error(path, &e))?;
+    }
+    Ok(file)
+}
+
+/// Clear the `O_NONBLOCK` that [`open_file`] opened `file` with: a stream is then read
+/// as it comes.
+#[cfg(unix)]
+fn blocking(file: &File) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let fd = file.as_raw_fd();
+    // SAFETY: fcntl on a descriptor this function borrows; F_GETFL/F_SETFL touch no memory.
+    let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+    if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) } < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}
+
+/// Whether the FIFO `file` (opened with `O_NONBLOCK`) has a writer, or data left by one.
+/// tee(2) copies without consuming: 0 bytes means end of stream (no writer and nothing
+/// to read), EAGAIN an open writer that has not written yet. Linux only; elsewhere the
+/// reader finds the end of stream itself.
+#[cfg(unix)]
+fn has_writer(file: &File) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let mut pipe = [0; 2];
+        // SAFETY: pipe2 writes two descriptors into `pipe`, which this function closes.
+        if unsafe { libc::pipe2(pipe.as_mut_ptr(), libc::O_CLOEXEC | libc::O_NONBLOCK) } != 0 {
+            return true;
+        }
+        // SAFETY: tee between two pipe descriptors; no memory is touched.
+        let copied = unsafe { libc::tee(file.as_raw_fd(), pipe[1], 1, libc::SPLICE_F_NONBLOCK) };
+        // SAFETY: the two descriptors pipe2 made, closed once.
+        unsafe {
+            libc::close(pipe[0]);
+            libc::close(pipe[1]);
+        }
+        copied != 0
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = file;
+        true
+    }
+}
+
+/// Whether `file` (from [`open_file`]) is a regular file, the only kind memory-mapped:
+/// a device or a pipe is read as a stream.
+fn is_regular(file: &File) -> bool {
+    file.metadata().is_ok_and(|m| m.is_file())
+}
+
+/// Open input `path` for reading as [`open_file`] does (never blocking on a FIFO
+/// without a writer; a directory is an error), and say whether it is a regular file
+/// (seekable, mappable) rather than a stream.
+///
+/// # Errors
+/// [`Error::Io`] naming `path`.
+pub fn open_input(path: &Path) -> Result<(File, bool)> {
+    let file = open_file(path)?;
+    let regular = is_regular(&file);
+    Ok((file, regular))
 }
 
 /// The longest header read: NumPy's own reader refuses more than 10000 bytes by default
@@ -429,8 +508,12 @@ pub fn read_scores(path: &Path) -> Result<Scores> {
 /// truncated, not 2-D), [`Error::Dtype`] (not float32/float64).
 pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<Scores> {
     let file = open_file(path)?;
+    if !is_regular(&file) {
+        // A device or a pipe: read as a stream, never mapped (/dev/zero maps as empty).
+        return read_unmapped(io::BufReader::new(file), path, what);
+    }
     // SAFETY: the map is read-only; like NumPy's mmap_mode="r", it assumes no other
-    // process truncates the file while it is in use.
+    // process truncates the file while it is in use (a truncated mapping is SIGBUS).
     let Ok(map) = (unsafe { Mmap::map(&file) }) else {
         return read_unmapped(io::BufReader::new(file), path, what);
     };
