@@ -673,3 +673,88 @@ fn evaluate_reports_the_online_method() {
     let csv = case.ok(&[&base[..], &["--format", "csv"]].concat());
     assert!(csv.lines().any(|l| l.contains(",quantile-transfer-online,")), "{csv}");
 }
+
+/// Run `qtvpr-cli` in `dir` under `ulimit -v 1000000` (1 GB of address space).
+fn run_capped(dir: &Path, args: &[&str]) -> Output {
+    std::process::Command::new("sh")
+        .current_dir(dir)
+        .env("RUST_BACKTRACE", "1")
+        .arg("-c")
+        .arg("ulimit -v 1000000; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A calibration whose `s.npy` is a bzip2 bomb (a few kB expanding to 1 GB), and a
+/// `.npy` whose header claims 80 GB that is read unmapped (big-endian): under a 1 GB
+/// address-space cap both are refused with exit 2 and a message, fast, never a signal.
+#[test]
+fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
+    use npyz::zip::{CompressionMethod, ZipWriter, write::FileOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let n: usize = 1 << 30; // bytes of zeros in s.npy
+    let mut zip = ZipWriter::new(std::fs::File::create(path("bomb.npz")).unwrap());
+    let stored = FileOptions::default().compression_method(CompressionMethod::Stored);
+    zip.start_file("s.npy", stored.compression_method(CompressionMethod::Bzip2))
+        .unwrap();
+    let header = common::npy_header(&format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 1024), }}",
+        n / 8 / 1024
+    ));
+    std::io::Write::write_all(&mut zip, &header).unwrap();
+    let zeros = vec![0u8; 1 << 20];
+    for _ in 0..n >> 20 {
+        std::io::Write::write_all(&mut zip, &zeros).unwrap();
+    }
+    zip.start_file("gt.npy", stored).unwrap();
+    let mut gt = common::npy_header("{'descr': '|b1', 'fortran_order': False, 'shape': (1, 1), }");
+    gt.push(1);
+    std::io::Write::write_all(&mut zip, &gt).unwrap();
+    zip.start_file("meta.npy", stored).unwrap();
+    let meta = r#"{"format": "qtvpr-calibration", "version": 1, "matching": "single", "params": {"k": 1, "precision": 1.0, "window": null}}"#;
+    let mut m = common::npy_header(&format!(
+        "{{'descr': '<U{}', 'fortran_order': False, 'shape': (), }}",
+        meta.len()
+    ));
+    m.extend(meta.chars().flat_map(|c| (c as u32).to_le_bytes()));
+    std::io::Write::write_all(&mut zip, &m).unwrap();
+    zip.finish().unwrap();
+    let size = std::fs::metadata(path("bomb.npz")).unwrap().len();
+    assert!(size < 1 << 20, "{size}");
+    common::npy_f64(&path("val.npy"), &[&[0.5, 0.1], &[0.2, 0.9]]);
+    common::npy_raw(&path("huge.npy"), ">f8", false, &[100_000, 100_000], &[0; 8]);
+    for (args, needle) in [
+        (
+            &["stream", "--calibration", "bomb.npz", "--val", "val.npy"][..],
+            "bomb.npz (array s) cannot be decompressed: compression method",
+        ),
+        (
+            &["stream", "--calibration", "bomb.npz", "--val", "huge.npy"][..],
+            "bomb.npz (array s) cannot be decompressed: compression method",
+        ),
+        (
+            &[
+                "threshold",
+                "--cal",
+                "val.npy",
+                "--cal-gt",
+                "huge.npy",
+                "--val",
+                "val.npy",
+            ][..],
+            "huge.npy",
+        ),
+    ] {
+        let start = std::time::Instant::now();
+        let out = run_capped(dir.path(), args);
+        let elapsed = start.elapsed();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {:?} {stderr}", out.status);
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(elapsed < std::time::Duration::from_secs(2), "{args:?}: {elapsed:?}");
+    }
+}
