@@ -235,7 +235,7 @@ GT_FILE_CASES = [
     ("one-d", ValueError, "holds a 1-D array"),
     ("three-d", ValueError, "holds a 3-D array"),
     ("shape", ValueError, "ground truth shape 3x3 does not match calibration similarity shape 4x3"),
-    ("truncated", ValueError, "is truncated or corrupt"),
+    ("truncated", ValueError, "is truncated: shape 4x3 needs 12 bytes of data, it holds 9"),
     ("corrupt-header", ValueError, "is not a valid .npy file"),
     ("not-npy", ValueError, "is not a valid .npy file"),
     ("missing", FileNotFoundError, "cannot read"),

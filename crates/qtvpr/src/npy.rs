@@ -54,6 +54,22 @@ impl Scores {
             Scores::F64(m) => m.is_mapped(),
         }
     }
+
+    /// Check that a memory-mapped file still holds all its data. Reading a mapping
+    /// past the end of a file that another process shrank is a bus error (SIGBUS), which
+    /// no error handling catches; a reader that reads a mapping over a long time (a
+    /// replay) calls this before each block, so the common case (the file truncated or
+    /// rewritten in place) is an error instead. It cannot close the window between the
+    /// check and the read: a mapped file must not be shrunk while it is read.
+    ///
+    /// # Errors
+    /// [`Error::File`] naming the file when it is now shorter than its data.
+    pub fn check_mapped_file(&self) -> Result<()> {
+        match self {
+            Scores::F32(m) => m.check_mapped_file(),
+            Scores::F64(m) => m.check_mapped_file(),
+        }
+    }
 }
 
 /// What a float matrix read by [`read_float_matrix`] holds, for its messages.
@@ -164,7 +180,14 @@ pub struct Matrix<T> {
 
 enum Data<T> {
     Owned(Vec<T>),
-    Mapped { map: Mmap, offset: usize },
+    /// The map, where the data starts in it, and the file mapped (its size is checked
+    /// by [`Scores::check_mapped_file`]) with its path for messages.
+    Mapped {
+        map: Mmap,
+        offset: usize,
+        file: File,
+        path: PathBuf,
+    },
 }
 
 impl<T> Matrix<T> {
@@ -183,11 +206,30 @@ impl<T> Matrix<T> {
 }
 
 impl<T: bytemuck::Pod> Matrix<T> {
+    /// [`Scores::check_mapped_file`] of one matrix.
+    fn check_mapped_file(&self) -> Result<()> {
+        let Data::Mapped { offset, file, path, .. } = &self.data else {
+            return Ok(());
+        };
+        let needed = (offset + self.dim.0 * self.dim.1 * size_of::<T>()) as u64;
+        let len = file.metadata().map_err(|e| io_error(path, &e))?.len();
+        if len < needed {
+            return Err(file_error(
+                path,
+                format!(
+                    "shrank to {len} bytes while it was read, from at least {needed} (a memory-mapped \
+                     file must not be truncated or rewritten while in use)"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// The matrix, viewed where it lies.
     pub fn view(&self) -> ArrayView2<'_, T> {
         let data: &[T] = match &self.data {
             Data::Owned(v) => v,
-            Data::Mapped { map, offset } => {
+            Data::Mapped { map, offset, .. } => {
                 let bytes = &map[*offset..*offset + self.dim.0 * self.dim.1 * size_of::<T>()];
                 bytemuck::cast_slice(bytes) // alignment and length were checked when mapping
             }
@@ -445,33 +487,56 @@ fn shape_2d<R: Read>(npy: &NpyFile<R>, path: &Path, layout: &str) -> Result<(usi
 }
 
 /// Read a whole matrix into memory; a shape other than 2-D is refused with `layout`.
+///
+/// The header's claim decides no allocation by itself: the buffer grows (fallibly, at
+/// most doubling) with the values actually read, so a small file whose header claims
+/// terabytes is "truncated" after reading what it holds, and memory that cannot be
+/// allocated is an error, never an abort (npyz's `into_vec` reserves the claim
+/// infallibly, hence this loop).
 fn read_matrix<T: npyz::Deserialize, R: Read>(npy: NpyFile<R>, path: &Path, layout: &str) -> Result<Matrix<T>> {
+    /// Values reserved before the first read: 8 MiB of f64.
+    const FIRST: usize = 1 << 20;
     let dim = shape_2d(&npy, path, layout)?;
     let fortran = npy.order() == Order::Fortran;
-    // The header decides the allocation: one that cannot be made is an error, never an
-    // abort (npyz's `into_vec` would reserve it infallibly).
     let n = dim.0 * dim.1;
-    let mut data: Vec<T> = Vec::new();
-    data.try_reserve_exact(n).map_err(|_| {
+    let item = npy.dtype().num_bytes().unwrap_or(1);
+    let truncated = |read: usize| {
         file_error(
             path,
             format!(
-                "declares a {}x{} matrix, more memory than can be allocated",
-                dim.0, dim.1
+                "is truncated: shape {}x{} needs {} bytes of data, it holds {}",
+                dim.0,
+                dim.1,
+                n as u128 * item as u128,
+                read * item
             ),
         )
-    })?;
+    };
+    let mut data: Vec<T> = Vec::new();
     let values = npy
         .data::<T>()
-        .map_err(|e| file_error(path, format!("is truncated or corrupt: {e}")))?;
+        .map_err(|e| file_error(path, format!("is corrupt: {e}")))?;
     for value in values {
-        data.push(value.map_err(|e| file_error(path, format!("is truncated or corrupt: {e}")))?);
+        if data.len() == data.capacity() {
+            let more = (n - data.len()).min(data.capacity().max(FIRST));
+            data.try_reserve_exact(more).map_err(|_| {
+                file_error(
+                    path,
+                    format!(
+                        "declares a {}x{} matrix, more memory than can be allocated",
+                        dim.0, dim.1
+                    ),
+                )
+            })?;
+        }
+        match value {
+            Ok(v) => data.push(v),
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Err(truncated(data.len())),
+            Err(e) => return Err(file_error(path, format!("cannot be read: {e}"))),
+        }
     }
-    if data.len() != dim.0 * dim.1 {
-        return Err(file_error(
-            path,
-            format!("holds fewer values than its shape {}x{} says", dim.0, dim.1),
-        ));
+    if data.len() != n {
+        return Err(truncated(data.len()));
     }
     Ok(Matrix {
         data: Data::Owned(data),
@@ -549,18 +614,20 @@ pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<Scores> {
     if !(little && cfg!(target_endian = "little") && aligned) {
         return read_unmapped(io::BufReader::new(open_file(path)?), path, what);
     }
+    fn mapped<T>(map: Mmap, offset: usize, file: File, path: &Path, dim: (usize, usize), fortran: bool) -> Matrix<T> {
+        let path = path.to_path_buf();
+        let data = Data::Mapped {
+            map,
+            offset,
+            file,
+            path,
+        };
+        Matrix { data, dim, fortran }
+    }
     Ok(if size == 4 {
-        Scores::F32(Matrix {
-            data: Data::Mapped { map, offset },
-            dim,
-            fortran,
-        })
+        Scores::F32(mapped(map, offset, file, path, dim, fortran))
     } else {
-        Scores::F64(Matrix {
-            data: Data::Mapped { map, offset },
-            dim,
-            fortran,
-        })
+        Scores::F64(mapped(map, offset, file, path, dim, fortran))
     })
 }
 
@@ -1158,4 +1225,45 @@ pub fn write_npy<'a>(path: &Path, array: impl Into<NpyArray<'a>>) -> Result<()> 
 /// [`Error::Write`] naming `path`.
 pub fn write_npz(path: &Path, arrays: &[(&str, NpyArray<'_>)]) -> Result<()> {
     write_atomically(path, |w| write_npz_to(w, arrays))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mapped_file_shrunk_while_read_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.npy");
+        let m = ndarray::Array2::from_shape_fn((64, 8), |(i, j)| (i * 8 + j) as f32);
+        write_npy(&path, m.view()).unwrap();
+        let scores = read_scores(&path).unwrap();
+        assert!(scores.is_mapped());
+        scores.check_mapped_file().unwrap();
+        let len = std::fs::metadata(&path).unwrap().len();
+        // Another process truncates it: reading the mapping's last page would be SIGBUS.
+        File::options()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_len(len - 4)
+            .unwrap();
+        assert_eq!(
+            scores.check_mapped_file().unwrap_err().to_string(),
+            format!(
+                "{} shrank to {} bytes while it was read, from at least {len} (a memory-mapped \
+                 file must not be truncated or rewritten while in use)",
+                path.display(),
+                len - 4
+            )
+        );
+        // Grown back (rewritten in place): whole again.
+        File::options().write(true).open(&path).unwrap().set_len(len).unwrap();
+        scores.check_mapped_file().unwrap();
+        // What was read into memory has nothing to check.
+        let bytes = std::fs::read(&path).unwrap();
+        let owned = scores_from_bytes(&bytes, "s.npy").unwrap();
+        assert!(!owned.is_mapped());
+        owned.check_mapped_file().unwrap();
+    }
 }
