@@ -4,7 +4,7 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 
 /// Output formats of `threshold`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -15,15 +15,18 @@ pub enum Format {
     Csv,
 }
 
+/// How errors name standard output, the output when no `--output` is given.
+pub const STDOUT: &str = "standard output";
+
 /// Write `text` to `path` atomically (with the mode a plain create gives), or to stdout
 /// when `path` is `None`.
 pub fn emit(text: &str, path: Option<&Path>) -> Result<()> {
     match path {
         None => {
             let mut out = io::stdout().lock();
-            out.write_all(text.as_bytes())?;
-            out.flush()?;
-            Ok(())
+            out.write_all(text.as_bytes())
+                .and_then(|()| out.flush())
+                .context(STDOUT)
         }
         Some(path) => {
             qtvpr::npy::write_atomically(path, |w| w.write_all(text.as_bytes()))?;

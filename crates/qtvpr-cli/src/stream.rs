@@ -12,9 +12,9 @@ use ndarray::ArrayView2;
 use qtvpr::{Calibration, Decision, Online, OnlineParams, Outcome, Score};
 use serde::Serialize;
 
-use crate::output::emit;
+use crate::output::{self, emit};
 use crate::{Global, progress};
-use qtvpr::npy::read_scores;
+use qtvpr::npy::{Scores, read_scores};
 use qtvpr::with_scores;
 
 /// Arguments of `stream`.
@@ -99,10 +99,12 @@ impl From<&Decision> for Line {
 }
 
 impl Line {
-    fn write(&self, format: StreamFormat, out: &mut impl Write) -> Result<()> {
+    fn write(&self, format: StreamFormat, out: &mut impl Write) -> io::Result<()> {
         match format {
             StreamFormat::Jsonl => {
-                serde_json::to_writer(&mut *out, self)?;
+                // Into io::Error, which keeps the write's own error (a closed pipe) for
+                // main to find: serde_json's error does not expose it as a source.
+                serde_json::to_writer(&mut *out, self).map_err(io::Error::from)?;
                 writeln!(out)?;
             }
             StreamFormat::Csv => {
@@ -142,8 +144,8 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     )?;
     let matching = cal.matching();
     let mut online = Online::new(Arc::new(cal), params)?;
-    let s_val = read_scores(&args.val).context("--val")?;
-    let s_val = s_val.view().oriented(args.query_major);
+    let file = read_scores(&args.val).context("--val")?;
+    let s_val = file.view().oriented(args.query_major);
 
     let header = match matching {
         qtvpr::Matching::Single => "query,query_quantile,weight,quantile,threshold,accept,best,score\n",
@@ -156,38 +158,63 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         None => Box::new(BufWriter::new(stdout.lock())),
         Some(_) => Box::new(&mut buffer),
     };
-    if args.format == StreamFormat::Csv {
-        out.write_all(header.as_bytes())?;
-    }
     let n_val = s_val.dim().1;
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
-    with_scores!(s_val, |v| replay(&mut online, v, args.format, &mut out, |done| bar
-        .set_position(done as u64)))
-    .map_err(|e| match e.downcast::<qtvpr::Error>() {
-        Ok(e) => e.oriented(args.query_major).into(),
-        Err(e) => e,
-    })
-    .with_context(|| format!("--val {}", args.val.display()))?;
+    let replayed = (|| {
+        if args.format == StreamFormat::Csv {
+            out.write_all(header.as_bytes()).map_err(Failure::Output)?;
+        }
+        let progress = |done| bar.set_position(done as u64);
+        with_scores!(s_val, |v| replay(
+            &mut online,
+            v,
+            &file,
+            args.format,
+            &mut out,
+            progress
+        ))?;
+        out.flush().map_err(Failure::Output)
+    })();
     bar.finish_and_clear();
-    out.flush()?;
     drop(out);
+    match replayed {
+        // Memory does not fail to write: an output error is standard output's.
+        Err(Failure::Output(e)) => return Err(anyhow::Error::new(e).context(output::STDOUT)),
+        Err(Failure::Input(e)) => {
+            return Err(anyhow::Error::new(e.oriented(args.query_major)))
+                .with_context(|| format!("--val {}", args.val.display()));
+        }
+        Ok(()) => {}
+    }
     match &args.output {
         None => Ok(()),
         Some(path) => emit(std::str::from_utf8(&buffer).expect("the lines are UTF-8"), Some(path)),
     }
 }
 
+/// Why a replay stopped: a column the library refused, or an output that could not be
+/// written (named differently: the input is not to blame for a closed pipe).
+enum Failure {
+    Input(qtvpr::Error),
+    Output(io::Error),
+}
+
 /// Push the columns of `s` one by one, as a robot would, writing each decision as it is
-/// made (so that a bad column stops the stream after every query before it).
+/// made (so that a bad column stops the stream after every query before it). `file`,
+/// which `s` views, is checked before each column: a mapped file shrunk meanwhile is
+/// an error, not a bus error (a stat per query, against a push of milliseconds).
 fn replay<T: Score>(
     online: &mut Online,
     s: ArrayView2<'_, T>,
+    file: &Scores,
     format: StreamFormat,
     out: &mut impl Write,
     progress: impl Fn(usize),
-) -> Result<()> {
+) -> Result<(), Failure> {
     for (j, column) in s.columns().into_iter().enumerate() {
-        Line::from(&online.push(column)?).write(format, out)?;
+        file.check_mapped_file().map_err(Failure::Input)?;
+        let decision = online.push(column).map_err(Failure::Input)?;
+        Line::from(&decision).write(format, out).map_err(Failure::Output)?;
         if (j + 1) % STEP == 0 || j + 1 == s.ncols() {
             progress(j + 1);
         }
