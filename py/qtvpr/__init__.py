@@ -9,7 +9,8 @@ Similarity matrices are |DB| x |Q| (one column per query; pass ``query_major=Tru
 |Q| x |DB|), float32 or float64, higher meaning more similar. Ground truth is bool or
 integer 0/1 of the same shape. Any matrix argument may also be the path of a ``.npy``
 file (ground truth: ``.npy`` or a VPR_Tutorial ``.npz``), read by the CLI's reader;
-similarity files are memory-mapped.
+similarity files are memory-mapped (as with NumPy's ``mmap_mode``, no other process
+may truncate such a file while it is read: that is a bus error, not an exception).
 
 Bad input raises ``ValueError`` (``TypeError`` for a wrong dtype; ``FileNotFoundError``,
 ``IsADirectoryError``, ``PermissionError`` or ``OSError`` for a file that cannot be
