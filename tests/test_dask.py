@@ -16,6 +16,7 @@ started once for the module. Skipped when Dask is not installed (``pip install
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -421,3 +422,38 @@ def test_import_qtvpr_does_not_import_dask_and_the_extra_is_named_when_missing()
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == 'qtvpr.dask needs Dask: pip install "qtvpr[dask]" (dask[array] and distributed)'
+
+
+CORRIDOR = Path(__file__).resolve().parent.parent / "data" / "corridor"
+
+
+@pytest.mark.parametrize("matching", ["single", "multi"])
+def test_the_files_params_are_every_front_ends_defaults(client, cli, tmp_path, matching):
+    # Regression (issue 20): with a file of k = 3 and tau = 0.9, `qtvpr-cli threshold --cal`
+    # used them while `Calibration.load(...).transfer` and `qtvpr.dask.transfer` silently
+    # used k = 10, tau = 1 (SPEC section 12: the file's params are every front end's
+    # defaults). On the embedded VPR-Bench Corridor data.
+    cal_file = tmp_path / "k3.npz"
+    subprocess.run([str(cli), "calibrate", "--cal", str(CORRIDOR / "cal_S.npy"), "--cal-gt",
+                    str(CORRIDOR / "cal_GT.npy"), "--matching", matching, "--k", "3", "--precision", "0.9",
+                    "--window", "10", "--output", str(cal_file)], check=True)
+    s_val = np.load(CORRIDOR / "deploy_S.npy")
+    out = subprocess.run([str(cli), "--quiet", "threshold", "--cal", str(cal_file), "--val",
+                          str(CORRIDOR / "deploy_S.npy"), "--segment-size", "10"],
+                         check=True, capture_output=True, text=True)
+    report = json.loads(out.stdout)
+    assert (report["params"]["k"], report["params"]["precision"]) == (3, 0.9)
+    from_cli = np.array([np.inf if g["threshold"] is None else g["threshold"] for g in report["segments"]])
+
+    cal = qtvpr.Calibration.load(cal_file)
+    assert cal.defaults == {"k": 3, "precision": 0.9, "window": 10}
+    explicit = cal.transfer(s_val, k=3, precision=0.9, segment_size=10)
+    library = cal.transfer(s_val, k=10, precision=1.0, segment_size=10)
+    assert not np.array_equal(explicit.thresholds, library.thresholds)  # the case tells them apart
+    np.testing.assert_array_equal(explicit.thresholds, from_cli)
+    assert_same_transfer(cal.transfer(s_val, segment_size=10), explicit)
+    assert_same_transfer(qd.transfer(cal, da.from_array(s_val, chunks=(-1, 25)), segment_size=10), explicit)
+    assert cal.threshold() == cal.threshold(0.9)
+    # Saved again without arguments, a loaded file keeps its params.
+    cal.save(tmp_path / "again.npz")
+    assert qtvpr.Calibration.load(tmp_path / "again.npz").defaults == cal.defaults

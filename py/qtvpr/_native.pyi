@@ -174,18 +174,18 @@ class Calibration:
         self,
         s_val: _Matrix | Descriptors,
         *,
-        k: int = 10,
-        precision: float = 1.0,
+        k: int | None = None,
+        precision: float | None = None,
         segment_size: int | None = None,
         query_major: bool = False,
     ) -> TransferResult: ...
-    def threshold(self, precision: float = 1.0) -> float: ...
+    def threshold(self, precision: float | None = None) -> float: ...
     def save(
         self,
         path: str | os.PathLike[str],
         *,
-        k: int = 10,
-        precision: float = 1.0,
+        k: int | None = None,
+        precision: float | None = None,
         window: int | None = None,
     ) -> None: ...
     @staticmethod

@@ -57,8 +57,8 @@ def transfer(
     calibration: Calibration,
     s_val: da.Array,
     *,
-    k: int = 10,
-    precision: float = 1.0,
+    k: int | None = None,
+    precision: float | None = None,
     segment_size: int | None = None,
     query_major: bool = False,
 ) -> TransferResult:
@@ -71,7 +71,8 @@ def transfer(
     one task that runs the compiled transfer on it, and the results are assembled into
     the :class:`qtvpr.TransferResult` of ``calibration.transfer(s_val.compute(), ...)``,
     identical to it. Without a segment size the whole deployment set is one segment,
-    hence one task.
+    hence one task. ``k`` and ``precision`` left as ``None`` are the calibration's
+    (:attr:`qtvpr.Calibration.defaults`), as in :meth:`qtvpr.Calibration.transfer`.
 
     Raises what :meth:`qtvpr.Calibration.transfer` raises on the whole matrix, with the
     same messages (positions in the whole matrix), and ``TypeError`` when ``s_val`` is

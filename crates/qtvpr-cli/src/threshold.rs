@@ -226,12 +226,8 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     };
     // Parameters first, so that a typo fails before any file is read (a calibration
     // file's defaults are checked once it is loaded).
-    let params = |defaults: &Defaults| Params {
-        k: args.k.unwrap_or(defaults.k),
-        precision: args.precision.unwrap_or(defaults.precision),
-        segment_size: args.segment_size,
-    };
-    params(&Defaults::default()).validate()?;
+    let params = |defaults: &Defaults| Params::resolve(defaults, args.k, args.precision, args.segment_size);
+    params(&Defaults::default())?;
     let matching_arg = args.matching.map_or(Matching::Single, Matching::from);
     // Errors about a file's content name the file; the flag says which input it was.
     // The core reports positions and shapes in its |DB| x |Q| views; `oriented` gives
@@ -306,7 +302,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         }
     };
     let matching = cal.matching();
-    let params = params(cal.defaults());
+    let params = params(cal.defaults())?;
     let n_val = queries.len();
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
     let progress = |done: usize, _| bar.set_position(done as u64);

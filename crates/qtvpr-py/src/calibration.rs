@@ -111,20 +111,30 @@ impl PyCalibration {
     /// but not hard), and ``meta``, a 0-d string array of JSON: ``{"format":
     /// "qtvpr-calibration", "version": 1, "matching": ..., "params": {"k": ...,
     /// "precision": ..., "window": ...}, "qtvpr": ...}``. ``k``, ``precision`` and
-    /// ``window`` (``None``: none) are stored as the defaults of whoever uses the file
-    /// (:class:`Online`, ``qtvpr-cli stream``); each can be overridden there. The name
-    /// is used as given (no ``.npz`` is appended).
+    /// ``window`` are stored as the defaults of whoever uses the file (:class:`Online`,
+    /// ``qtvpr-cli stream``); each can be overridden there. Each left as ``None`` is
+    /// this calibration's own (:attr:`defaults`: a loaded file's, else 10, 1.0 and no
+    /// window), so a loaded file saved again keeps its ``params``. The name is used as
+    /// given (no ``.npz`` is appended).
     ///
     /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1] or
     /// ``window < 1``, and ``OSError`` (``FileNotFoundError``, ``PermissionError``,
     /// ...) naming the file when it cannot be written; a failed save leaves no file
     /// behind.
-    #[pyo3(signature = (path, *, k = 10, precision = 1.0, window = None))]
-    fn save(&self, py: Python<'_>, path: PathBuf, k: i64, precision: f64, window: Option<i64>) -> PyResult<()> {
+    #[pyo3(signature = (path, *, k = None, precision = None, window = None))]
+    fn save(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        k: Option<i64>,
+        precision: Option<f64>,
+        window: Option<i64>,
+    ) -> PyResult<()> {
+        let own = self.inner.defaults();
         let defaults = Defaults {
-            k: count("k", k)?,
-            precision,
-            window: window.map(|m| count("window", m)).transpose()?,
+            k: k.map(|k| count("k", k)).transpose()?.unwrap_or(own.k),
+            precision: precision.unwrap_or(own.precision),
+            window: window.map(|m| count("window", m)).transpose()?.or(own.window),
         };
         py.detach(|| self.inner.save(&path, &defaults))
             .map_err(|e| FILE_ARGS.error(e))
@@ -203,13 +213,16 @@ impl PyCalibration {
     /// NaN or infinite scores, a truncated or corrupt file, ``k < 1``, ``precision``
     /// outside (0, 1], ``segment_size`` outside 1..=|Qval|); ``OSError`` (or its
     /// subclass ``FileNotFoundError``, ...) for a file that cannot be read.
-    #[pyo3(signature = (s_val, *, k = 10, precision = 1.0, segment_size = None, query_major = false))]
+    ///
+    /// ``k`` and ``precision`` left as ``None`` are the calibration's :attr:`defaults`
+    /// (its file's ``params``; 10 and 1.0 for a calibration made from arrays).
+    #[pyo3(signature = (s_val, *, k = None, precision = None, segment_size = None, query_major = false))]
     pub(crate) fn transfer(
         &self,
         py: Python<'_>,
         s_val: &Bound<'_, PyAny>,
-        k: i64,
-        precision: f64,
+        k: Option<i64>,
+        precision: Option<f64>,
         segment_size: Option<i64>,
         query_major: bool,
     ) -> PyResult<TransferResult> {
@@ -217,12 +230,13 @@ impl PyCalibration {
             gt: "gt_cal",
             query_major,
         };
-        let params = Params {
-            k: count("k", k)?,
+        let params = Params::resolve(
+            self.inner.defaults(),
+            k.map(|k| count("k", k)).transpose()?,
             precision,
-            segment_size: segment_size.map(|m| count("segment_size", m)).transpose()?,
-        };
-        params.validate().map_err(|e| args.error(e))?;
+            segment_size.map(|m| count("segment_size", m)).transpose()?,
+        )
+        .map_err(|e| args.error(e))?;
         if let Some(d) = PyDescriptors::of(s_val, query_major)? {
             let out = d
                 .get()
@@ -243,12 +257,14 @@ impl PyCalibration {
     /// least the target, the highest such. ``math.inf`` means reject all.
     ///
     /// This is the threshold tuned once offline and kept fixed, as practised today.
-    #[pyo3(signature = (precision = 1.0))]
-    fn threshold(&self, py: Python<'_>, precision: f64) -> PyResult<f64> {
+    /// ``precision=None`` is the calibration's default (:attr:`defaults`).
+    #[pyo3(signature = (precision = None))]
+    fn threshold(&self, py: Python<'_>, precision: Option<f64>) -> PyResult<f64> {
         let args = Args {
             gt: "gt_cal",
             query_major: false,
         };
+        let precision = precision.unwrap_or(self.inner.defaults().precision);
         py.detach(|| self.inner.threshold(precision)).map_err(|e| args.error(e))
     }
 

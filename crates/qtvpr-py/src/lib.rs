@@ -77,8 +77,8 @@ fn quantile_transfer(
     PyCalibration::new(py, s_cal, gt_cal, gt_soft, matching, query_major)?.transfer(
         py,
         s_val,
-        k,
-        precision,
+        Some(k),
+        Some(precision),
         segment_size,
         query_major,
     )

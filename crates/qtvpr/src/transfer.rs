@@ -71,6 +71,28 @@ impl Params {
         }
         check_precision(self.precision)
     }
+
+    /// Parameters from those given, each `None` taking the calibration's default (the
+    /// `params` of its file: SPEC section 12, one left out never falls back to a library
+    /// default while the file has a value), validated. Every front end resolves its
+    /// arguments here.
+    ///
+    /// # Errors
+    /// [`Params::validate`].
+    pub fn resolve(
+        defaults: &Defaults,
+        k: Option<usize>,
+        precision: Option<f64>,
+        segment_size: Option<usize>,
+    ) -> Result<Params> {
+        let params = Params {
+            k: k.unwrap_or(defaults.k),
+            precision: precision.unwrap_or(defaults.precision),
+            segment_size,
+        };
+        params.validate()?;
+        Ok(params)
+    }
 }
 
 /// The threshold of one segment of deployment queries.
