@@ -68,6 +68,7 @@ from qtvpr._native import (
     ranked_correlation,
     schubert_threshold,
     sequence_match,
+    set_threads,
     utm_positions,
 )
 
@@ -92,6 +93,7 @@ __all__ = [
     "image_paths",
     "sequence_match",
     "schubert_threshold",
+    "set_threads",
     "utm_positions",
 ]
 
