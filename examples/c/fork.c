@@ -156,8 +156,8 @@ int main(int argc, char **argv) {
         fprintf(stderr, "fork: the child failed (status %#x)\n", (unsigned)wstatus);
         goto done;
     }
-    printf("fork: the child's %d decisions equal the parent's (last threshold %.17g)\n", QUERIES,
-           want[QUERIES - 1].threshold);
+    printf("fork: the child's %d decisions equal the parent's; the last:\n", QUERIES);
+    print_decision(&want[QUERIES - 1], qtvpr_calibration_matching(cal));
     status = 0;
     goto done;
 error:

@@ -40,9 +40,11 @@ struct Pool {
     pool: ThreadPool,
 }
 
-/// The current pool: an `Arc<Pool>` turned into a raw pointer, or null before the
-/// first use. Read and replaced only while [`LOCK`] is held.
-static SLOT: AtomicPtr<Pool> = AtomicPtr::new(std::ptr::null_mut());
+/// The current pool: a boxed `Arc<Pool>` turned into a raw pointer, or null before the
+/// first use. Read and replaced only while [`LOCK`] is held. (A box rather than
+/// `Arc::into_raw`, which points inside its allocation: leak checkers such as valgrind
+/// would report the live pool as "possibly lost".)
+static SLOT: AtomicPtr<Arc<Pool>> = AtomicPtr::new(std::ptr::null_mut());
 
 /// The id of the process one of whose threads holds [`SLOT`], or 0 when it is free.
 static LOCK: AtomicU32 = AtomicU32::new(0);
@@ -91,16 +93,16 @@ fn build(pid: u32, threads: usize) -> Result<Arc<Pool>> {
     Ok(Arc::new(Pool { pid, pool }))
 }
 
-/// Put `new` in the slot (null: empty it), releasing the old pool if it belongs to
+/// Put `new` in the slot, releasing the old pool if it belongs to
 /// this process and leaking it otherwise. Called with the lock held.
-fn replace(guard: &Guard, pid: u32, new: *mut Pool) {
-    let old = SLOT.swap(new, Ordering::AcqRel);
+fn replace(guard: &Guard, pid: u32, new: Arc<Pool>) {
+    let old = SLOT.swap(Box::into_raw(Box::new(new)), Ordering::AcqRel);
     if old.is_null() || guard.stale {
         return;
     }
-    // SAFETY: a non-null slot holds a pointer from `Arc::into_raw`, and it is written
+    // SAFETY: a non-null slot holds a pointer from `Box::into_raw`, and it is written
     // whole (an atomic store), so it is valid unless the lock was stale.
-    let old = unsafe { Arc::from_raw(old) };
+    let old = unsafe { Box::from_raw(old) };
     if old.pid == pid {
         // Dropped when the last `install` running on it returns.
         drop(old);
@@ -117,23 +119,18 @@ fn current() -> Arc<Pool> {
     let guard = Guard::acquire(pid);
     let ptr = SLOT.load(Ordering::Acquire);
     if !ptr.is_null() && !guard.stale {
-        // SAFETY: as in `replace`; the lock keeps the pointer alive while its count is
-        // raised.
-        let pool = unsafe {
-            Arc::increment_strong_count(ptr);
-            Arc::from_raw(ptr)
-        };
+        // SAFETY: as in `replace`; the lock keeps the box alive while it is read.
+        let pool = unsafe { &*ptr };
         if pool.pid == pid {
-            return pool;
+            return Arc::clone(pool);
         }
-        // A copy of the parent's Arc; the slot's own reference is leaked by `replace`.
-        std::mem::forget(pool);
+        // The parent's pool: `replace` leaks it.
     }
     // No pool yet, or the parent's. Building can only fail if the system cannot start
     // a thread; there is then no way to run the computation, and rayon's global pool
     // panics in the same case.
     let pool = build(pid, THREADS.load(Ordering::Relaxed)).unwrap_or_else(|e| panic!("{e}"));
-    replace(&guard, pid, Arc::into_raw(Arc::clone(&pool)).cast_mut());
+    replace(&guard, pid, Arc::clone(&pool));
     pool
 }
 
@@ -173,7 +170,7 @@ pub fn set_threads(n: usize) -> Result<()> {
     let pool = build(pid, n)?;
     let guard = Guard::acquire(pid);
     THREADS.store(n, Ordering::Relaxed);
-    replace(&guard, pid, Arc::into_raw(pool).cast_mut());
+    replace(&guard, pid, pool);
     Ok(())
 }
 
