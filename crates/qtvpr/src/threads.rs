@@ -182,7 +182,7 @@ mod tests {
     fn nested_install_runs_in_the_pool() {
         let (outer, inner) = install(|| {
             let outer = rayon::current_thread_index();
-            let inner = install(|| rayon::current_thread_index());
+            let inner = install(rayon::current_thread_index);
             (outer, inner)
         });
         assert!(outer.is_some());
