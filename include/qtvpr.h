@@ -6,13 +6,27 @@
  * which its matches are accepted:
  *
  *     qtvpr_calibration *cal = qtvpr_calibration_load("cal.npz");
- *     qtvpr_online *o = qtvpr_online_new(cal, 0, 0.0, 0, 0);   // the file's parameters
+ *     qtvpr_online *o = cal ? qtvpr_online_new(cal, 0, 0.0, 0, 0) : NULL; // the file's parameters
+ *     if (!o) {
+ *         fprintf(stderr, "%s
+", qtvpr_last_error());
+ *         qtvpr_calibration_free(cal); // NULL is a no-op
+ *         return 1;
+ *     }
  *     qtvpr_decision d;
- *     // scores: this query's similarity to each of the n_db database images
- *     if (qtvpr_online_push_f32(o, scores, n_db, &d) != QTVPR_OK)
- *         fprintf(stderr, "%s\n", qtvpr_last_error());
+ *     // scores: this query's similarity to each of the n_db database images, in the
+ *     // type of the matrices the calibration was made from (double here)
+ *     if (qtvpr_online_push_f64(o, scores, n_db, &d) != QTVPR_OK)
+ *         fprintf(stderr, "%s
+", qtvpr_last_error());
  *     qtvpr_online_free(o);
  *     qtvpr_calibration_free(cal);
+ *
+ * Push in the scores' own type: qtvpr_online_push_f64 for double (float64) similarity,
+ * qtvpr_online_push_f32 for float (float32). A decision then equals what
+ * `qtvpr-cli stream` and the Python and Rust APIs give for the same matrix. Pushing
+ * float64 scores rounded to float changes the scores, and so the weights, quantiles and
+ * thresholds (the last digits, and sometimes a decision).
  *
  * Ownership: the caller owns what qtvpr_calibration_load and qtvpr_online_new return and
  * frees it with qtvpr_calibration_free and qtvpr_online_free; nothing else is the
@@ -29,6 +43,16 @@
  * Thread safety: a qtvpr_calibration is read-only and may be shared by any number of
  * threads; a qtvpr_online must be used by one thread at a time (give each thread its
  * own). The last error is per thread.
+ *
+ * Threads: the library runs its parallel work (loading a calibration, each push) on a
+ * thread pool of its own, started on first use: RAYON_NUM_THREADS threads if that
+ * environment variable is set then, else one per core. The calling thread waits for the
+ * pool, so a push costs the caller one wake-up of the pool's threads. Size it with
+ * qtvpr_set_threads (1 keeps the work on one pool thread); real-time users who pin
+ * threads find the pool's by name, qtvpr-0, qtvpr-1, ... (pthread_getname_np,
+ * /proc/self/task/TID/comm). A process that forks after using the library has a working
+ * library in the child: the child builds a pool of its own, of the same size, on its
+ * first call.
  *
  * Link with -lqtvpr (shared), or libqtvpr.a -lpthread -ldl -lm (static).
  */
@@ -70,8 +94,9 @@ typedef enum {
      */
     QTVPR_ERR_INPUT = 3,
     /**
-     * k, precision, window or min_window is out of range, or no window is given and
-     * the calibration file sets none.
+     * k, precision, window or min_window is out of range (a window too large to be
+     * allocated included), no window is given and the calibration file sets none, or
+     * qtvpr_set_threads got 0 threads.
      */
     QTVPR_ERR_PARAM = 4,
     /**
@@ -86,7 +111,7 @@ typedef enum {
     /**
      * A bug in qtvpr (a Rust panic, caught at the boundary); please report the message.
      */
-    QTVPR_ERR_PANIC = 7,
+    QTVPR_ERR_PANIC = 7
 } qtvpr_status;
 
 /**
@@ -100,7 +125,7 @@ typedef enum {
     /**
      * Every database image with a score >= threshold is accepted.
      */
-    QTVPR_MULTI = 2,
+    QTVPR_MULTI = 2
 } qtvpr_matching;
 
 /**
@@ -173,13 +198,30 @@ typedef struct {
 
 #ifdef __cplusplus
 extern "C" {
-#endif // __cplusplus
+#endif /* __cplusplus */
 
 /**
  * The version of the qtvpr library, e.g. "0.1.0": a static string, never NULL, not to
  * be freed. Thread-safe; does not change the last error.
  */
 const char *qtvpr_version(void);
+
+/**
+ * Set the number of threads of the library's thread pool to n.
+ *
+ * The library runs its parallel work (loading a calibration, every push) on a pool of
+ * its own threads, named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
+ * real-time application can find and pin them. By default the pool has
+ * RAYON_NUM_THREADS threads if that environment variable is set when the pool is first
+ * used, else one per core. This call replaces the pool with one of n threads: calls
+ * already running finish on the old pool, later calls use the new one. The size is
+ * kept by a child forked afterwards, which gets a pool of its own (a process that
+ * forks after using the library has a working library in the child).
+ *
+ * Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0, or the threads cannot be
+ * started). Thread-safe.
+ */
+int qtvpr_set_threads(size_t n);
 
 /**
  * Load the calibration file at path (a NUL-terminated file name; on Unix any bytes,
@@ -231,15 +273,22 @@ int qtvpr_calibration_matching(const qtvpr_calibration *cal);
 /**
  * A new online state over cal: an empty window.
  *
- * k (calibration queries sampled per deployment query), precision (the target, in
- * (0, 1]), window (each query is thresholded on its last window queries) and
- * min_window (queries before the min_window-th are rejected) take the calibration
- * file's value when 0 (min_window: 1).
+ * Each parameter takes the calibration file's value when 0 (min_window: 1):
+ * - k, the calibration queries sampled per deployment query: >= 1; a k above the
+ *   calibration's number of queries is clipped to it (SIZE_MAX means all of them);
+ * - precision, the target: in (0, 1];
+ * - window, each query is thresholded on its last window queries: >= 1, and at most
+ *   PTRDIFF_MAX / 8 / n_db (qtvpr_calibration_db_size), the largest whose full state
+ *   (window x n_db doubles) could be allocated at all; the state takes memory as
+ *   queries arrive, 8 x n_db bytes each until the window is full, so choose the window
+ *   the application can hold (e.g. 1000 queries x 10000 images = 80 MB);
+ * - min_window, queries before the min_window-th are rejected: in 1..=window.
  *
  * Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
- * QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, or window 0
- * and the file sets none). The state holds its own reference to the calibration: cal
- * may be freed afterwards. Thread-safe (cal is only read).
+ * QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, e.g. window
+ * SIZE_MAX, or window 0 and the file sets none; the message names the parameter). The
+ * state holds its own reference to the calibration: cal may be freed afterwards.
+ * Thread-safe (cal is only read).
  *
  * # Safety
  * cal is NULL or a live calibration.
@@ -256,8 +305,13 @@ qtvpr_online *qtvpr_online_new(const qtvpr_calibration *cal,
  *
  * Returns QTVPR_OK (0), or on error: QTVPR_ERR_NULL (o, scores or out is NULL),
  * QTVPR_ERR_SIZE (n_db is not qtvpr_calibration_db_size), QTVPR_ERR_INPUT (a NaN or
- * infinite score, or scores misaligned). On error *out and the state are unchanged.
- * Not thread-safe for the same o.
+ * infinite score, or scores misaligned), QTVPR_ERR_PARAM (the window, not yet full,
+ * cannot grow by one query: no memory). On error *out and the state are unchanged.
+ * Runs on the library's thread pool (see qtvpr_set_threads). Not thread-safe for the
+ * same o.
+ *
+ * For float64 similarity, push with qtvpr_online_push_f64: float scores are the
+ * float64 ones rounded, and give other weights, quantiles and thresholds.
  *
  * # Safety
  * o is NULL or a live state; scores is NULL or points to n_db floats; out is NULL or
@@ -322,7 +376,7 @@ const char *qtvpr_last_error(void);
 int qtvpr_last_error_code(void);
 
 #ifdef __cplusplus
-}  // extern "C"
-#endif  // __cplusplus
+}  /* extern "C" */
+#endif  /* __cplusplus */
 
 #endif  /* QTVPR_H */

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # The C interface end to end, with the system compilers: builds libqtvpr (shared and
 # static, dev profile), compiles the C example against include/qtvpr.h and links it
-# once against each, compiles the C++ example, and checks that their output equals
+# once against each, compiles the C++ example and a file that includes the header as
+# C89 (-pedantic), and checks that their output equals
 # `qtvpr-cli stream --format jsonl` on real data in both matching modes (the embedded
 # VPR-Bench Corridor always; Nordland HOG and VPR-Bench SPEDTest when ../shared/data is
-# there). Then runs the C error-path test, and runs it and one stream under valgrind
-# (no leak, no invalid access). That include/qtvpr.h is current is checked by
+# there). Then runs a forked child (examples/c/fork.c: its decisions must equal the
+# parent's), the C error-path test, and runs it and one stream under valgrind (no leak,
+# no invalid access). That include/qtvpr.h is current is checked by
 # `cargo test` (crates/qtvpr-capi/tests/header.rs).
 #
 # Called by scripts/test.sh; runs alone from a fresh clone too. Needs cc, c++, python3
@@ -41,10 +43,16 @@ c++ -std=c++17 -Wall -Wextra -Wpedantic -Werror -Iinclude -Iexamples/c examples/
     -o "$work/stream-cpp"
 cc "${cflags[@]}" -pthread examples/c/errors.c "${shared[@]}" -lm -o "$work/errors"
 cc "${cflags[@]}" examples/c/minimal.c "${shared[@]}" -o "$work/minimal"
+cc "${cflags[@]}" examples/c/fork.c "${shared[@]}" -o "$work/fork"
 if ldd "$work/stream-static" | grep -q libqtvpr; then
     echo "stream-static links libqtvpr.so" >&2
     exit 1
 fi
+
+step "the header alone is C89: -std=c89 -pedantic -Werror"
+printf '#include "qtvpr.h"\nint main(void) { return qtvpr_version() == 0; }\n' > "$work/c89.c"
+cc -std=c89 -pedantic -Wall -Wextra -Werror -Iinclude "$work/c89.c" "${shared[@]}" -o "$work/c89"
+"$work/c89"
 
 # stream NAME CAL_S CAL_GT_ARGS DEPLOY_S WINDOW: calibrate in both matchings, then
 # check that every example prints what `qtvpr-cli stream` prints.
@@ -94,6 +102,10 @@ if "$work/minimal" "$work/missing.npz" < /dev/null 2> "$work/minimal.err"; then
 fi
 grep -q "missing.npz" "$work/minimal.err"
 cat "$work/minimal.err"
+
+step "a process that forks after using the library: the child's decisions equal the parent's"
+"$work/fork" "$work/corridor-single.npz" data/corridor/deploy_S.npy
+"$work/fork" "$work/corridor-multi.npz" data/corridor/deploy_S.npy
 
 step "pkg-config: the library installed under a prefix, as the README says"
 if command -v pkg-config > /dev/null; then

@@ -27,6 +27,8 @@ def test_public_names():
         # extensions
         + ["Descriptors", "cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "image_paths",
            "sequence_match", "utm_positions"]
+        # the thread pool (no reference counterpart)
+        + ["set_threads"]
     )
     for name in qtvpr.__all__:
         assert hasattr(qtvpr, name), name

@@ -1031,3 +1031,25 @@ def test_cli_stream_equals_reference(stream_cli, shared_data, tmp_path, dataset,
     assert ref.Calibration.load(cal_file).defaults == {"k": 10, "precision": precision, "window": window}
     got = qtvpr.Online(qtvpr.Calibration.load(cal_file), min_window=min_window).push_many(s_val)
     np.testing.assert_array_equal(got.thresholds, [line["threshold"] for line in lines])
+
+
+def test_a_window_no_allocation_could_hold_is_refused(tmp_path, cli):
+    """The window's state is window x |DB| float64 scores: one that no allocation could
+    hold (above (2**63 - 1) // 8 // |DB|) is a ValueError (exit 2 in the CLI) naming the
+    window, never a state that grows until memory runs out. |DB| = 3 here:
+    (2**63 - 1) // 8 = 1152921504606846975, // 3 = 384307168202282325."""
+    cal = qtvpr.Calibration(CAL_S, CAL_GT)
+    largest = 384307168202282325
+    with pytest.raises(ValueError, match=f"window {largest + 1} is too large.*at most {largest}"):
+        qtvpr.Online(cal, window=largest + 1)
+    with pytest.raises(ValueError, match="window 9223372036854775807 is too large"):
+        qtvpr.Online(cal, window=2**63 - 1)
+    # The largest is accepted and decides as any window longer than the stream.
+    got = qtvpr.Online(cal, window=largest).push_many(DEP_S)
+    np.testing.assert_array_equal(got.thresholds, qtvpr.Online(cal, window=4).push_many(DEP_S).thresholds)
+    cal.save(tmp_path / "cal.npz")
+    np.save(tmp_path / "dep.npy", DEP_S)
+    r = run_cli(cli, "stream", "--calibration", tmp_path / "cal.npz", "--val", tmp_path / "dep.npy",
+                "--window", str(2**64 - 1))
+    assert r.returncode == 2 and r.stdout == ""
+    assert "window 18446744073709551615 is too large" in r.stderr, r.stderr

@@ -113,6 +113,21 @@ int main(int argc, char **argv) {
     EXPECT_ERROR(QTVPR_ERR_PARAM, "precision", NULL);
     CHECK(qtvpr_online_new(cal, 0, 0.0, 3, 4) == NULL);
     EXPECT_ERROR(QTVPR_ERR_PARAM, "min window must be between 1 and the window (3), got 4", NULL);
+    /* A window whose full state (window x n_db doubles) no allocation could hold is
+       refused up front; the largest that could is accepted (it takes memory as queries
+       arrive). k above the number of calibration queries is clipped, so SIZE_MAX is k. */
+    CHECK(qtvpr_online_new(cal, 0, 0.0, SIZE_MAX, 0) == NULL);
+    EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_online_new: window", "too large");
+    CHECK(qtvpr_online_new(cal, 0, 0.0, (size_t)PTRDIFF_MAX / 8 / n_db + 1, 0) == NULL);
+    EXPECT_ERROR(QTVPR_ERR_PARAM, "window", "more memory than can be allocated");
+    o = qtvpr_online_new(cal, SIZE_MAX, 0.0, (size_t)PTRDIFF_MAX / 8 / n_db, 0);
+    CHECK(o != NULL);
+    EXPECT_OK();
+    qtvpr_online_free(o);
+    /* The thread pool cannot be empty. */
+    CHECK(qtvpr_set_threads(0) == QTVPR_ERR_PARAM);
+    EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_set_threads: threads must be >= 1, got 0", NULL);
+    CHECK(qtvpr_online_new(cal, 0, 0.0, 3, 4) == NULL);
 
     /* qtvpr_version does not touch the last error. */
     CHECK(qtvpr_version() != NULL && strlen(qtvpr_version()) > 0);

@@ -69,6 +69,7 @@ from qtvpr._native import (
     ranked_correlation,
     schubert_threshold,
     sequence_match,
+    set_threads,
     utm_positions,
 )
 
@@ -93,6 +94,7 @@ __all__ = [
     "image_paths",
     "sequence_match",
     "schubert_threshold",
+    "set_threads",
     "utm_positions",
 ]
 

@@ -26,6 +26,7 @@ __all__ = [
     "evaluate",
     "schubert_threshold",
     "ablation",
+    "set_threads",
     "Calibration",
     "Descriptors",
     "TransferResult",
@@ -358,6 +359,7 @@ def ground_truth_positions(
 def utm_positions(paths: Sequence[str | os.PathLike[str]]) -> NDArray[np.float64]: ...
 def image_paths(source: str | os.PathLike[str]) -> list[str]: ...
 def schubert_threshold(s: _Matrix) -> float: ...
+def set_threads(n: int) -> None: ...
 def evaluate(
     s: _Matrix | Descriptors,
     gt: _Matrix,

@@ -32,8 +32,9 @@ pub enum qtvpr_status {
     /// The scores are unusable: a NaN or infinite score (the message gives its index),
     /// or a pointer not aligned for its type.
     QTVPR_ERR_INPUT = 3,
-    /// k, precision, window or min_window is out of range, or no window is given and
-    /// the calibration file sets none.
+    /// k, precision, window or min_window is out of range (a window too large to be
+    /// allocated included), no window is given and the calibration file sets none, or
+    /// qtvpr_set_threads got 0 threads.
     QTVPR_ERR_PARAM = 4,
     /// A file cannot be read: missing, a directory, no permission.
     QTVPR_ERR_IO = 5,

@@ -106,6 +106,25 @@ pub extern "C" fn qtvpr_version() -> *const c_char {
     })
 }
 
+/// Set the number of threads of the library's thread pool to n.
+///
+/// The library runs its parallel work (loading a calibration, every push) on a pool of
+/// its own threads, named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
+/// real-time application can find and pin them. By default the pool has
+/// RAYON_NUM_THREADS threads if that environment variable is set when the pool is first
+/// used, else one per core. This call replaces the pool with one of n threads: calls
+/// already running finish on the old pool, later calls use the new one. The size is
+/// kept by a child forked afterwards, which gets a pool of its own (a process that
+/// forks after using the library has a working library in the child).
+///
+/// Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0, or the threads cannot be
+/// started). Thread-safe.
+#[unsafe(no_mangle)]
+pub extern "C" fn qtvpr_set_threads(n: usize) -> c_int {
+    let done = guard("qtvpr_set_threads", || Ok(qtvpr::set_threads(n)?));
+    done.err().unwrap_or(QTVPR_OK) as c_int
+}
+
 /// Load the calibration file at path (a NUL-terminated file name; on Unix any bytes,
 /// elsewhere UTF-8).
 ///
@@ -204,15 +223,22 @@ pub unsafe extern "C" fn qtvpr_calibration_matching(cal: *const qtvpr_calibratio
 
 /// A new online state over cal: an empty window.
 ///
-/// k (calibration queries sampled per deployment query), precision (the target, in
-/// (0, 1]), window (each query is thresholded on its last window queries) and
-/// min_window (queries before the min_window-th are rejected) take the calibration
-/// file's value when 0 (min_window: 1).
+/// Each parameter takes the calibration file's value when 0 (min_window: 1):
+/// - k, the calibration queries sampled per deployment query: >= 1; a k above the
+///   calibration's number of queries is clipped to it (SIZE_MAX means all of them);
+/// - precision, the target: in (0, 1];
+/// - window, each query is thresholded on its last window queries: >= 1, and at most
+///   PTRDIFF_MAX / 8 / n_db (qtvpr_calibration_db_size), the largest whose full state
+///   (window x n_db doubles) could be allocated at all; the state takes memory as
+///   queries arrive, 8 x n_db bytes each until the window is full, so choose the window
+///   the application can hold (e.g. 1000 queries x 10000 images = 80 MB);
+/// - min_window, queries before the min_window-th are rejected: in 1..=window.
 ///
 /// Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
-/// QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, or window 0
-/// and the file sets none). The state holds its own reference to the calibration: cal
-/// may be freed afterwards. Thread-safe (cal is only read).
+/// QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, e.g. window
+/// SIZE_MAX, or window 0 and the file sets none; the message names the parameter). The
+/// state holds its own reference to the calibration: cal may be freed afterwards.
+/// Thread-safe (cal is only read).
 ///
 /// # Safety
 /// cal is NULL or a live calibration.
@@ -246,8 +272,13 @@ pub unsafe extern "C" fn qtvpr_online_new(
 ///
 /// Returns QTVPR_OK (0), or on error: QTVPR_ERR_NULL (o, scores or out is NULL),
 /// QTVPR_ERR_SIZE (n_db is not qtvpr_calibration_db_size), QTVPR_ERR_INPUT (a NaN or
-/// infinite score, or scores misaligned). On error *out and the state are unchanged.
-/// Not thread-safe for the same o.
+/// infinite score, or scores misaligned), QTVPR_ERR_PARAM (the window, not yet full,
+/// cannot grow by one query: no memory). On error *out and the state are unchanged.
+/// Runs on the library's thread pool (see qtvpr_set_threads). Not thread-safe for the
+/// same o.
+///
+/// For float64 similarity, push with qtvpr_online_push_f64: float scores are the
+/// float64 ones rounded, and give other weights, quantiles and thresholds.
 ///
 /// # Safety
 /// o is NULL or a live state; scores is NULL or points to n_db floats; out is NULL or

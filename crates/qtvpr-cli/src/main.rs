@@ -103,7 +103,9 @@ fn main() -> ExitCode {
 fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
     match threads {
         Some(0) => anyhow::bail!("--threads must be at least 1"),
-        Some(n) => Ok(rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?),
+        // The library's own pool (qtvpr::threads), not rayon's global one: the core runs
+        // every parallel region there, so that a forked child gets live threads.
+        Some(n) => Ok(qtvpr::set_threads(n)?),
         None => Ok(()),
     }
 }

@@ -206,11 +206,35 @@ fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
         .map_err(|e| args.error(e))
 }
 
+/// Set the number of threads of the library's thread pool to ``n``.
+///
+/// The compiled core runs its parallel work on a pool of its own threads (named
+/// ``qtvpr-0``, ``qtvpr-1``, ...). By default it has ``RAYON_NUM_THREADS`` threads if
+/// that environment variable is set when the pool is first used, else one per core.
+/// This replaces the pool with one of ``n`` threads; calls already running finish on the
+/// old one. A process forked afterwards (``multiprocessing`` on Linux) builds a pool of
+/// its own, of the same size. Raises ``ValueError`` for ``n < 1``.
+#[pyfunction]
+#[pyo3(signature = (n))]
+fn set_threads(py: Python<'_>, n: i64) -> PyResult<()> {
+    let args = Args {
+        gt: "gt",
+        query_major: false,
+    };
+    let Ok(n) = usize::try_from(n) else {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "threads must be >= 1, got {n}"
+        )));
+    };
+    py.detach(|| qtvpr::set_threads(n)).map_err(|e| args.error(e))
+}
+
 /// Quantile transfer for visual place recognition: the compiled core of ``qtvpr``.
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(quantile_transfer, m)?)?;
+    m.add_function(wrap_pyfunction!(set_threads, m)?)?;
     m.add_function(wrap_pyfunction!(best_threshold, m)?)?;
     m.add_function(wrap_pyfunction!(counts, m)?)?;
     m.add_function(wrap_pyfunction!(ranked_correlation, m)?)?;

@@ -13,6 +13,7 @@ use ndarray::{ArrayView1, ArrayView2};
 use rayon::prelude::*;
 
 use crate::input::{Score, Truth};
+use crate::threads;
 
 /// How a query's matches are decided (semantics §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
@@ -79,28 +80,30 @@ pub(crate) struct Candidates {
 impl Candidates {
     /// Collect the candidates of every column of `s` (|DB| x |Q|) under `gt` (same shape).
     pub(crate) fn new<T: Score>(s: ArrayView2<'_, T>, gt: ArrayView2<'_, Truth>, matching: Matching) -> Self {
-        let per_column: Vec<(Vec<(f64, bool)>, usize)> = (0..s.ncols())
-            .into_par_iter()
-            .map(|j| column_candidates(s.column(j), gt.column(j), matching))
-            .collect();
-        let mut offsets = Vec::with_capacity(per_column.len() + 1);
-        offsets.push(0);
-        let total = per_column.iter().map(|(c, _)| c.len()).sum();
-        let mut scores = Vec::with_capacity(total);
-        let mut correct = Vec::with_capacity(total);
-        let mut positives = Vec::with_capacity(per_column.len());
-        for (cands, pos) in per_column {
-            scores.extend(cands.iter().map(|c| c.0));
-            correct.extend(cands.iter().map(|c| c.1));
-            offsets.push(scores.len());
-            positives.push(pos);
-        }
-        Self {
-            offsets,
-            scores,
-            correct,
-            positives,
-        }
+        threads::install(|| {
+            let per_column: Vec<(Vec<(f64, bool)>, usize)> = (0..s.ncols())
+                .into_par_iter()
+                .map(|j| column_candidates(s.column(j), gt.column(j), matching))
+                .collect();
+            let mut offsets = Vec::with_capacity(per_column.len() + 1);
+            offsets.push(0);
+            let total = per_column.iter().map(|(c, _)| c.len()).sum();
+            let mut scores = Vec::with_capacity(total);
+            let mut correct = Vec::with_capacity(total);
+            let mut positives = Vec::with_capacity(per_column.len());
+            for (cands, pos) in per_column {
+                scores.extend(cands.iter().map(|c| c.0));
+                correct.extend(cands.iter().map(|c| c.1));
+                offsets.push(scores.len());
+                positives.push(pos);
+            }
+            Self {
+                offsets,
+                scores,
+                correct,
+                positives,
+            }
+        })
     }
 
     /// Column `j`'s candidates: scores (descending) and correctness.

@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::Score;
+use crate::threads;
 
 /// Consecutive runs of `size` queries over `n` (the last one shorter if need be);
 /// `None` is one batch of all `n`.
@@ -180,59 +181,63 @@ const DIGIT: u32 = 16;
 /// radix select: each pass histograms one 16-bit digit of the keys that share the
 /// digits fixed so far.
 fn select_key<T: Score>(s: ArrayView2<'_, T>, mut rank: usize) -> u64 {
-    let mut prefix = 0u64;
-    for pass in 0..(64 / DIGIT) {
-        let shift = 64 - DIGIT * (pass + 1);
-        let fixed = if pass == 0 { 0 } else { u64::MAX << (shift + DIGIT) };
-        let hist = (0..s.ncols())
-            .into_par_iter()
-            .fold(
-                || vec![0usize; 1 << DIGIT],
-                |mut h, j| {
-                    for v in s.column(j) {
-                        let k = to_key(v.to_f64());
-                        if k & fixed == prefix {
-                            h[((k >> shift) & ((1 << DIGIT) - 1)) as usize] += 1;
+    threads::install(|| {
+        let mut prefix = 0u64;
+        for pass in 0..(64 / DIGIT) {
+            let shift = 64 - DIGIT * (pass + 1);
+            let fixed = if pass == 0 { 0 } else { u64::MAX << (shift + DIGIT) };
+            let hist = (0..s.ncols())
+                .into_par_iter()
+                .fold(
+                    || vec![0usize; 1 << DIGIT],
+                    |mut h, j| {
+                        for v in s.column(j) {
+                            let k = to_key(v.to_f64());
+                            if k & fixed == prefix {
+                                h[((k >> shift) & ((1 << DIGIT) - 1)) as usize] += 1;
+                            }
                         }
-                    }
-                    h
-                },
-            )
-            .reduce(
-                || vec![0usize; 1 << DIGIT],
-                |mut a, b| {
-                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
-        for (digit, &count) in hist.iter().enumerate() {
-            if rank < count {
-                prefix |= (digit as u64) << shift;
-                break;
+                        h
+                    },
+                )
+                .reduce(
+                    || vec![0usize; 1 << DIGIT],
+                    |mut a, b| {
+                        a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                        a
+                    },
+                );
+            for (digit, &count) in hist.iter().enumerate() {
+                if rank < count {
+                    prefix |= (digit as u64) << shift;
+                    break;
+                }
+                rank -= count;
             }
-            rank -= count;
         }
-    }
-    prefix
+        prefix
+    })
 }
 
 /// The `(rank + 1)`-th smallest score, given the key of the `rank`-th: that same value
 /// if it occurs more than `rank + 1` times from the bottom, else the smallest larger one.
 fn next_value<T: Score>(s: ArrayView2<'_, T>, key: u64, rank: usize) -> f64 {
-    let (at_most, above) = (0..s.ncols())
-        .into_par_iter()
-        .map(|j| {
-            s.column(j).iter().fold((0usize, u64::MAX), |(le, above), v| {
-                let k = to_key(v.to_f64());
-                if k <= key { (le + 1, above) } else { (le, above.min(k)) }
+    threads::install(|| {
+        let (at_most, above) = (0..s.ncols())
+            .into_par_iter()
+            .map(|j| {
+                s.column(j).iter().fold((0usize, u64::MAX), |(le, above), v| {
+                    let k = to_key(v.to_f64());
+                    if k <= key { (le + 1, above) } else { (le, above.min(k)) }
+                })
             })
-        })
-        .reduce(|| (0, u64::MAX), |a, b| (a.0 + b.0, a.1.min(b.1)));
-    if at_most > rank + 1 {
-        from_key(key)
-    } else {
-        from_key(above)
-    }
+            .reduce(|| (0, u64::MAX), |a, b| (a.0 + b.0, a.1.min(b.1)));
+        if at_most > rank + 1 {
+            from_key(key)
+        } else {
+            from_key(above)
+        }
+    })
 }
 
 #[cfg(test)]

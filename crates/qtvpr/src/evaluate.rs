@@ -35,6 +35,7 @@ use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
 use crate::names::SIMILARITY;
 use crate::online::{Online, OnlineParams};
+use crate::threads;
 use crate::transfer::{Calibration, DEFAULT_K, Params};
 
 /// Tolerance of the "meets the target" test (semantics §8.3).
@@ -400,7 +401,7 @@ impl Evaluation {
                 s.iter().copied().zip(ok.iter().copied())
             })
             .collect();
-        all.par_sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+        threads::install(|| all.par_sort_unstable_by(|a, b| b.0.total_cmp(&a.0)));
         let positives = c.positives(0..c.ncols());
         let step = 1.0 / resolution as f64;
         let mut curve: Vec<PrPoint> = Vec::new();
@@ -492,10 +493,12 @@ pub fn evaluate_with_progress<T: Score>(
         Matching::Multi => Candidates::new(s_dep, gt_dep, Matching::Single).counts(all, f64::NEG_INFINITY),
     };
     let recall_at_1 = (best_matches.positives > 0).then(|| best_matches.recall());
-    let oracle: Vec<f64> = ranges
-        .par_iter()
-        .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
-        .collect();
+    let oracle: Vec<f64> = threads::install(|| {
+        ranges
+            .par_iter()
+            .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
+            .collect()
+    });
     let needs_calibration = unique.iter().any(|m| {
         matches!(
             m,
@@ -526,12 +529,12 @@ pub fn evaluate_with_progress<T: Score>(
                         .collect(),
                 )
             }
-            Method::Schubert => scored(
+            Method::Schubert => scored(threads::install(|| {
                 ranges
                     .par_iter()
                     .map(|r| schubert(s_dep.slice(s![.., r.clone()])))
-                    .collect(),
-            ),
+                    .collect()
+            })),
             Method::SchubertCalibrated => scored(vec![schubert(s_cal); ranges.len()]),
             Method::CalibrationThreshold => {
                 let cal = calibration.as_ref().expect("built for the calibration threshold");
@@ -653,20 +656,22 @@ fn score(
     oracle: &[f64],
     tau: f64,
 ) -> MethodResult {
-    let segments: Vec<SegmentResult> = (ranges, thresholds, oracle)
-        .into_par_iter()
-        .map(|(r, &threshold, &oracle_threshold)| {
-            let counts = deployment.counts(r.clone(), threshold);
-            SegmentResult {
-                start: r.start,
-                end: r.end,
-                threshold,
-                oracle_threshold,
-                counts,
-                meets: counts.precision() >= tau - EPS,
-            }
-        })
-        .collect();
+    let segments: Vec<SegmentResult> = threads::install(|| {
+        (ranges, thresholds, oracle)
+            .into_par_iter()
+            .map(|(r, &threshold, &oracle_threshold)| {
+                let counts = deployment.counts(r.clone(), threshold);
+                SegmentResult {
+                    start: r.start,
+                    end: r.end,
+                    threshold,
+                    oracle_threshold,
+                    counts,
+                    meets: counts.precision() >= tau - EPS,
+                }
+            })
+            .collect()
+    });
     summarise(method, segments)
 }
 

@@ -24,6 +24,7 @@ use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoresView, check_nonempty};
 use crate::kd_tree::KdTree;
 use crate::names::{DB_POSITIONS, GROUND_TRUTH, QUERY_POSITIONS};
+use crate::threads;
 
 /// Ground truth without a matrix of it: a frame tolerance or positions, each with an
 /// optional soft counterpart (VPR_Tutorial's `GTsoft`) that must include the hard.
@@ -163,16 +164,18 @@ impl GtSpec<'_> {
 /// # Errors
 /// [`Error::Empty`] when either count is 0.
 pub fn within_tolerance(n_db: usize, n_queries: usize, tolerance: usize) -> Result<Array2<bool>> {
-    check_nonempty(GROUND_TRUTH, (n_db, n_queries))?;
-    let mut gt = vec![false; n_db * n_queries];
-    gt.par_chunks_mut(n_queries).enumerate().for_each(|(i, row)| {
-        let first = i.saturating_sub(tolerance);
-        let last = i.saturating_add(tolerance).min(n_queries - 1);
-        if first <= last {
-            row[first..=last].fill(true);
-        }
-    });
-    Ok(Array2::from_shape_vec((n_db, n_queries), gt).expect("shape matches length"))
+    threads::install(|| {
+        check_nonempty(GROUND_TRUTH, (n_db, n_queries))?;
+        let mut gt = vec![false; n_db * n_queries];
+        gt.par_chunks_mut(n_queries).enumerate().for_each(|(i, row)| {
+            let first = i.saturating_sub(tolerance);
+            let last = i.saturating_add(tolerance).min(n_queries - 1);
+            if first <= last {
+                row[first..=last].fill(true);
+            }
+        });
+        Ok(Array2::from_shape_vec((n_db, n_queries), gt).expect("shape matches length"))
+    })
 }
 
 /// Ground truth from positions: `GT[i, j]` is true when database position `i` is within
@@ -250,13 +253,15 @@ fn fill<const K: usize, T: Score, U: Score>(
     queries: ArrayView2<'_, U>,
     r2: f64,
 ) -> Array2<bool> {
-    let tree = KdTree::<K>::new((0..queries.nrows()).map(|j| point(queries, j)).collect());
-    let n_q = queries.nrows();
-    let mut gt = vec![false; db.nrows() * n_q];
-    gt.par_chunks_mut(n_q).enumerate().for_each(|(i, row)| {
-        tree.within(&point(db, i), r2, &mut |j| row[j] = true);
-    });
-    Array2::from_shape_vec((db.nrows(), n_q), gt).expect("shape matches length")
+    threads::install(|| {
+        let tree = KdTree::<K>::new((0..queries.nrows()).map(|j| point(queries, j)).collect());
+        let n_q = queries.nrows();
+        let mut gt = vec![false; db.nrows() * n_q];
+        gt.par_chunks_mut(n_q).enumerate().for_each(|(i, row)| {
+            tree.within(&point(db, i), r2, &mut |j| row[j] = true);
+        });
+        Array2::from_shape_vec((db.nrows(), n_q), gt).expect("shape matches length")
+    })
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::names::{GROUND_TRUTH, SOFT_GROUND_TRUTH};
+use crate::threads;
 
 mod sealed {
     pub trait Sealed {}
@@ -276,18 +277,20 @@ pub(crate) fn check_nonempty(what: &'static str, (rows, cols): (usize, usize)) -
 /// [`Error::Empty`] or [`Error::NotFinite`] (naming the first offending entry in
 /// column-major order).
 pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Result<()> {
-    check_nonempty(what, s.dim())?;
-    let bad = (0..s.ncols()).into_par_iter().find_map_first(|col| {
-        let column = s.column(col);
-        let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
-        Some(Error::NotFinite {
-            what,
-            row,
-            col,
-            value: v.to_f64(),
-        })
-    });
-    bad.map_or(Ok(()), Err)
+    threads::install(|| {
+        check_nonempty(what, s.dim())?;
+        let bad = (0..s.ncols()).into_par_iter().find_map_first(|col| {
+            let column = s.column(col);
+            let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
+            Some(Error::NotFinite {
+                what,
+                row,
+                col,
+                value: v.to_f64(),
+            })
+        });
+        bad.map_or(Ok(()), Err)
+    })
 }
 
 /// Check that ground truth has the shape of the similarity matrix it labels.

@@ -28,6 +28,7 @@
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
 //! | extension: positions from image names (`@utm_east@utm_north@...@.jpg`) | [`image_names`] |
+//! | the thread pool, rebuilt in a forked child (§10) | [`threads`] |
 //! | file input and output (feature `npy`) | `npy` |
 //! | the names of the matrices errors are about | [`names`] |
 //!
@@ -77,6 +78,7 @@ pub mod report;
 pub mod sequence;
 pub mod similarity;
 pub mod subset_quantile;
+pub mod threads;
 pub mod transfer;
 
 pub use baselines::schubert_threshold;
@@ -90,6 +92,7 @@ pub use online::{Decision, Online, OnlineParams, Outcome};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};
+pub use threads::set_threads;
 pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
 
 /// Call generic code on the typed view inside a [`ScoresView`]: `$body` is compiled

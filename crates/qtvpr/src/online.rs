@@ -34,6 +34,7 @@ use crate::deployment::{sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{Score, check_precision};
 use crate::ranked_correlation::Ranked;
+use crate::threads;
 use crate::transfer::{CHUNK_SCORES, Calibration, QueryTransfer};
 
 /// Parameters of an [`Online`] state.
@@ -173,10 +174,32 @@ pub struct Online {
 impl Online {
     /// An empty window over `calibration`.
     ///
+    /// The window's memory is taken as queries arrive, up to `8 x window x |DB|` bytes
+    /// once it is full.
+    ///
     /// # Errors
-    /// Invalid `params` ([`OnlineParams::validate`]).
+    /// Invalid `params` ([`OnlineParams::validate`]), or a window whose full state
+    /// (`window x |DB|` scores) is more than any allocation can hold
+    /// ([`Error::InvalidParameter`] naming the window).
     pub fn new(calibration: Arc<Calibration>, params: OnlineParams) -> Result<Online> {
         params.validate()?;
+        let n_db = calibration.db_size();
+        // The full window holds `window x |DB|` scores as f64 (and a q and w per
+        // query): a window whose state exceeds what any allocation can hold would only
+        // fail later, after taking memory with every push.
+        let limit = isize::MAX as usize / std::mem::size_of::<f64>();
+        if params.window.checked_mul(n_db).is_none_or(|n| n > limit) {
+            return Err(Error::param(
+                "window",
+                format!(
+                    "{} is too large: its state would hold {} x {n_db} scores, more memory than can be allocated; \
+                     the window must be at most {}",
+                    params.window,
+                    params.window,
+                    limit / n_db
+                ),
+            ));
+        }
         Ok(Online {
             n_db: calibration.db_size(),
             calibration,
@@ -198,12 +221,15 @@ impl Online {
     /// [`Error::NotFinite`] naming the query (as the column) and the row of a NaN or
     /// infinite score. The state is then unchanged.
     pub fn push<T: Score>(&mut self, column: ArrayView1<'_, T>) -> Result<Decision> {
-        self.check_length(column.len())?;
-        let mut ranked = Ranked::default();
-        let block = column.insert_axis(Axis(1));
-        let screen = self.calibration.rank(&mut ranked, block, self.pushed)?;
-        let mut r = self.per_query(&ranked, &screen);
-        Ok(self.commit(ranked.column(0), column, r.swap_remove(0)))
+        threads::install(|| {
+            self.check_length(column.len())?;
+            let mut ranked = Ranked::default();
+            let block = column.insert_axis(Axis(1));
+            let screen = self.calibration.rank(&mut ranked, block, self.pushed)?;
+            let mut r = self.per_query(&ranked, &screen);
+            self.reserve()?;
+            Ok(self.commit(ranked.column(0), column, r.swap_remove(0)))
+        })
     }
 
     /// Decide several queries, the columns of `s` (|DB| x n) in arrival order. Their
@@ -214,30 +240,33 @@ impl Online {
     /// As [`Online::push`], for the first bad column; the queries before it are kept
     /// (decided and in the window), the bad one and those after it are not.
     pub fn push_many<T: Score>(&mut self, s: ArrayView2<'_, T>) -> Result<Vec<Decision>> {
-        let n = s.ncols();
-        if n == 0 {
-            return Ok(Vec::new());
-        }
-        self.check_length(s.nrows())?;
-        let chunk = (CHUNK_SCORES / self.n_db).clamp(1, 1024);
-        let mut decisions = Vec::with_capacity(n);
-        let mut ranked = Ranked::default();
-        for start in (0..n).step_by(chunk) {
-            let end = (start + chunk).min(n);
-            let block = s.slice(s![.., start..end]);
-            let Ok(screen) = self.calibration.rank(&mut ranked, block, self.pushed) else {
-                // A bad score in the block: push its columns one by one, which keeps
-                // those before the bad one and reports it.
-                for j in start..end {
-                    decisions.push(self.push(s.column(j))?);
-                }
-                continue;
-            };
-            for (j, r) in self.per_query(&ranked, &screen).into_iter().enumerate() {
-                decisions.push(self.commit(ranked.column(j), s.column(start + j), r));
+        threads::install(|| {
+            let n = s.ncols();
+            if n == 0 {
+                return Ok(Vec::new());
             }
-        }
-        Ok(decisions)
+            self.check_length(s.nrows())?;
+            let chunk = (CHUNK_SCORES / self.n_db).clamp(1, 1024);
+            let mut decisions = Vec::with_capacity(n);
+            let mut ranked = Ranked::default();
+            for start in (0..n).step_by(chunk) {
+                let end = (start + chunk).min(n);
+                let block = s.slice(s![.., start..end]);
+                let Ok(screen) = self.calibration.rank(&mut ranked, block, self.pushed) else {
+                    // A bad score in the block: push its columns one by one, which keeps
+                    // those before the bad one and reports it.
+                    for j in start..end {
+                        decisions.push(self.push(s.column(j))?);
+                    }
+                    continue;
+                };
+                for (j, r) in self.per_query(&ranked, &screen).into_iter().enumerate() {
+                    self.reserve()?;
+                    decisions.push(self.commit(ranked.column(j), s.column(start + j), r));
+                }
+            }
+            Ok(decisions)
+        })
     }
 
     /// Database indices accepted for the last pushed query, ascending (multi: every
@@ -282,8 +311,40 @@ impl Online {
         self.calibration.queries(ranked, screen, p.k, p.precision)
     }
 
+    /// Make room for one more query while the window fills: doubling, up to the full
+    /// window and no further, and fallibly, so that memory running out is an error
+    /// (naming the window) rather than an abort.
+    fn reserve(&mut self) -> Result<()> {
+        let (n_db, m, len) = (self.n_db, self.params.window, self.q.len());
+        if len >= m {
+            return Ok(());
+        }
+        let needed = (len + 1) * n_db;
+        let grow = |v: &mut Vec<f64>, needed: usize, full: usize| {
+            if v.capacity() >= needed {
+                return Ok(());
+            }
+            let target = needed.max(v.capacity().saturating_mul(2)).min(full);
+            v.try_reserve_exact(target - v.len())
+        };
+        grow(&mut self.sorted, needed, m * n_db)
+            .and_then(|()| grow(&mut self.q, len + 1, m))
+            .and_then(|()| grow(&mut self.w, len + 1, m))
+            .map_err(|_| {
+                Error::param(
+                    "window",
+                    format!(
+                        "{m} needs memory for {} x {n_db} scores at query {}, which cannot be allocated",
+                        len + 1,
+                        self.pushed
+                    ),
+                )
+            })
+    }
+
     /// Put a checked query (its sorted scores, its column and its `q`, `w`) into the
-    /// window and decide it. Cannot fail, so a failed push changes nothing.
+    /// window and decide it; [`Online::reserve`] has made room for it. Cannot fail, so a
+    /// failed push changes nothing.
     fn commit<T: Score>(&mut self, sorted: &[T], column: ArrayView1<'_, T>, r: QueryTransfer) -> Decision {
         let (n_db, m) = (self.n_db, self.params.window);
         let slot = self.next;
@@ -661,6 +722,36 @@ mod tests {
                 db: 3
             })
         ));
+    }
+
+    #[test]
+    fn a_window_no_allocation_could_hold_is_refused() {
+        // |DB| = 3. The largest allocation is isize::MAX = 2^63 - 1 bytes, i.e.
+        // floor((2^63 - 1) / 8) = 1152921504606846975 f64 scores, so at most
+        // floor(1152921504606846975 / 3) = 384307168202282325 queries of 3 scores.
+        let largest = 384_307_168_202_282_325;
+        let msg = |window: usize| Online::new(multi(), params(window, 1)).err().unwrap().to_string();
+        assert_eq!(
+            msg(usize::MAX),
+            "window 18446744073709551615 is too large: its state would hold 18446744073709551615 x 3 scores, \
+             more memory than can be allocated; the window must be at most 384307168202282325"
+        );
+        assert!(msg(largest + 1).starts_with("window 384307168202282326 is too large"));
+        // The largest is accepted, takes memory only as queries arrive, and decides as a
+        // window longer than the stream does (window_larger_than_the_stream).
+        let mut online = Online::new(multi(), params(largest, 1)).unwrap();
+        let (want, _) = run(&multi(), params(3, 1), &deployment());
+        let got: Vec<Decision> = deployment()
+            .columns()
+            .into_iter()
+            .map(|c| online.push(c).unwrap())
+            .collect();
+        assert_eq!(got, want);
+        assert!(
+            online.sorted.capacity() <= 4 * 3,
+            "capacity {}",
+            online.sorted.capacity()
+        );
     }
 
     #[test]

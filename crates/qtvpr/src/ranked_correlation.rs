@@ -28,6 +28,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::input::{Score, check_nonempty};
 use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
+use crate::threads;
 
 /// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
 /// neighbours, so that correlations equal in exact arithmetic tie (and go to the lower
@@ -75,21 +76,23 @@ impl Reference {
     /// The mean standardised profile of `ranked`'s columns, summed row by row in column
     /// order (the same bits on every run).
     pub(crate) fn mean_of<T: Score>(ranked: &Ranked<T>) -> Self {
-        let mut profile = vec![0.0; ranked.n_db];
-        const ROWS: usize = 256;
-        profile.par_chunks_mut(ROWS).enumerate().for_each(|(block, out)| {
-            let rows = block * ROWS..block * ROWS + out.len();
-            for j in 0..ranked.ncols() {
-                let standard = ranked.standard[j];
-                for (o, &x) in out.iter_mut().zip(&ranked.column(j)[rows.clone()]) {
-                    *o += standard.apply(x);
+        threads::install(|| {
+            let mut profile = vec![0.0; ranked.n_db];
+            const ROWS: usize = 256;
+            profile.par_chunks_mut(ROWS).enumerate().for_each(|(block, out)| {
+                let rows = block * ROWS..block * ROWS + out.len();
+                for j in 0..ranked.ncols() {
+                    let standard = ranked.standard[j];
+                    for (o, &x) in out.iter_mut().zip(&ranked.column(j)[rows.clone()]) {
+                        *o += standard.apply(x);
+                    }
                 }
-            }
-            let n = ranked.ncols() as f64;
-            out.iter_mut().for_each(|o| *o /= n);
-        });
-        let norm2 = sum_lanes(&profile, &profile, |a, b| a * b);
-        Self { profile, norm2 }
+                let n = ranked.ncols() as f64;
+                out.iter_mut().for_each(|o| *o /= n);
+            });
+            let norm2 = sum_lanes(&profile, &profile, |a, b| a * b);
+            Self { profile, norm2 }
+        })
     }
 }
 
@@ -124,50 +127,52 @@ impl<T: Score> Ranked<T> {
         first_col: usize,
         reference: &Reference,
     ) -> Result<()> {
-        check_nonempty(what, s.dim())?;
-        let (n_db, n) = s.dim();
-        let Self {
-            sorted,
-            standard,
-            screen,
-            ..
-        } = self;
-        self.n_db = n_db;
-        sorted.resize(s.len(), T::default());
-        standard.resize(n, Standard::CONSTANT);
-        screen.resize(n_db, n);
-        const TILE: usize = 64;
-        sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
-            let cols = tile * TILE..(tile * TILE + out.len() / n_db);
-            for rows in (0..n_db).step_by(4 * TILE).map(|r| r..(r + 4 * TILE).min(n_db)) {
-                let block = s.slice(s![rows.clone(), cols.clone()]);
-                for (i, row) in rows.zip(block.rows()) {
-                    for (j, &v) in row.iter().enumerate() {
-                        out[j * n_db + i] = v;
+        threads::install(|| {
+            check_nonempty(what, s.dim())?;
+            let (n_db, n) = s.dim();
+            let Self {
+                sorted,
+                standard,
+                screen,
+                ..
+            } = self;
+            self.n_db = n_db;
+            sorted.resize(s.len(), T::default());
+            standard.resize(n, Standard::CONSTANT);
+            screen.resize(n_db, n);
+            const TILE: usize = 64;
+            sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
+                let cols = tile * TILE..(tile * TILE + out.len() / n_db);
+                for rows in (0..n_db).step_by(4 * TILE).map(|r| r..(r + 4 * TILE).min(n_db)) {
+                    let block = s.slice(s![rows.clone(), cols.clone()]);
+                    for (i, row) in rows.zip(block.rows()) {
+                        for (j, &v) in row.iter().enumerate() {
+                            out[j * n_db + i] = v;
+                        }
                     }
                 }
-            }
-        });
-        let bad = sorted
-            .par_chunks_mut(n_db)
-            .zip(standard)
-            .zip(screen.columns_mut())
-            .enumerate()
-            .find_map_first(|(col, ((column, standard), screen))| {
-                if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
-                    let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
-                    return Some(Error::NotFinite {
-                        what,
-                        row,
-                        col: first_col + col,
-                        value: v.to_f64(),
-                    });
-                }
-                T::sort_ascending(column);
-                *standard = screen_column(column, reference, screen);
-                None
             });
-        bad.map_or(Ok(()), Err)
+            let bad = sorted
+                .par_chunks_mut(n_db)
+                .zip(standard)
+                .zip(screen.columns_mut())
+                .enumerate()
+                .find_map_first(|(col, ((column, standard), screen))| {
+                    if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
+                        let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
+                        return Some(Error::NotFinite {
+                            what,
+                            row,
+                            col: first_col + col,
+                            value: v.to_f64(),
+                        });
+                    }
+                    T::sort_ascending(column);
+                    *standard = screen_column(column, reference, screen);
+                    None
+                });
+            bad.map_or(Ok(()), Err)
+        })
     }
 
     pub(crate) fn ncols(&self) -> usize {
@@ -203,17 +208,19 @@ impl<T: Score> Ranked<T> {
 
     /// Screen every column against `reference` afresh.
     pub(crate) fn rescreen(&mut self, reference: &Reference) {
-        let Self {
-            n_db,
-            sorted,
-            standard,
-            screen,
-        } = self;
-        sorted
-            .par_chunks(*n_db)
-            .zip(standard)
-            .zip(screen.columns_mut())
-            .for_each(|((column, standard), screen)| *standard = screen_column(column, reference, screen));
+        threads::install(|| {
+            let Self {
+                n_db,
+                sorted,
+                standard,
+                screen,
+            } = self;
+            sorted
+                .par_chunks(*n_db)
+                .zip(standard)
+                .zip(screen.columns_mut())
+                .for_each(|((column, standard), screen)| *standard = screen_column(column, reference, screen));
+        })
     }
 
     pub(crate) fn screen(&self) -> &Screen {
@@ -270,28 +277,30 @@ impl Screen {
     /// The `f32` product runs over blocks of [`DEPTH`] database rows, summed into the
     /// result, so that its error bound does not grow with |DB|.
     pub(crate) fn correlations(&self, cal: &Screen, reference: &Reference) -> Vec<f64> {
-        let (val_offsets, cal_offsets) = (self.offsets(), cal.offsets());
-        let mut products = vec![0.0f32; cal.along.len() * self.along.len()];
-        let mut dst = MatMut::from_column_major_slice_mut(&mut products, cal.along.len(), self.along.len());
-        for start in (0..self.n_db).step_by(DEPTH) {
-            let rows = DEPTH.min(self.n_db - start);
-            let accum = if start == 0 { Accum::Replace } else { Accum::Add };
-            let (lhs, rhs) = (
-                cal_offsets.subrows(start, rows).transpose(),
-                val_offsets.subrows(start, rows),
-            );
-            matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::rayon(0));
-        }
-        let n_cal = cal.along.len();
-        let mut r = vec![0.0; products.len()];
-        (r.par_chunks_mut(n_cal).zip(products.par_chunks(n_cal)).zip(&self.along)).for_each(|((r, d), along)| {
-            let shift = along - reference.norm2;
-            r.iter_mut()
-                .zip(d)
-                .zip(&cal.along)
-                .for_each(|((r, &d), a)| *r = a + shift + f64::from(d));
-        });
-        r
+        threads::install(|| {
+            let (val_offsets, cal_offsets) = (self.offsets(), cal.offsets());
+            let mut products = vec![0.0f32; cal.along.len() * self.along.len()];
+            let mut dst = MatMut::from_column_major_slice_mut(&mut products, cal.along.len(), self.along.len());
+            for start in (0..self.n_db).step_by(DEPTH) {
+                let rows = DEPTH.min(self.n_db - start);
+                let accum = if start == 0 { Accum::Replace } else { Accum::Add };
+                let (lhs, rhs) = (
+                    cal_offsets.subrows(start, rows).transpose(),
+                    val_offsets.subrows(start, rows),
+                );
+                matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::rayon(0));
+            }
+            let n_cal = cal.along.len();
+            let mut r = vec![0.0; products.len()];
+            (r.par_chunks_mut(n_cal).zip(products.par_chunks(n_cal)).zip(&self.along)).for_each(|((r, d), along)| {
+                let shift = along - reference.norm2;
+                r.iter_mut()
+                    .zip(d)
+                    .zip(&cal.along)
+                    .for_each(|((r, &d), a)| *r = a + shift + f64::from(d));
+            });
+            r
+        })
     }
 
     /// A bound on the difference between the screened correlation of column `j` with any
@@ -490,24 +499,26 @@ pub(crate) fn screened_top_k(screen: &[f64], k: usize, error: f64, exact: impl F
 /// # Errors
 /// Empty or non-finite scores, or a different number of database rows.
 pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
-    let zero = Reference::zero(cal.nrows());
-    let cal = Ranked::new(CAL_SIMILARITY, cal, 0, &zero)?;
-    let val = Ranked::new(DEPLOYMENT_SIMILARITY, val, 0, &zero)?;
-    if val.n_db != cal.n_db {
-        return Err(Error::DatabaseMismatch {
-            calibration: cal.n_db,
-            deployment: val.n_db,
-        });
-    }
-    let mut r = vec![0.0; val.ncols() * cal.ncols()];
-    r.par_chunks_mut(cal.ncols()).enumerate().for_each_init(
-        || vec![0.0; val.n_db],
-        |u, (j, row)| {
-            val.profile(j, u);
-            row.iter_mut().enumerate().for_each(|(i, r)| *r = cal.correlation(i, u));
-        },
-    );
-    Ok(Array2::from_shape_vec((val.ncols(), cal.ncols()), r).expect("shape matches length"))
+    threads::install(|| {
+        let zero = Reference::zero(cal.nrows());
+        let cal = Ranked::new(CAL_SIMILARITY, cal, 0, &zero)?;
+        let val = Ranked::new(DEPLOYMENT_SIMILARITY, val, 0, &zero)?;
+        if val.n_db != cal.n_db {
+            return Err(Error::DatabaseMismatch {
+                calibration: cal.n_db,
+                deployment: val.n_db,
+            });
+        }
+        let mut r = vec![0.0; val.ncols() * cal.ncols()];
+        r.par_chunks_mut(cal.ncols()).enumerate().for_each_init(
+            || vec![0.0; val.n_db],
+            |u, (j, row)| {
+                val.profile(j, u);
+                row.iter_mut().enumerate().for_each(|(i, r)| *r = cal.correlation(i, u));
+            },
+        );
+        Ok(Array2::from_shape_vec((val.ncols(), cal.ncols()), r).expect("shape matches length"))
+    })
 }
 
 #[cfg(test)]

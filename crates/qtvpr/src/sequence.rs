@@ -28,6 +28,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::input::{Score, validate_scores};
 use crate::names::SIMILARITY;
+use crate::threads;
 
 /// A score type [`sequence_match`] can return: `f32` or `f64`.
 pub trait FromF64: Score {
@@ -109,34 +110,36 @@ impl Sequence {
 /// [`Error::InvalidParameter`] for an even or zero length, [`Error::Empty`] or
 /// [`Error::NotFinite`] for an empty or non-finite `s`.
 pub fn sequence_match<T: FromF64>(s: ArrayView2<'_, T>, sequence: Sequence) -> Result<Array2<T>> {
-    sequence.validate()?;
-    validate_scores(SIMILARITY, s)?;
-    let (n, m) = s.dim();
-    let (lo, hi) = sequence.offsets();
-    // Rows per block: at least the window length, so that the O(L |Q|) start of each
-    // block costs no more than sliding through it.
-    let block = sequence.length.max(64);
-    let window = Window { s, lo, hi };
-    // Row-major |DB| x |Q|.
-    let mut out = vec![T::from_f64(0.0); n * m];
-    out.par_chunks_mut(block * m).enumerate().for_each(|(b, rows)| {
-        let first = b * block;
-        let mut sums: Vec<f64> = (0..m).map(|j| window.sum(first, j)).collect();
-        for (r, row) in rows.chunks_mut(m).enumerate() {
-            let i = first + r;
-            if r > 0 {
-                window.slide(i - 1, &mut sums);
+    threads::install(|| {
+        sequence.validate()?;
+        validate_scores(SIMILARITY, s)?;
+        let (n, m) = s.dim();
+        let (lo, hi) = sequence.offsets();
+        // Rows per block: at least the window length, so that the O(L |Q|) start of each
+        // block costs no more than sliding through it.
+        let block = sequence.length.max(64);
+        let window = Window { s, lo, hi };
+        // Row-major |DB| x |Q|.
+        let mut out = vec![T::from_f64(0.0); n * m];
+        out.par_chunks_mut(block * m).enumerate().for_each(|(b, rows)| {
+            let first = b * block;
+            let mut sums: Vec<f64> = (0..m).map(|j| window.sum(first, j)).collect();
+            for (r, row) in rows.chunks_mut(m).enumerate() {
+                let i = first + r;
+                if r > 0 {
+                    window.slide(i - 1, &mut sums);
+                }
+                let (last, first) = window.row_bounds(i);
+                for (j, (o, &sum)) in row.iter_mut().zip(&sums).enumerate() {
+                    // The offsets inside the matrix: max(lo, -i, -j) ..= min(hi, n-1-i, m-1-j).
+                    let j = j as isize;
+                    let count = last.min(m as isize - 1 - j) - first.max(-j) + 1;
+                    *o = T::from_f64(sum / count as f64);
+                }
             }
-            let (last, first) = window.row_bounds(i);
-            for (j, (o, &sum)) in row.iter_mut().zip(&sums).enumerate() {
-                // The offsets inside the matrix: max(lo, -i, -j) ..= min(hi, n-1-i, m-1-j).
-                let j = j as isize;
-                let count = last.min(m as isize - 1 - j) - first.max(-j) + 1;
-                *o = T::from_f64(sum / count as f64);
-            }
-        }
-    });
-    Ok(Array2::from_shape_vec((n, m), out).expect("shape matches length"))
+        });
+        Ok(Array2::from_shape_vec((n, m), out).expect("shape matches length"))
+    })
 }
 
 /// The window sums of one matrix, with zero padding outside it.

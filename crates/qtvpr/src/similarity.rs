@@ -53,6 +53,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::input::{Score, ScoresView, check_nonempty};
 use crate::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use crate::threads;
 
 /// Queries per tile of the product: the width of every GEMM call.
 pub const TILE: usize = 64;
@@ -159,12 +160,14 @@ fn scales<T: Score, U: Score>(
 /// The scaling of every row of `m`, in parallel, or the error of its first bad row (by
 /// row order).
 fn row_scales<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<Vec<RowScale>> {
-    let mut scales = vec![RowScale::default(); m.nrows()];
-    let bad = scales
-        .par_iter_mut()
-        .enumerate()
-        .find_map_first(|(row, out)| row_scale(what, row, m.row(row)).map(|s| *out = s).err());
-    bad.map_or(Ok(scales), Err)
+    threads::install(|| {
+        let mut scales = vec![RowScale::default(); m.nrows()];
+        let bad = scales
+            .par_iter_mut()
+            .enumerate()
+            .find_map_first(|(row, out)| row_scale(what, row, m.row(row)).map(|s| *out = s).err());
+        bad.map_or(Ok(scales), Err)
+    })
 }
 
 /// The scaling of row `x`, or why the row has no cosine.
@@ -251,18 +254,20 @@ struct QueryTiles {
 
 impl QueryTiles {
     fn new<U: Score>(queries: Rows<'_, U>, cols: Range<usize>) -> Self {
-        let dim = queries.m.ncols();
-        let first = cols.start / TILE;
-        let end = cols.end.div_ceil(TILE).max(first);
-        let mut unit = vec![0.0; (end - first) * TILE * dim];
-        let n_q = queries.m.nrows();
-        unit.par_chunks_mut(dim).enumerate().for_each(|(r, out)| {
-            let q = first * TILE + r;
-            if q < n_q {
-                queries.unit(q, out);
-            }
-        });
-        Self { first, cols, unit, dim }
+        threads::install(|| {
+            let dim = queries.m.ncols();
+            let first = cols.start / TILE;
+            let end = cols.end.div_ceil(TILE).max(first);
+            let mut unit = vec![0.0; (end - first) * TILE * dim];
+            let n_q = queries.m.nrows();
+            unit.par_chunks_mut(dim).enumerate().for_each(|(r, out)| {
+                let q = first * TILE + r;
+                if q < n_q {
+                    queries.unit(q, out);
+                }
+            });
+            Self { first, cols, unit, dim }
+        })
     }
 
     /// The number of tiles.
@@ -281,35 +286,37 @@ impl QueryTiles {
 /// [`BLOCK_ROWS`]) of the columns `tiles.cols` into `dst` (any layout), in parallel over
 /// blocks of database rows, each normalised once and multiplied by every tile.
 fn fill<T: Score>(db: Rows<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst: ArrayViewMut2<'_, f32>) {
-    let dim = db.m.ncols();
-    let cols = tiles.cols.clone();
-    let blocks: Vec<ArrayViewMut2<'_, f32>> = dst.axis_chunks_iter_mut(Axis(0), BLOCK_ROWS).collect();
-    blocks.into_par_iter().enumerate().for_each_init(
-        || (vec![0.0f64; BLOCK_ROWS * dim], vec![0.0f64; BLOCK_ROWS * TILE]),
-        |(lhs, prod), (b, mut out)| {
-            let row0 = first_row + b * BLOCK_ROWS;
-            let rows = out.nrows();
-            for (r, unit) in lhs.chunks_mut(dim).enumerate() {
-                if r < rows {
-                    db.unit(row0 + r, unit);
-                } else {
-                    unit.fill(0.0);
+    threads::install(|| {
+        let dim = db.m.ncols();
+        let cols = tiles.cols.clone();
+        let blocks: Vec<ArrayViewMut2<'_, f32>> = dst.axis_chunks_iter_mut(Axis(0), BLOCK_ROWS).collect();
+        blocks.into_par_iter().enumerate().for_each_init(
+            || (vec![0.0f64; BLOCK_ROWS * dim], vec![0.0f64; BLOCK_ROWS * TILE]),
+            |(lhs, prod), (b, mut out)| {
+                let row0 = first_row + b * BLOCK_ROWS;
+                let rows = out.nrows();
+                for (r, unit) in lhs.chunks_mut(dim).enumerate() {
+                    if r < rows {
+                        db.unit(row0 + r, unit);
+                    } else {
+                        unit.fill(0.0);
+                    }
                 }
-            }
-            let lhs = MatRef::from_row_major_slice(lhs, BLOCK_ROWS, dim);
-            for t in 0..tiles.len() {
-                let dst = MatMut::from_row_major_slice_mut(prod, BLOCK_ROWS, TILE);
-                matmul(dst, Accum::Replace, lhs, tiles.rhs(t), 1.0, Par::Seq);
-                // The tile's columns that are asked for, as output columns.
-                let q0 = (tiles.first + t) * TILE;
-                let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(cols.end));
-                let prod = ArrayView2::from_shape((BLOCK_ROWS, TILE), &prod[..]).expect("a block of the tile");
-                Zip::from(out.slice_mut(s![.., lo - cols.start..hi - cols.start]))
-                    .and(prod.slice(s![..rows, lo - q0..hi - q0]))
-                    .for_each(|o, &p| *o = p as f32);
-            }
-        },
-    );
+                let lhs = MatRef::from_row_major_slice(lhs, BLOCK_ROWS, dim);
+                for t in 0..tiles.len() {
+                    let dst = MatMut::from_row_major_slice_mut(prod, BLOCK_ROWS, TILE);
+                    matmul(dst, Accum::Replace, lhs, tiles.rhs(t), 1.0, Par::Seq);
+                    // The tile's columns that are asked for, as output columns.
+                    let q0 = (tiles.first + t) * TILE;
+                    let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(cols.end));
+                    let prod = ArrayView2::from_shape((BLOCK_ROWS, TILE), &prod[..]).expect("a block of the tile");
+                    Zip::from(out.slice_mut(s![.., lo - cols.start..hi - cols.start]))
+                        .and(prod.slice(s![..rows, lo - q0..hi - q0]))
+                        .for_each(|o, &p| *o = p as f32);
+                }
+            },
+        );
+    })
 }
 
 /// Database and query descriptors, checked once, from which the similarity of any range

@@ -34,6 +34,7 @@ use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
 use crate::similarity::{DescriptorColumns, Descriptors};
 use crate::subset_quantile::subset_quantile;
+use crate::threads;
 
 /// The paper gives no value of `k`; 10 is this project's default.
 pub const DEFAULT_K: usize = 10;
@@ -191,9 +192,11 @@ impl Calibration {
     /// # Errors
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
-        let ranked = Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?;
-        check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
-        Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
+        threads::install(|| {
+            let ranked = Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?;
+            check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
+            Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
+        })
     }
 
     /// [`Calibration::new`] on labels already known to have the shape of `s`.
@@ -286,26 +289,28 @@ impl Calibration {
         k: usize,
         precision: f64,
     ) -> Vec<QueryTransfer> {
-        screen
-            .par_chunks(self.len())
-            .enumerate()
-            .map_init(
-                || vec![0.0; self.n_db],
-                |u, (j, row)| {
-                    ranked.profile(j, u);
-                    let error = ranked.screen().error(j, self.cal_spread);
-                    let (neighbours, weight) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
-                    let threshold = subset_threshold(&self.candidates, &neighbours, precision);
-                    let quantile = self.profiles.quantile(&neighbours, threshold);
-                    QueryTransfer {
-                        neighbours,
-                        weight,
-                        threshold,
-                        quantile,
-                    }
-                },
-            )
-            .collect()
+        threads::install(|| {
+            screen
+                .par_chunks(self.len())
+                .enumerate()
+                .map_init(
+                    || vec![0.0; self.n_db],
+                    |u, (j, row)| {
+                        ranked.profile(j, u);
+                        let error = ranked.screen().error(j, self.cal_spread);
+                        let (neighbours, weight) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
+                        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
+                        let quantile = self.profiles.quantile(&neighbours, threshold);
+                        QueryTransfer {
+                            neighbours,
+                            weight,
+                            threshold,
+                            quantile,
+                        }
+                    },
+                )
+                .collect()
+        })
     }
 
     /// Number of calibration queries.
@@ -502,23 +507,27 @@ impl Calibration {
                 let sorted = ranked.view();
                 let here: Vec<&Range<usize>> = ranges.iter().filter(|r| r.start >= start && r.end <= end).collect();
                 let local = |r: &Range<usize>| sorted.slice(ndarray::s![.., r.start - start..r.end - start]);
-                segments.par_extend(here.into_par_iter().map(|r| {
-                    segment(r.clone(), &query_quantiles, &query_weights, |q| {
-                        sorted_columns_threshold(local(r), q)
-                    })
-                }));
+                threads::install(|| {
+                    segments.par_extend(here.into_par_iter().map(|r| {
+                        segment(r.clone(), &query_quantiles, &query_weights, |q| {
+                            sorted_columns_threshold(local(r), q)
+                        })
+                    }));
+                });
             }
             progress(end, n_val);
         }
         if !in_chunks {
             let s = source.columns(0..n_val);
-            segments = ranges
-                .into_par_iter()
-                .map(|r| {
-                    let scores = s.slice(ndarray::s![.., r.clone()]);
-                    segment(r, &query_quantiles, &query_weights, |q| deployment_threshold(scores, q))
-                })
-                .collect();
+            segments = threads::install(|| {
+                ranges
+                    .into_par_iter()
+                    .map(|r| {
+                        let scores = s.slice(ndarray::s![.., r.clone()]);
+                        segment(r, &query_quantiles, &query_weights, |q| deployment_threshold(scores, q))
+                    })
+                    .collect()
+            });
         }
         Ok(Transfer {
             segments,
