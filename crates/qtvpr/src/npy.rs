@@ -1076,7 +1076,10 @@ fn write_matrix<T: NpyElement>(w: &mut impl Write, m: ArrayView2<'_, T>) -> io::
 pub(crate) fn write_npz_to<W: Write + Seek>(w: W, arrays: &[(&str, NpyArray<'_>)]) -> io::Result<()> {
     let mut zip = npyz::zip::ZipWriter::new(w);
     for (name, array) in arrays {
+        // A fixed time stamp (zip's earliest, 1980-01-01), not the clock's: the same
+        // arrays give the same bytes, so a calibration file is reproducible.
         let options = npyz::zip::write::FileOptions::default()
+            .last_modified_time(npyz::zip::DateTime::default())
             .compression_method(npyz::zip::CompressionMethod::Stored)
             .large_file(array.data_bytes() >= u64::from(u32::MAX) / 2);
         zip.start_file(npyz::npz::file_name_from_array_name(name), options)?;
