@@ -788,9 +788,10 @@ def test_save_load_is_bit_identical(shared_data, tmp_path, technique, matching):
     for name in ("thresholds", "quantiles", "query_quantiles", "weights", "best", "score", "accept", "accepted"):
         if getattr(a, name) is not None:
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
-    np.testing.assert_array_equal(cal.transfer(s_val, segment_size=6).thresholds,
+    # The batch transfer too, with the file's params as its defaults (semantics §12).
+    np.testing.assert_array_equal(cal.transfer(s_val, k=7, precision=0.9, segment_size=6).thresholds,
                                   loaded.transfer(s_val, segment_size=6).thresholds)
-    assert cal.threshold(0.9) == loaded.threshold(0.9)
+    assert cal.threshold(0.9) == loaded.threshold()
     # np.load reads it without pickle: the scores in their own dtype, DB x Q.
     with np.load(path, allow_pickle=False) as z:
         assert sorted(z.files) == ["gt", "gt_soft", "meta", "s"]

@@ -1158,8 +1158,12 @@ class Calibration:
         """|DB| of the calibration."""
         return self._s.shape[0]
 
-    def transfer(self, s_val, *, k=10, precision=1.0, segment_size=None, query_major=False):
-        """:func:`quantile_transfer` from this calibration."""
+    def transfer(self, s_val, *, k=None, precision=None, segment_size=None, query_major=False):
+        """:func:`quantile_transfer` from this calibration; ``k`` and ``precision`` left as
+        ``None`` are the calibration's :attr:`defaults` (semantics §12)."""
+        k = self.defaults["k"] if k is None else k
+        precision = self.defaults["precision"] if precision is None else precision
+
         def oriented(a):
             return None if a is None else (a.T if query_major else a)
 
@@ -1169,14 +1173,20 @@ class Calibration:
             query_major=query_major,
         )
 
-    def threshold(self, precision=1.0) -> float:
-        """The best threshold of the whole calibration (section 3)."""
+    def threshold(self, precision=None) -> float:
+        """The best threshold of the whole calibration (section 3); ``precision=None`` is
+        the calibration's."""
+        precision = self.defaults["precision"] if precision is None else precision
         return _best_threshold(self._s64, self._gt, self._ignored, _check_precision(precision), self.matching)
 
-    def save(self, path, *, k=10, precision=1.0, window=None) -> None:
+    def save(self, path, *, k=None, precision=None, window=None) -> None:
         """Write the semantics §12 ``.npz`` to ``path`` (the name is used as given):
         ``s``, ``gt``, ``gt_soft`` when there is one, and ``meta``, a 0-d string array of
-        JSON whose ``params`` are ``k``, ``precision`` and ``window``."""
+        JSON whose ``params`` are ``k``, ``precision`` and ``window`` (each ``None``: the
+        calibration's own :attr:`defaults`)."""
+        k = self.defaults["k"] if k is None else k
+        precision = self.defaults["precision"] if precision is None else precision
+        window = self.defaults["window"] if window is None else window
         params = {
             "k": _check_positive_int("k", k),
             "precision": _check_precision(precision),
