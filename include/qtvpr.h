@@ -147,13 +147,14 @@ typedef struct qtvpr_calibration qtvpr_calibration;
 typedef struct qtvpr_online qtvpr_online;
 
 /**
- * The decision of one deployment query.
+ * The decision of one deployment query: the decision record, with the values of a
+ * `qtvpr-cli stream` line and of Python's decisions, in both matching modes.
  *
- * In single matching, best, score and accept describe the query's best match and
- * accepted is 1 if it is accepted, else 0. In multi matching, accepted is the number
- * of database images with a score >= threshold (qtvpr_online_accepted lists them),
- * accept is whether there is any, best is SIZE_MAX and score is NaN. In both,
- * accept == (accepted > 0). The fields are those of a `qtvpr-cli stream` line.
+ * best and score are the query's best match (the first highest score: the matcher's
+ * own choice) in both modes. accepted is the number of accepted database entries: in
+ * single matching 1 if the best match is accepted (score >= threshold), else 0; in
+ * multi matching every entry with a score >= threshold (qtvpr_online_accepted lists
+ * them). accept == (accepted > 0).
  */
 typedef struct {
     /**
@@ -169,19 +170,19 @@ typedef struct {
      */
     double threshold;
     /**
-     * Single matching: index of the best database match (the first maximum).
+     * Index of the best database match (the first maximum of the query's scores).
      */
     size_t best;
     /**
-     * Single matching: its score.
+     * Its score.
      */
     double score;
     /**
-     * Single matching: whether the best match is accepted.
+     * Whether anything is accepted: accepted > 0.
      */
     bool accept;
     /**
-     * Multi matching: number of accepted database entries.
+     * The number of accepted database entries (0 or 1 in single matching).
      */
     size_t accepted;
     /**

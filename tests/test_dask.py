@@ -42,8 +42,8 @@ import qtvpr.dask as qd  # noqa: E402
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
 TRANSFER_FIELDS = ("thresholds", "quantiles", "query_quantiles", "query_thresholds", "query_weights", "neighbours")
-ONLINE_FIELDS = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accept",
-                 "accepted")
+ONLINE_FIELDS = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accepted",
+                 "accept")
 
 
 @pytest.fixture(scope="module")
@@ -72,10 +72,7 @@ def assert_same_online(got, want):
     assert len(got) == len(want)
     for name in ONLINE_FIELDS:
         a, b = getattr(got, name), getattr(want, name)
-        if b is None:
-            assert a is None, name
-        else:
-            assert a.dtype == b.dtype and np.array_equal(a, b), name
+        assert a.dtype == b.dtype and np.array_equal(a, b), name
 
 
 def spedtest(root: Path, technique: str):
@@ -345,8 +342,11 @@ def test_parts_of_different_lengths_are_refused():
     f, i = np.zeros(2), np.zeros((3, 1), np.int64)
     with pytest.raises(ValueError, match="differ in length"):
         qtvpr.TransferResult._from_parts(f, f, [(0, 1), (1, 3)], np.zeros(3), np.zeros(3), np.zeros(2), i)
-    with pytest.raises(ValueError, match="single matching"):
-        qtvpr.OnlineDecisions._from_parts(i[:, 0], *(np.zeros(3),) * 4, i[:, 0], None, None, None)
+    q, b = i[:, 0], np.zeros(3, bool)
+    with pytest.raises(ValueError, match=r"differ in length: queries 3, the others \[3, 3, 3, 3, 3, 2, 3, 3\]"):
+        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(2), q, b)
+    with pytest.raises(TypeError):  # every field in both matching modes
+        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(3), None, b)
 
 
 # ---------------------------------------------------------------------------------------

@@ -90,7 +90,7 @@ def test_window_of_one_query():
         assert d.query == j
         assert d.query_quantile == 4 / 5 and d.quantile == 4 / 5
         assert d.threshold == pytest.approx(theta, abs=1e-15)
-        assert (d.best, d.score, d.accept, d.accepted) == (best, score, True, None)
+        assert (d.best, d.score, d.accepted, d.accept) == (best, score, 1, True)
         assert d.accepted_indices.tolist() == [best]
         assert o.threshold == d.threshold and o.pushed == j + 1
     # Multi matching, same thresholds: d0 accepts 0.7 only; d1 0.6 only (0.5 < 0.56);
@@ -99,7 +99,8 @@ def test_window_of_one_query():
     for j, indices in enumerate([[0], [1], [0, 1]]):
         d = o.push(DEP_S[:, j])
         assert d.threshold == pytest.approx(want[j][0], abs=1e-15)
-        assert (d.best, d.score, d.accept) == (None, None, None)
+        # The record is the same in multi matching: the column's best match too.
+        assert (d.best, d.score, d.accept) == (want[j][1], want[j][2], True)
         assert d.accepted == len(indices) and d.accepted_indices.tolist() == indices
 
 
@@ -157,7 +158,7 @@ def test_push_many_equals_pushes_and_takes_query_major():
     assert many.best.tolist() == [0, 1, 0, 1]
     assert many.accept.tolist() == [True, True, False, True]
     assert many.score.tolist() == [0.7, 0.6, 0.4, 0.9]
-    assert many.accepted is None
+    assert many.accepted.tolist() == [1, 1, 0, 1]
     qm = online(window=2).push_many(DEP_S.T, query_major=True)
     assert qm.thresholds.tolist() == many.thresholds.tolist()
     # In pieces: the window carries over from one call to the next.
@@ -169,7 +170,8 @@ def test_push_many_equals_pushes_and_takes_query_major():
     multi = online("multi", window=2).push_many(DEP_S)
     # thresholds 0.54, 0.6, 0.5, 0.4: d0 {0.7}, d1 {0.6}, d2 {}, d3 {0.9}
     assert multi.accepted.tolist() == [1, 1, 0, 1]
-    assert multi.best is None and multi.accept is None and multi.score is None
+    assert multi.best.tolist() == [0, 1, 0, 1] and multi.score.tolist() == [0.7, 0.6, 0.4, 0.9]
+    assert multi.accept.tolist() == [True, True, False, True]
 
 
 def test_evaluate_online_method_by_hand():
@@ -488,15 +490,9 @@ def assert_decisions_equal(got, want):
         assert_close(getattr(got, name), getattr(want, name), name)
     for name, dtype in (("best", np.int64), ("accept", np.bool_), ("accepted", np.int64)):
         g, w = getattr(got, name), getattr(want, name)
-        if w is None:
-            assert g is None, name
-        else:
-            assert g.dtype == dtype, name
-            np.testing.assert_array_equal(g, w, err_msg=name)
-    if want.score is None:
-        assert got.score is None
-    else:
-        assert_close(got.score, want.score, "score")
+        assert g.dtype == dtype, name
+        np.testing.assert_array_equal(g, w, err_msg=name)
+    assert_close(got.score, want.score, "score")
 
 
 def assert_decision_equal(got, want):
@@ -505,9 +501,7 @@ def assert_decision_equal(got, want):
     for name in ("query_quantile", "weight", "quantile", "threshold"):
         assert_close(getattr(got, name), getattr(want, name), name)
     assert (got.best, got.accept, got.accepted) == (want.best, want.accept, want.accepted)
-    assert (got.score is None) == (want.score is None)
-    if want.score is not None:
-        assert_close(got.score, want.score)
+    assert_close(got.score, want.score)
     assert got.accepted_indices.dtype == np.int64
     np.testing.assert_array_equal(got.accepted_indices, want.accepted_indices)
 
@@ -659,16 +653,16 @@ def test_wheel_hand_computed_windows():
     assert isinstance(d, qtvpr.OnlineDecision)
     assert (d.query, d.quantile, d.query_quantile) == (0, 4 / 5, 4 / 5)
     assert d.threshold == pytest.approx(0.54, abs=1e-15)
-    assert (d.best, d.score, d.accept, d.accepted) == (0, 0.7, True, None)
+    assert (d.best, d.score, d.accepted, d.accept) == (0, 0.7, 1, True)
     assert d.accepted_indices.tolist() == [0]
     assert repr(d).startswith("OnlineDecision(query=0, quantile=0.8, threshold=0.54")
-    assert repr(d).endswith("best=0, score=0.7, accept=True)")
+    assert repr(d).endswith("best=0, score=0.7, accepted=1, accept=True)")
     many = o.push_many(DEP_S[:, 1:])
     assert isinstance(many, qtvpr.OnlineDecisions) and len(many) == 3
     assert many.queries.tolist() == [1, 2, 3]
     assert many.thresholds.tolist() == pytest.approx([0.6, 0.5, 0.4], abs=1e-15)
     assert many.accept.tolist() == [True, False, True]
-    assert many.accepted is None
+    assert many.accepted.tolist() == [1, 0, 1]
     assert o.pushed == 4 and o.threshold == pytest.approx(0.4, abs=1e-15)
     # warm-up, multi: j = 0, 1 reject-all above 0.7; j = 2 (d0, d1, d3) at 0.64
     o = wheel_online("multi", window=3, min_window=3)
@@ -677,8 +671,8 @@ def test_wheel_hand_computed_windows():
     assert got[2].threshold == pytest.approx(0.64, abs=1e-15)
     assert [d.accepted for d in got] == [0, 0, 1]
     assert got[2].accepted_indices.tolist() == [1]
-    assert (got[2].best, got[2].score, got[2].accept) == (None, None, None)
-    assert repr(got[2]).endswith("accepted=1)")
+    assert (got[2].best, got[2].score, got[2].accept) == (1, 0.9, True)
+    assert repr(got[2]).endswith("best=1, score=0.9, accepted=1, accept=True)")
 
 
 def test_wheel_api_shape():

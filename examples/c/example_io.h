@@ -108,16 +108,14 @@ static void npy_column(const npy_matrix *m, size_t j, void *out) {
         memcpy((char *)out + i * m->itemsize, data + (i * m->cols + j) * m->itemsize, m->itemsize);
 }
 
-/* Print d as `qtvpr-cli stream --format jsonl` does: the same keys in the same order;
- * %.17g gives every double exactly (the CLI writes the shortest form of the same value). */
-static void print_decision(const qtvpr_decision *d, int matching) {
+/* Print d as `qtvpr-cli stream --format jsonl` does: the nine fields of the decision
+ * record, the same keys in the same order in both matching modes; %.17g gives every
+ * double exactly (the CLI writes the shortest form of the same value). */
+static void print_decision(const qtvpr_decision *d) {
     printf("{\"query\":%zu,\"query_quantile\":%.17g,\"weight\":%.17g,\"quantile\":%.17g,"
-           "\"threshold\":%.17g,\"accept\":%s,",
-           d->query, d->query_quantile, d->weight, d->quantile, d->threshold, d->accept ? "true" : "false");
-    if (matching == QTVPR_SINGLE)
-        printf("\"best\":%zu,\"score\":%.17g}\n", d->best, d->score);
-    else
-        printf("\"accepted\":%zu}\n", d->accepted);
+           "\"threshold\":%.17g,\"best\":%zu,\"score\":%.17g,\"accepted\":%zu,\"accept\":%s}\n",
+           d->query, d->query_quantile, d->weight, d->quantile, d->threshold, d->best, d->score, d->accepted,
+           d->accept ? "true" : "false");
 }
 
 #endif /* QTVPR_EXAMPLE_IO_H */

@@ -20,7 +20,7 @@ int main(int argc, char **argv) {
     qtvpr_online *online = NULL;
     npy_matrix s = {0};
     void *column = NULL;
-    int status = 1, matching;
+    int status = 1;
     size_t j;
 
     if (argc != 3 && argc != 7) {
@@ -28,7 +28,6 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (!(cal = qtvpr_calibration_load(argv[1]))) goto error;
-    matching = qtvpr_calibration_matching(cal);
     online = qtvpr_online_new(cal, argc == 7 ? strtoul(argv[3], NULL, 10) : 0,
                               argc == 7 ? strtod(argv[4], NULL) : 0.0,
                               argc == 7 ? strtoul(argv[5], NULL, 10) : 0,
@@ -44,7 +43,7 @@ int main(int argc, char **argv) {
         rc = s.itemsize == 4 ? qtvpr_online_push_f32(online, (const float *)column, s.rows, &d)
                              : qtvpr_online_push_f64(online, (const double *)column, s.rows, &d);
         if (rc != QTVPR_OK) goto error;
-        print_decision(&d, matching);
+        print_decision(&d);
     }
     status = 0;
     goto done;

@@ -60,12 +60,12 @@ struct NpyFree {
     void operator()(npy_matrix *m) const { std::free(m->data); }
 };
 
-template <typename T> void stream(const qtvpr::Online &o, const npy_matrix &s, int matching) {
+template <typename T> void stream(const qtvpr::Online &o, const npy_matrix &s) {
     std::vector<T> column(s.rows);
     for (size_t j = 0; j < s.cols; j++) {
         npy_column(&s, j, column.data());
         qtvpr_decision d = qtvpr::push(o, column);
-        print_decision(&d, matching);
+        print_decision(&d);
     }
 }
 
@@ -79,15 +79,14 @@ int main(int argc, char **argv) {
         bool given = argc == 7;
         qtvpr::Online o = qtvpr::online(cal, given ? std::stoul(argv[3]) : 0, given ? std::stod(argv[4]) : 0.0,
                                         given ? std::stoul(argv[5]) : 0, given ? std::stoul(argv[6]) : 0);
-        int matching = qtvpr_calibration_matching(cal.get());
         cal.reset(); // the online state keeps what it needs of the calibration
         npy_matrix s;
         if (npy_read(argv[2], &s) != 0) return 1;
         std::unique_ptr<npy_matrix, NpyFree> data(&s);
         if (s.itemsize == 4)
-            stream<float>(o, s, matching);
+            stream<float>(o, s);
         else
-            stream<double>(o, s, matching);
+            stream<double>(o, s);
     } catch (const std::exception &e) {
         std::fprintf(stderr, "error: %s\n", e.what());
         return 1;

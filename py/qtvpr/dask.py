@@ -160,20 +160,9 @@ def online(
         block = _block(s_val, first, end, query_major)
         tasks.append(dask.delayed(_online_block)(cal, block, first, start, params, query_major))
     parts = _computed(tasks)
-    single = parts[0]["best"] is not None
-    optional = ("best", "score", "accept") if single else ("accepted",)
-    fields = {
-        name: np.concatenate([p[name] for p in parts]) if name in optional else None
-        for name in ("best", "score", "accept", "accepted")
-    }
-    return OnlineDecisions._from_parts(
-        np.concatenate([p["queries"] for p in parts]),
-        np.concatenate([p["query_quantiles"] for p in parts]),
-        np.concatenate([p["weights"] for p in parts]),
-        np.concatenate([p["quantiles"] for p in parts]),
-        np.concatenate([p["thresholds"] for p in parts]),
-        **fields,
-    )
+    fields = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accepted",
+              "accept")
+    return OnlineDecisions._from_parts(*(np.concatenate([p[name] for p in parts]) for name in fields))
 
 
 def _check_array(s_val: object) -> da.Array:
@@ -318,8 +307,8 @@ def _online_block(
             "thresholds": d.thresholds,
             "best": d.best,
             "score": d.score,
-            "accept": d.accept,
             "accepted": d.accepted,
+            "accept": d.accept,
         }
 
     # An error in the warm-up is the previous block's, reported by it first.

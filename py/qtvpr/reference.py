@@ -926,11 +926,12 @@ class OnlineDecision:
     ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
     its own q_j and w_j (sections 4 and 5); ``quantile`` and ``threshold`` its window's
     weighted-median quantile and threshold theta_j (section 6 on the window; 1 and the
-    next float above the window's maximum during warm-up). In single matching ``best``
-    is the first maximum of the column, ``score`` its score and ``accept`` whether
-    ``score >= threshold``, and ``accepted`` is None; in multi matching ``accepted`` is
-    the number of scores ``>= threshold`` and the single-matching fields are None.
-    ``accepted_indices`` are the accepted database indices, ascending, in both modes.
+    next float above the window's maximum during warm-up). In both matching modes
+    (the decision record of §11) ``best`` is the first maximum of the column and
+    ``score`` its score; ``accepted`` is the number of accepted entries (single: 1 when
+    ``score >= threshold``, else 0; multi: the scores ``>= threshold``) and ``accept``
+    is ``accepted > 0``. ``accepted_indices`` are the accepted database indices,
+    ascending.
     """
 
     query: int
@@ -938,10 +939,10 @@ class OnlineDecision:
     weight: float
     quantile: float
     threshold: float
-    best: int | None
-    score: float | None
-    accept: bool | None
-    accepted: int | None
+    best: int
+    score: float
+    accepted: int
+    accept: bool
     accepted_indices: np.ndarray
 
 
@@ -949,18 +950,18 @@ class OnlineDecision:
 class OnlineDecisions:
     """The decisions of :meth:`Online.push_many`, one entry per pushed query: the
     fields of :class:`OnlineDecision` as arrays (``queries``, ``query_quantiles``,
-    ``weights``, ``quantiles``, ``thresholds``; single matching: ``best``, ``score``,
-    ``accept``; multi matching: ``accepted`` counts; the other mode's fields None)."""
+    ``weights``, ``quantiles``, ``thresholds``, ``best``, ``score``, ``accepted``,
+    ``accept``), in both matching modes."""
 
     queries: np.ndarray
     query_quantiles: np.ndarray
     weights: np.ndarray
     quantiles: np.ndarray
     thresholds: np.ndarray
-    best: np.ndarray | None
-    score: np.ndarray | None
-    accept: np.ndarray | None
-    accepted: np.ndarray | None
+    best: np.ndarray
+    score: np.ndarray
+    accepted: np.ndarray
+    accept: np.ndarray
 
     def __len__(self) -> int:
         return len(self.queries)
@@ -1041,19 +1042,15 @@ class Online:
             quantile, threshold = _batch_threshold(batch, np.array(self._q), np.array(self._w))
         self.pushed += 1
         self.threshold = threshold
-        indices = np.flatnonzero(column >= threshold)
+        b = int(np.argmax(column))  # first maximum on ties: the matcher's choice, both modes
         if cal.matching == "single":
-            b = int(np.argmax(column))  # first maximum on ties
-            accept = bool(column[b] >= threshold)
-            return OnlineDecision(
-                query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
-                threshold=threshold, best=b, score=float(column[b]), accept=accept, accepted=None,
-                accepted_indices=np.array([b] if accept else [], dtype=np.int64),
-            )
+            indices = np.array([b] if column[b] >= threshold else [], dtype=np.int64)
+        else:
+            indices = np.flatnonzero(column >= threshold).astype(np.int64)
         return OnlineDecision(
             query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
-            threshold=threshold, best=None, score=None, accept=None, accepted=len(indices),
-            accepted_indices=indices.astype(np.int64),
+            threshold=threshold, best=b, score=float(column[b]), accepted=len(indices),
+            accept=len(indices) > 0, accepted_indices=indices,
         )
 
     def push(self, column) -> OnlineDecision:
@@ -1090,7 +1087,6 @@ class Online:
             where = (lambda i, j=j: f"row {j}, column {i}") if query_major else (lambda i, j=j: f"row {i}, column {j}")
             _non_finite("s_val", col, where)
             decisions.append(self._decide(col.astype(np.float64)))
-        single = self.calibration.matching == "single"
 
         def field(name, dtype):
             return np.array([getattr(d, name) for d in decisions], dtype=dtype)
@@ -1101,10 +1097,10 @@ class Online:
             weights=field("weight", np.float64),
             quantiles=field("quantile", np.float64),
             thresholds=field("threshold", np.float64),
-            best=field("best", np.int64) if single else None,
-            score=field("score", np.float64) if single else None,
-            accept=field("accept", bool) if single else None,
-            accepted=None if single else field("accepted", np.int64),
+            best=field("best", np.int64),
+            score=field("score", np.float64),
+            accepted=field("accepted", np.int64),
+            accept=field("accept", bool),
         )
 
 

@@ -22,7 +22,7 @@ use std::ptr;
 use std::sync::Arc;
 
 use ndarray::ArrayView1;
-use qtvpr::{Calibration, Matching, Online, OnlineParams, Outcome, Score};
+use qtvpr::{Calibration, Matching, Online, OnlineParams, Score};
 
 pub mod error;
 
@@ -49,13 +49,14 @@ pub struct qtvpr_online {
     inner: Online,
 }
 
-/// The decision of one deployment query.
+/// The decision of one deployment query: the decision record, with the values of a
+/// `qtvpr-cli stream` line and of Python's decisions, in both matching modes.
 ///
-/// In single matching, best, score and accept describe the query's best match and
-/// accepted is 1 if it is accepted, else 0. In multi matching, accepted is the number
-/// of database images with a score >= threshold (qtvpr_online_accepted lists them),
-/// accept is whether there is any, best is SIZE_MAX and score is NaN. In both,
-/// accept == (accepted > 0). The fields are those of a `qtvpr-cli stream` line.
+/// best and score are the query's best match (the first highest score: the matcher's
+/// own choice) in both modes. accepted is the number of accepted database entries: in
+/// single matching 1 if the best match is accepted (score >= threshold), else 0; in
+/// multi matching every entry with a score >= threshold (qtvpr_online_accepted lists
+/// them). accept == (accepted > 0).
 #[repr(C)]
 #[allow(non_camel_case_types)]
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,13 +67,13 @@ pub struct qtvpr_decision {
     pub quantile: f64,
     /// Accept a score >= threshold.
     pub threshold: f64,
-    /// Single matching: index of the best database match (the first maximum).
+    /// Index of the best database match (the first maximum of the query's scores).
     pub best: usize,
-    /// Single matching: its score.
+    /// Its score.
     pub score: f64,
-    /// Single matching: whether the best match is accepted.
+    /// Whether anything is accepted: accepted > 0.
     pub accept: bool,
-    /// Multi matching: number of accepted database entries.
+    /// The number of accepted database entries (0 or 1 in single matching).
     pub accepted: usize,
     /// The query's own quantile q_j: that of its subset threshold among its k
     /// calibration neighbours (the window's quantile is their weighted median).
@@ -356,18 +357,14 @@ unsafe fn push<T: Score>(
 
 /// The C form of a decision.
 fn decision(d: &qtvpr::Decision) -> qtvpr_decision {
-    let (best, score, accepted) = match d.outcome {
-        Outcome::Single { best, score, accept } => (best, score, usize::from(accept)),
-        Outcome::Multi { accepted } => (usize::MAX, f64::NAN, accepted),
-    };
     qtvpr_decision {
         query: d.query,
         quantile: d.quantile,
         threshold: d.threshold,
-        best,
-        score,
-        accept: accepted > 0,
-        accepted,
+        best: d.best,
+        score: d.score,
+        accept: d.accept(),
+        accepted: d.accepted,
         query_quantile: d.query_quantile,
         weight: d.weight,
     }

@@ -9,8 +9,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use clap::Args;
 use ndarray::ArrayView2;
-use qtvpr::{Calibration, Decision, Online, OnlineParams, Outcome, Score};
-use serde::Serialize;
+use qtvpr::{Calibration, Decision, Online, OnlineParams, Score};
 
 use crate::output::{self, emit};
 use crate::{Global, progress};
@@ -60,73 +59,30 @@ pub enum StreamFormat {
     Csv,
 }
 
-/// One output line. `accept` is whether anything is accepted; `best` and `score` are
-/// given in single matching, `accepted` (a count) in multi matching.
-#[derive(Serialize)]
-struct Line {
-    query: usize,
-    query_quantile: f64,
-    weight: f64,
-    quantile: f64,
-    threshold: f64,
-    accept: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    best: Option<usize>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    score: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    accepted: Option<usize>,
-}
+/// The CSV header: the fields of the decision record (semantics §11), in its order.
+const CSV_HEADER: &str = "query,query_quantile,weight,quantile,threshold,best,score,accepted,accept\n";
 
-impl From<&Decision> for Line {
-    fn from(d: &Decision) -> Self {
-        let (accept, best, score, accepted) = match d.outcome {
-            Outcome::Single { best, score, accept } => (accept, Some(best), Some(score), None),
-            Outcome::Multi { accepted } => (accepted > 0, None, None, Some(accepted)),
-        };
-        Line {
-            query: d.query,
-            query_quantile: d.query_quantile,
-            weight: d.weight,
-            quantile: d.quantile,
-            threshold: d.threshold,
-            accept,
-            best,
-            score,
-            accepted,
-        }
+/// Write one decision as a line of `format`: the core's record, as it serialises.
+fn write_line(d: &Decision, format: StreamFormat, out: &mut impl Write) -> io::Result<()> {
+    match format {
+        // Into io::Error, which keeps the write's own error (a closed pipe) for main to
+        // find: serde_json's error does not expose it as a source.
+        StreamFormat::Jsonl => serde_json::to_writer(&mut *out, d).map_err(io::Error::from)?,
+        StreamFormat::Csv => write!(
+            out,
+            "{},{},{},{},{},{},{},{},{}",
+            d.query,
+            d.query_quantile,
+            d.weight,
+            d.quantile,
+            d.threshold,
+            d.best,
+            d.score,
+            d.accepted,
+            d.accept()
+        )?,
     }
-}
-
-impl Line {
-    fn write(&self, format: StreamFormat, out: &mut impl Write) -> io::Result<()> {
-        match format {
-            StreamFormat::Jsonl => {
-                // Into io::Error, which keeps the write's own error (a closed pipe) for
-                // main to find: serde_json's error does not expose it as a source.
-                serde_json::to_writer(&mut *out, self).map_err(io::Error::from)?;
-                writeln!(out)?;
-            }
-            StreamFormat::Csv => {
-                let opt = |v: Option<String>| v.unwrap_or_default();
-                write!(
-                    out,
-                    "{},{},{},{},{},{}",
-                    self.query, self.query_quantile, self.weight, self.quantile, self.threshold, self.accept
-                )?;
-                match self.accepted {
-                    Some(n) => writeln!(out, ",{n}")?,
-                    None => writeln!(
-                        out,
-                        ",{},{}",
-                        opt(self.best.map(|b| b.to_string())),
-                        opt(self.score.map(|s| s.to_string()))
-                    )?,
-                }
-            }
-        }
-        Ok(())
-    }
+    writeln!(out)
 }
 
 /// Queries decided per step of the progress bar.
@@ -142,15 +98,10 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         args.window,
         Some(args.min_window),
     )?;
-    let matching = cal.matching();
     let mut online = Online::new(Arc::new(cal), params)?;
     let file = read_scores(&args.val).context("--val")?;
     let s_val = file.view().oriented(args.query_major);
 
-    let header = match matching {
-        qtvpr::Matching::Single => "query,query_quantile,weight,quantile,threshold,accept,best,score\n",
-        qtvpr::Matching::Multi => "query,query_quantile,weight,quantile,threshold,accept,accepted\n",
-    };
     // Lines go to stdout as queries are decided, or to memory for an atomic --output.
     let mut buffer = Vec::new();
     let stdout = io::stdout();
@@ -162,7 +113,7 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
     let replayed = (|| {
         if args.format == StreamFormat::Csv {
-            out.write_all(header.as_bytes()).map_err(Failure::Output)?;
+            out.write_all(CSV_HEADER.as_bytes()).map_err(Failure::Output)?;
         }
         let progress = |done| bar.set_position(done as u64);
         with_scores!(s_val, |v| replay(
@@ -214,7 +165,7 @@ fn replay<T: Score>(
     for (j, column) in s.columns().into_iter().enumerate() {
         file.check_mapped_file().map_err(Failure::Input)?;
         let decision = online.push(column).map_err(Failure::Input)?;
-        Line::from(&decision).write(format, out).map_err(Failure::Output)?;
+        write_line(&decision, format, out).map_err(Failure::Output)?;
         if (j + 1) % STEP == 0 || j + 1 == s.ncols() {
             progress(j + 1);
         }

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::ScoresView;
 use qtvpr::npy::{NpyArray, read_scores, write_npy, write_npz};
-use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, Outcome, Score};
+use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, Score};
 use tempfile::TempDir;
 
 mod common;
@@ -115,14 +115,14 @@ impl Case {
     }
 }
 
-/// Parse `stream --format csv` and compare every field with `expected`, bit for bit.
-fn assert_csv_equals(csv: &str, expected: &[Decision], matching: Matching) {
+/// Parse `stream --format csv` and compare every field with `expected`, bit for bit:
+/// the nine fields of the decision record in both matching modes.
+fn assert_csv_equals(csv: &str, expected: &[Decision]) {
     let mut lines = csv.lines();
-    let header = match matching {
-        Matching::Single => "query,query_quantile,weight,quantile,threshold,accept,best,score",
-        Matching::Multi => "query,query_quantile,weight,quantile,threshold,accept,accepted",
-    };
-    assert_eq!(lines.next(), Some(header));
+    assert_eq!(
+        lines.next(),
+        Some("query,query_quantile,weight,quantile,threshold,best,score,accepted,accept")
+    );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), expected.len());
     let f = |x: &str| x.parse::<f64>().unwrap().to_bits();
@@ -137,20 +137,17 @@ fn assert_csv_equals(csv: &str, expected: &[Decision], matching: Matching) {
             d.threshold.to_bits(),
         );
         assert_eq!(got, want, "query {}: {row}", d.query);
-        match d.outcome {
-            Outcome::Single { best, score, accept } => {
-                assert_eq!(
-                    (v[5], v[6].parse::<usize>().unwrap(), f(v[7])),
-                    (&*accept.to_string(), best, score.to_bits())
-                );
-            }
-            Outcome::Multi { accepted } => {
-                assert_eq!(
-                    (v[5], v[6].parse::<usize>().unwrap()),
-                    (&*(accepted > 0).to_string(), accepted)
-                );
-            }
-        }
+        assert_eq!(
+            (
+                v[5].parse::<usize>().unwrap(),
+                f(v[6]),
+                v[7].parse::<usize>().unwrap(),
+                v[8]
+            ),
+            (d.best, d.score.to_bits(), d.accepted, &*d.accept().to_string()),
+            "query {}: {row}",
+            d.query
+        );
     }
 }
 
@@ -185,39 +182,29 @@ fn single_matching_stream_equals_online() {
         "--format",
         "csv",
     ]);
-    assert_csv_equals(&csv, &expected, Matching::Single);
+    assert_csv_equals(&csv, &expected);
     // Some are accepted, some not (the test can tell a wrong threshold).
-    assert!(
-        expected
-            .iter()
-            .any(|d| matches!(d.outcome, Outcome::Single { accept: true, .. }))
-    );
-    assert!(
-        expected
-            .iter()
-            .any(|d| matches!(d.outcome, Outcome::Single { accept: false, .. }))
-    );
+    assert!(expected.iter().any(Decision::accept));
+    assert!(!expected.iter().all(Decision::accept));
+    assert!(expected.iter().all(|d| d.accepted <= 1));
 
     // JSON lines carry the same values.
     let jsonl = case.ok(&["stream", "--calibration", "cal.npz", "--val", "val.npy"]);
     let lines: Vec<serde_json::Value> = jsonl.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(lines.len(), 100);
     for (l, d) in lines.iter().zip(&expected) {
-        let Outcome::Single { best, score, accept } = d.outcome else {
-            unreachable!()
-        };
         assert_eq!(l["query"], d.query);
         assert_eq!(
-            (l["accept"].as_bool(), l["best"].as_u64()),
-            (Some(accept), Some(best as u64))
+            (l["accept"].as_bool(), l["best"].as_u64(), l["accepted"].as_u64()),
+            (Some(d.accept()), Some(d.best as u64), Some(d.accepted as u64))
         );
-        for (key, want) in [("threshold", d.threshold), ("quantile", d.quantile), ("score", score)] {
+        for (key, want) in [("threshold", d.threshold), ("quantile", d.quantile), ("score", d.score)] {
             assert!(
                 (l[key].as_f64().unwrap() - want).abs() <= 1e-15 * want.abs(),
                 "{key}: {l}"
             );
         }
-        assert!(l.get("accepted").is_none());
+        assert_eq!(l.as_object().unwrap().len(), 9, "the nine fields of the record: {l}");
     }
 
     // Options override the file: k, precision, window, min-window.
@@ -245,12 +232,8 @@ fn single_matching_stream_equals_online() {
         "4",
     ]);
     let expected = case.expected(Matching::Single, None, p);
-    assert_csv_equals(&csv, &expected, Matching::Single);
-    assert!(
-        expected[..3]
-            .iter()
-            .all(|d| d.quantile == 1.0 && matches!(d.outcome, Outcome::Single { accept: false, .. }))
-    );
+    assert_csv_equals(&csv, &expected);
+    assert!(expected[..3].iter().all(|d| d.quantile == 1.0 && !d.accept()));
 }
 
 #[test]
@@ -305,12 +288,8 @@ fn multi_matching_query_major_soft_ground_truth() {
     ]);
     assert!(csv.is_empty());
     let csv = std::fs::read_to_string(case.path("out.csv")).unwrap();
-    assert_csv_equals(&csv, &expected, Matching::Multi);
-    assert!(
-        expected
-            .iter()
-            .any(|d| matches!(d.outcome, Outcome::Multi { accepted } if accepted > 1))
-    );
+    assert_csv_equals(&csv, &expected);
+    assert!(expected.iter().any(|d| d.accepted > 1));
     // The file holds |DB| x |Qcal| and the soft ground truth.
     let cal = Calibration::load(&case.path("cal.npz")).unwrap();
     assert_eq!(
@@ -329,8 +308,16 @@ fn multi_matching_query_major_soft_ground_truth() {
         "3",
     ]);
     let first: serde_json::Value = serde_json::from_str(lines.lines().next().unwrap()).unwrap();
-    assert_eq!(first["accepted"], 0, "warm-up");
-    assert!(first.get("best").is_none());
+    assert_eq!(
+        (&first["accepted"], &first["accept"]),
+        (&0.into(), &false.into()),
+        "warm-up"
+    );
+    // Multi matching reports the column's best match too (the record is one).
+    assert_eq!(
+        (first["best"].as_u64(), first["score"].as_f64()),
+        (Some(expected[0].best as u64), Some(expected[0].score))
+    );
 }
 
 #[test]

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use numpy::{PyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use qtvpr::{Decision, Error, OnlineParams, Outcome};
+use qtvpr::{Decision, Error, OnlineParams};
 
 use crate::calibration::PyCalibration;
 use crate::convert::{Column, Scores, count};
@@ -105,11 +105,7 @@ impl PyOnline {
         let decisions = py
             .detach(|| with_scores!(view, |s| online.push_many(s)))
             .map_err(|e| matrix_error(e, first, query_major))?;
-        Ok(OnlineDecisions::new(
-            py,
-            &decisions,
-            self.inner.calibration().matching(),
-        ))
+        Ok(OnlineDecisions::new(py, &decisions))
     }
 
     /// The threshold of the last decision (``None`` before the first push).
@@ -210,18 +206,19 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
     }
 }
 
-/// One deployment query decided by :meth:`Online.push`.
+/// One deployment query decided by :meth:`Online.push`: the decision record, with the
+/// values of a ``qtvpr-cli stream`` line and of C's ``qtvpr_decision``.
 ///
 /// ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
 /// its own quantile and weight (from its calibration neighbours, as in
 /// :class:`TransferResult`); ``quantile`` and ``threshold`` its window's weighted-median
 /// quantile and the threshold read off the window's scores (1 and a threshold above
-/// every score during warm-up). In ``"single"`` matching, ``best`` is its best match
-/// (the first maximum), ``score`` that score and ``accept`` whether ``score >=
-/// threshold``; ``accepted`` is ``None``. In ``"multi"`` matching, ``accepted`` is the
-/// number of database images with a score ``>= threshold``, and ``best``, ``score`` and
-/// ``accept`` are ``None``. ``accepted_indices`` are the accepted database indices,
-/// ascending (int64), in both modes.
+/// every score during warm-up). ``best`` is its best match (the first maximum: the
+/// matcher's own choice) and ``score`` that score, in both matching modes;
+/// ``accepted`` is the number of accepted database images (in ``"single"`` matching 1
+/// when ``score >= threshold``, else 0; in ``"multi"`` matching every image with a
+/// score ``>= threshold``) and ``accept`` is ``accepted > 0``. ``accepted_indices``
+/// are the accepted database indices, ascending (int64).
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecision")]
 pub(crate) struct OnlineDecision {
     /// The query's index in arrival order, from 0.
@@ -239,18 +236,18 @@ pub(crate) struct OnlineDecision {
     /// The window's threshold: accept a score ``>=`` it.
     #[pyo3(get)]
     threshold: f64,
-    /// Single matching: the best match's database index.
+    /// The best match's database index (the first maximum).
     #[pyo3(get)]
-    best: Option<usize>,
-    /// Single matching: the best match's score.
+    best: usize,
+    /// The best match's score.
     #[pyo3(get)]
-    score: Option<f64>,
-    /// Single matching: whether the best match is accepted.
+    score: f64,
+    /// The number of accepted database images (0 or 1 in single matching).
     #[pyo3(get)]
-    accept: Option<bool>,
-    /// Multi matching: the number of accepted database images.
+    accepted: usize,
+    /// Whether anything is accepted (``accepted > 0``).
     #[pyo3(get)]
-    accepted: Option<usize>,
+    accept: bool,
     /// The accepted database indices, ascending (int64).
     #[pyo3(get)]
     accepted_indices: Py<PyArray1<i64>>,
@@ -258,20 +255,16 @@ pub(crate) struct OnlineDecision {
 
 impl OnlineDecision {
     fn new(py: Python<'_>, d: &Decision, accepted: &[usize]) -> Self {
-        let (best, score, accept, count) = match d.outcome {
-            Outcome::Single { best, score, accept } => (Some(best), Some(score), Some(accept), None),
-            Outcome::Multi { accepted } => (None, None, None, Some(accepted)),
-        };
         Self {
             query: d.query,
             query_quantile: d.query_quantile,
             weight: d.weight,
             quantile: d.quantile,
             threshold: d.threshold,
-            best,
-            score,
-            accept,
-            accepted: count,
+            best: d.best,
+            score: d.score,
+            accepted: d.accepted,
+            accept: d.accept(),
             // Indices are below |DB|, so they fit in an i64.
             accepted_indices: PyArray1::from_iter(py, accepted.iter().map(|&i| i as i64)).unbind(),
         }
@@ -281,30 +274,25 @@ impl OnlineDecision {
 #[pymethods]
 impl OnlineDecision {
     fn __repr__(&self) -> String {
-        let decided = match (self.best, self.score, self.accept) {
-            (Some(best), Some(score), Some(accept)) => {
-                format!(
-                    "best={best}, score={score:?}, accept={}",
-                    if accept { "True" } else { "False" }
-                )
-            }
-            _ => format!("accepted={}", self.accepted.unwrap_or(0)),
-        };
         format!(
-            "OnlineDecision(query={}, quantile={:?}, threshold={:?}, {decided})",
-            self.query, self.quantile, self.threshold
+            "OnlineDecision(query={}, quantile={:?}, threshold={:?}, best={}, score={:?}, accepted={}, accept={})",
+            self.query,
+            self.quantile,
+            self.threshold,
+            self.best,
+            self.score,
+            self.accepted,
+            if self.accept { "True" } else { "False" }
         )
     }
 }
 
-/// The decisions of :meth:`Online.push_many`, one entry per pushed query, in order.
+/// The decisions of :meth:`Online.push_many`, one entry per pushed query, in order:
+/// the fields of :class:`OnlineDecision` as arrays, in both matching modes.
 ///
 /// ``queries`` (int64, their indices in arrival order), ``query_quantiles``,
-/// ``weights``, ``quantiles`` and ``thresholds`` (float64) are the fields of
-/// :class:`OnlineDecision` as arrays. In ``"single"`` matching ``best`` (int64),
-/// ``score`` (float64) and ``accept`` (bool) are arrays and ``accepted`` is ``None``;
-/// in ``"multi"`` matching ``accepted`` (int64 counts) is, and the other three are
-/// ``None``.
+/// ``weights``, ``quantiles``, ``thresholds`` and ``score`` (float64), ``best`` and
+/// ``accepted`` (int64) and ``accept`` (bool).
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecisions")]
 pub(crate) struct OnlineDecisions {
     /// Each query's index in arrival order (int64).
@@ -322,51 +310,36 @@ pub(crate) struct OnlineDecisions {
     /// Each query's threshold.
     #[pyo3(get)]
     thresholds: Py<PyArray1<f64>>,
-    /// Single matching: each query's best match (int64).
+    /// Each query's best match (int64).
     #[pyo3(get)]
-    best: Option<Py<PyArray1<i64>>>,
-    /// Single matching: each best match's score.
+    best: Py<PyArray1<i64>>,
+    /// Each best match's score.
     #[pyo3(get)]
-    score: Option<Py<PyArray1<f64>>>,
-    /// Single matching: whether each best match is accepted.
+    score: Py<PyArray1<f64>>,
+    /// Each query's number of accepted database images (int64).
     #[pyo3(get)]
-    accept: Option<Py<PyArray1<bool>>>,
-    /// Multi matching: each query's number of accepted database images (int64).
+    accepted: Py<PyArray1<i64>>,
+    /// Whether each query accepts anything.
     #[pyo3(get)]
-    accepted: Option<Py<PyArray1<i64>>>,
+    accept: Py<PyArray1<bool>>,
     len: usize,
 }
 
 impl OnlineDecisions {
-    fn new(py: Python<'_>, decisions: &[Decision], matching: qtvpr::Matching) -> Self {
+    fn new(py: Python<'_>, decisions: &[Decision]) -> Self {
         let f64s = |f: fn(&Decision) -> f64| PyArray1::from_iter(py, decisions.iter().map(f)).unbind();
         // Indices and counts are below |DB| and the number of queries: they fit in an i64.
-        let (mut best, mut score, mut accept, mut accepted) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for d in decisions {
-            match d.outcome {
-                Outcome::Single {
-                    best: b,
-                    score: s,
-                    accept: a,
-                } => {
-                    best.push(b as i64);
-                    score.push(s);
-                    accept.push(a);
-                }
-                Outcome::Multi { accepted: n } => accepted.push(n as i64),
-            }
-        }
-        let single = matching == qtvpr::Matching::Single;
+        let i64s = |f: fn(&Decision) -> usize| PyArray1::from_iter(py, decisions.iter().map(|d| f(d) as i64)).unbind();
         Self {
-            queries: PyArray1::from_iter(py, decisions.iter().map(|d| d.query as i64)).unbind(),
+            queries: i64s(|d| d.query),
             query_quantiles: f64s(|d| d.query_quantile),
             weights: f64s(|d| d.weight),
             quantiles: f64s(|d| d.quantile),
             thresholds: f64s(|d| d.threshold),
-            best: single.then(|| PyArray1::from_vec(py, best).unbind()),
-            score: single.then(|| PyArray1::from_vec(py, score).unbind()),
-            accept: single.then(|| PyArray1::from_vec(py, accept).unbind()),
-            accepted: (!single).then(|| PyArray1::from_vec(py, accepted).unbind()),
+            best: i64s(|d| d.best),
+            score: f64s(|d| d.score),
+            accepted: i64s(|d| d.accepted),
+            accept: PyArray1::from_iter(py, decisions.iter().map(Decision::accept)).unbind(),
             len: decisions.len(),
         }
     }
@@ -376,14 +349,11 @@ impl OnlineDecisions {
 impl OnlineDecisions {
     /// Decisions from their fields, as the properties return them (what ``qtvpr.dask``
     /// assembles from the results of its blocks). The arrays are kept, not copied.
-    /// ``best``, ``score`` and ``accept`` are given together (single matching) or
-    /// ``accepted`` alone (multi matching).
     ///
     /// Raises ``TypeError`` for an array of another dtype or dimension, and
-    /// ``ValueError`` for arrays of different lengths or another combination of the
-    /// optional fields.
+    /// ``ValueError`` for arrays of different lengths.
     #[staticmethod]
-    #[pyo3(signature = (queries, query_quantiles, weights, quantiles, thresholds, best, score, accept, accepted))]
+    #[pyo3(signature = (queries, query_quantiles, weights, quantiles, thresholds, best, score, accepted, accept))]
     #[allow(clippy::too_many_arguments)]
     fn _from_parts(
         queries: Bound<'_, PyArray1<i64>>,
@@ -391,23 +361,22 @@ impl OnlineDecisions {
         weights: Bound<'_, PyArray1<f64>>,
         quantiles: Bound<'_, PyArray1<f64>>,
         thresholds: Bound<'_, PyArray1<f64>>,
-        best: Option<Bound<'_, PyArray1<i64>>>,
-        score: Option<Bound<'_, PyArray1<f64>>>,
-        accept: Option<Bound<'_, PyArray1<bool>>>,
-        accepted: Option<Bound<'_, PyArray1<i64>>>,
+        best: Bound<'_, PyArray1<i64>>,
+        score: Bound<'_, PyArray1<f64>>,
+        accepted: Bound<'_, PyArray1<i64>>,
+        accept: Bound<'_, PyArray1<bool>>,
     ) -> PyResult<Self> {
         let len = queries.len();
-        let mut lengths = vec![query_quantiles.len(), weights.len(), quantiles.len(), thresholds.len()];
-        match (&best, &score, &accept, &accepted) {
-            (Some(b), Some(s), Some(a), None) => lengths.extend([b.len(), s.len(), a.len()]),
-            (None, None, None, Some(n)) => lengths.push(n.len()),
-            _ => {
-                return Err(PyValueError::new_err(
-                    "OnlineDecisions parts: give best, score and accept (single matching) or accepted alone \
-                     (multi matching)",
-                ));
-            }
-        }
+        let lengths = [
+            query_quantiles.len(),
+            weights.len(),
+            quantiles.len(),
+            thresholds.len(),
+            best.len(),
+            score.len(),
+            accepted.len(),
+            accept.len(),
+        ];
         if lengths.iter().any(|&n| n != len) {
             return Err(PyValueError::new_err(format!(
                 "OnlineDecisions parts differ in length: queries {len}, the others {lengths:?}"
@@ -419,10 +388,10 @@ impl OnlineDecisions {
             weights: weights.unbind(),
             quantiles: quantiles.unbind(),
             thresholds: thresholds.unbind(),
-            best: best.map(Bound::unbind),
-            score: score.map(Bound::unbind),
-            accept: accept.map(Bound::unbind),
-            accepted: accepted.map(Bound::unbind),
+            best: best.unbind(),
+            score: score.unbind(),
+            accepted: accepted.unbind(),
+            accept: accept.unbind(),
             len,
         })
     }

@@ -88,7 +88,7 @@ pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
 pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
-pub use online::{Decision, Online, OnlineParams, Outcome};
+pub use online::{Decision, Online, OnlineParams};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};

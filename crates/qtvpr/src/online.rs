@@ -102,26 +102,8 @@ impl OnlineParams {
     }
 }
 
-/// How one query was decided.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Outcome {
-    /// Single matching: the query's best match.
-    Single {
-        /// Its database index: the first maximum of the column.
-        best: usize,
-        /// Its score.
-        score: f64,
-        /// Whether `score >= threshold`.
-        accept: bool,
-    },
-    /// Multi matching.
-    Multi {
-        /// The number of database images with a score `>= threshold`.
-        accepted: usize,
-    },
-}
-
-/// The decision of one deployment query.
+/// The decision of one deployment query: the record of semantics §11, the same values
+/// in every front end (the CLI's `stream` line, Python, C) and in both matching modes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Decision {
     /// Its index in arrival order, from 0.
@@ -134,8 +116,41 @@ pub struct Decision {
     pub quantile: f64,
     /// `theta_j`, that quantile of the window's scores: accept `score >= threshold`.
     pub threshold: f64,
-    /// The decision at `threshold`.
-    pub outcome: Outcome,
+    /// `b_j`, the database index of the column's highest score (the first one): the
+    /// matcher's own choice, in both matching modes.
+    pub best: usize,
+    /// `S[b_j, j]`, its score.
+    pub score: f64,
+    /// The number of accepted database entries: 0 or 1 in single matching (the best
+    /// match, when `score >= threshold`), every entry `>= threshold` in multi matching.
+    pub accepted: usize,
+}
+
+impl Decision {
+    /// Whether anything is accepted (`accepted > 0`): in single matching, whether the
+    /// best match is kept; in multi matching, whether any entry is.
+    pub fn accept(&self) -> bool {
+        self.accepted > 0
+    }
+}
+
+/// The nine fields of semantics §11, `accept` included, in its order.
+#[cfg(feature = "serde")]
+impl serde::Serialize for Decision {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut s = serializer.serialize_struct("Decision", 9)?;
+        s.serialize_field("query", &self.query)?;
+        s.serialize_field("query_quantile", &self.query_quantile)?;
+        s.serialize_field("weight", &self.weight)?;
+        s.serialize_field("quantile", &self.quantile)?;
+        s.serialize_field("threshold", &self.threshold)?;
+        s.serialize_field("best", &self.best)?;
+        s.serialize_field("score", &self.score)?;
+        s.serialize_field("accepted", &self.accepted)?;
+        s.serialize_field("accept", &self.accept())?;
+        s.end()
+    }
 }
 
 /// The state of an online deployment: a calibration, parameters and the window.
@@ -143,7 +158,7 @@ pub struct Decision {
 /// ```
 /// use std::sync::Arc;
 /// use ndarray::array;
-/// use qtvpr::{Calibration, GroundTruth, Matching, Online, OnlineParams, Outcome};
+/// use qtvpr::{Calibration, GroundTruth, Matching, Online, OnlineParams};
 ///
 /// let s_cal = array![[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]];
 /// let gt = GroundTruth::new(array![[true, false], [false, true], [false, false]].view())?;
@@ -152,7 +167,7 @@ pub struct Decision {
 /// let mut online = Online::new(cal, params)?;
 /// let d = online.push(array![0.7, 0.2, 0.1].view())?;
 /// assert_eq!(d.query, 0);
-/// assert!(matches!(d.outcome, Outcome::Single { best: 0, .. }));
+/// assert_eq!((d.best, d.score), (0, 0.7));
 /// # Ok::<(), qtvpr::Error>(())
 /// ```
 pub struct Online {
@@ -377,24 +392,15 @@ impl Online {
         let window = ArrayView2::from_shape((n_db, len).f(), &self.sorted[..n_db * len]).expect("slots of n_db scores");
         let threshold = sorted_columns_threshold(window, quantile);
         self.accepted.clear();
-        let outcome = match self.calibration.matching() {
-            Matching::Single => {
-                let best = best_match(column);
-                let score = column[best].to_f64();
-                let accept = score >= threshold;
-                if accept {
-                    self.accepted.push(best);
-                }
-                Outcome::Single { best, score, accept }
-            }
+        let best = best_match(column);
+        let score = column[best].to_f64();
+        match self.calibration.matching() {
+            Matching::Single => self.accepted.extend((score >= threshold).then_some(best)),
             Matching::Multi => {
                 let above = column.iter().enumerate().filter(|(_, v)| v.to_f64() >= threshold);
                 self.accepted.extend(above.map(|(i, _)| i));
-                Outcome::Multi {
-                    accepted: self.accepted.len(),
-                }
             }
-        };
+        }
         self.pushed += 1;
         self.threshold = Some(threshold);
         Decision {
@@ -403,7 +409,9 @@ impl Online {
             weight: r.weight,
             quantile,
             threshold,
-            outcome,
+            best,
+            score,
+            accepted: self.accepted.len(),
         }
     }
 }
@@ -472,8 +480,12 @@ mod tests {
         );
         assert_eq!(d.iter().map(|d| d.query).collect::<Vec<_>>(), vec![0, 1, 2]);
         assert_eq!(accepted, vec![vec![1, 2], vec![], vec![1, 2]]);
-        assert_eq!(d[0].outcome, Outcome::Multi { accepted: 2 });
-        assert_eq!(d[1].outcome, Outcome::Multi { accepted: 0 });
+        // Multi matching reports the column's best match too: v0 = [2, 6, 4], v1 = [2, 5, 2].
+        assert_eq!((d[0].best, d[0].score, d[0].accepted, d[0].accept()), (1, 6.0, 2, true));
+        assert_eq!(
+            (d[1].best, d[1].score, d[1].accepted, d[1].accept()),
+            (1, 5.0, 0, false)
+        );
         assert!(d.iter().all(|d| (d.weight - 1.0).abs() < 1e-12));
     }
 
@@ -566,14 +578,7 @@ mod tests {
         {
             assert_eq!(d.query_quantile, 0.8);
             assert!((d.threshold - t).abs() < 1e-12, "{} vs {t}", d.threshold);
-            assert_eq!(
-                d.outcome,
-                Outcome::Single {
-                    best,
-                    score,
-                    accept: true
-                }
-            );
+            assert_eq!((d.best, d.score, d.accepted, d.accept()), (best, score, 1, true));
         }
         assert_eq!(accepted, vec![vec![0], vec![1], vec![2], vec![1]]);
         // A best match below the threshold is rejected: u = [1, 0, 3] alone gives
@@ -586,12 +591,8 @@ mod tests {
         );
         assert_eq!(d[1].threshold, 9.0);
         assert_eq!(
-            d[1].outcome,
-            Outcome::Single {
-                best: 2,
-                score: 3.0,
-                accept: false
-            }
+            (d[1].best, d[1].score, d[1].accepted, d[1].accept()),
+            (2, 3.0, 0, false)
         );
         assert_eq!(accepted[1], Vec::<usize>::new());
     }
