@@ -689,9 +689,8 @@ fn is_npz(path: &Path) -> bool {
 }
 
 /// `GThard` of an `.npz` archive, and the archive (for its `GTsoft`).
-fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<io::BufReader<File>>)> {
-    let mut npz = NpzArchive::new(io::BufReader::new(open_file(path)?))
-        .map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))?;
+fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<NpzInput>)> {
+    let mut npz = open_npz_file(path)?;
     let npy = npz_array(&mut npz, "GThard", path)?
         .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
     let gt = ground_truth_of(npy, path, None)?;
@@ -825,9 +824,78 @@ pub(crate) fn open_npz<R: Read + Seek>(reader: R, path: &Path) -> Result<NpzArch
     NpzArchive::new(reader).map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))
 }
 
-/// Open the `.npz` archive `path`.
-pub(crate) fn open_npz_file(path: &Path) -> Result<NpzArchive<io::BufReader<File>>> {
-    open_npz(io::BufReader::new(open_file(path)?), path)
+/// Open the `.npz` archive `path`: a regular file is read where it lies; a stream (a
+/// FIFO with a writer, a pipe, a device) is read whole into memory first, since a zip
+/// archive is read from its end.
+pub(crate) fn open_npz_file(path: &Path) -> Result<NpzArchive<NpzInput>> {
+    let file = open_file(path)?;
+    let input = if is_regular(&file) {
+        NpzInput::File(io::BufReader::new(file))
+    } else {
+        NpzInput::Stream(Cursor::new(read_stream(file, path)?))
+    };
+    open_npz(input, path)
+}
+
+/// Where an `.npz` archive is read from: a seekable file, or the bytes of a stream.
+pub(crate) enum NpzInput {
+    /// A regular file.
+    File(io::BufReader<File>),
+    /// A stream read to its end.
+    Stream(Cursor<Vec<u8>>),
+}
+
+impl Read for NpzInput {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self {
+            NpzInput::File(f) => f.read(buf),
+            NpzInput::Stream(c) => c.read(buf),
+        }
+    }
+}
+
+impl Seek for NpzInput {
+    fn seek(&mut self, pos: io::SeekFrom) -> io::Result<u64> {
+        match self {
+            NpzInput::File(f) => f.seek(pos),
+            NpzInput::Stream(c) => c.seek(pos),
+        }
+    }
+}
+
+/// The whole of stream `file` (`path` names it): it must start as a zip archive does
+/// (so that `/dev/zero` or a `.npy` is refused at once, not read forever), and memory
+/// for it is reserved fallibly, so that an endless stream is an error when memory runs
+/// out, never an abort.
+fn read_stream(mut file: File, path: &Path) -> Result<Vec<u8>> {
+    const CHUNK: usize = 1 << 16;
+    let mut bytes = Vec::new();
+    let mut chunk = vec![0u8; CHUNK];
+    loop {
+        let n = match file.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(io_error(path, &e)),
+        };
+        bytes.try_reserve(n).map_err(|_| {
+            file_error(
+                path,
+                format!(
+                    "is a stream of more than {} bytes, more memory than can be allocated",
+                    bytes.len()
+                ),
+            )
+        })?;
+        bytes.extend_from_slice(&chunk[..n]);
+        if bytes.len() >= 4 && !bytes.starts_with(b"PK\x03\x04") {
+            return Err(file_error(
+                path,
+                "is not a valid .npz archive: a stream must start with a zip local header (PK\\x03\\x04)",
+            ));
+        }
+    }
+    Ok(bytes)
 }
 
 /// A float32/float64 matrix read into memory from `npy` (`path` names it).
