@@ -848,16 +848,29 @@ mod tests {
     #[test]
     fn members_other_than_stored_or_deflated_are_refused() {
         let s = npy_bytes((1, 1), 8);
-        for method in [npyz::zip::CompressionMethod::Bzip2, npyz::zip::CompressionMethod::Zstd] {
-            let e = Calibration::from_bytes(&archive(&s, method), "c.npz")
-                .err()
-                .unwrap()
-                .to_string();
-            assert!(
-                e.starts_with("c.npz (array s) cannot be decompressed: compression method")
-                    && e.contains("a calibration file holds stored or deflated members"),
-                "{method}: {e}"
+        let refused = |bytes: &[u8], name: &str| {
+            let e = Calibration::from_bytes(bytes, "c.npz").err().unwrap().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "c.npz (array s) cannot be decompressed: compression method {name} is not supported; \
+                     a calibration file holds stored or deflated members"
+                )
             );
+        };
+        refused(&archive(&s, npyz::zip::CompressionMethod::Bzip2), "12 (bzip2)");
+        refused(&archive(&s, npyz::zip::CompressionMethod::Zstd), "93 (zstd)");
+        // Stored members marked with another method in the local header and the
+        // directory: zstd (known to the zip reader, which would try to decompress the
+        // raw .npy as zstd) and LZMA (unknown to it, which refused it in its own words).
+        for (method, name) in [(93u16, "93 (zstd)"), (14, "14 (LZMA)"), (95, "95 (XZ)")] {
+            let mut b = archive(&s, npyz::zip::CompressionMethod::Stored);
+            assert_eq!(&b[..4], b"PK\x03\x04");
+            b[8..10].copy_from_slice(&method.to_le_bytes()); // s.npy is the first member
+            let cd = b.windows(4).position(|w| w == b"PK\x01\x02").unwrap();
+            assert_eq!(&b[cd + 46..cd + 51], b"s.npy");
+            b[cd + 10..cd + 12].copy_from_slice(&method.to_le_bytes());
+            refused(&b, name);
         }
         // Deflated is read.
         let e = Calibration::from_bytes(&archive(&s, npyz::zip::CompressionMethod::Deflated), "c.npz");
@@ -981,7 +994,10 @@ mod tests {
         assert_eq!(loaded.defaults(), &DEFAULTS);
         // The same arrays and meta, so the same decisions (same_results is for |DB| = 6).
         assert_eq!(loaded.to_bytes(&DEFAULTS).unwrap(), bytes);
-        assert_eq!(loaded.threshold(0.9).unwrap().to_bits(), cal.threshold(0.9).unwrap().to_bits());
+        assert_eq!(
+            loaded.threshold(0.9).unwrap().to_bits(),
+            cal.threshold(0.9).unwrap().to_bits()
+        );
 
         // A stream that is not a zip archive is refused at its first bytes.
         let mut writer = open_nonblocking(&path, true);

@@ -711,30 +711,69 @@ pub(crate) struct MemberHeader {
     pub label: PathBuf,
 }
 
-/// The zip member `NAME.npy` of `npz`, refused unless stored or deflated.
+/// The zip member `NAME.npy` of `npz`, refused unless stored or deflated. The method
+/// is read from the member's directory entry first (without a decompressor), so that
+/// every other method, including one the zip reader does not know (LZMA, XZ, ...), is
+/// refused by its name and number rather than with the reader's own words.
 fn zip_member<'a, R: Read + Seek>(
     npz: &'a mut NpzArchive<R>,
     name: &str,
     label: &Path,
 ) -> Result<Option<npyz::zip::read::ZipFile<'a>>> {
+    use npyz::zip::CompressionMethod;
     let zip = npz.zip_archive();
     let member = format!("{name}.npy");
     if !zip.file_names().any(|n| n == member) {
         return Ok(None);
     }
+    let method = (0..zip.len()).find_map(|i| {
+        let raw = zip.by_index_raw(i).ok()?;
+        (raw.name() == member).then(|| raw.compression())
+    });
+    let unsupported = |method| {
+        file_error(
+            label,
+            format!(
+                "cannot be decompressed: compression method {} is not supported; \
+                 a calibration file holds stored or deflated members",
+                method_name(method)
+            ),
+        )
+    };
+    match method {
+        None | Some(CompressionMethod::Stored | CompressionMethod::Deflated) => {}
+        Some(method) => return Err(unsupported(method)),
+    }
     let file = zip
         .by_name(&member)
         .map_err(|e| file_error(label, format!("cannot be read: {e}")))?;
+    // The local header may disagree with the directory; the reader goes by the latter.
     match file.compression() {
-        npyz::zip::CompressionMethod::Stored | npyz::zip::CompressionMethod::Deflated => Ok(Some(file)),
-        method => Err(file_error(
-            label,
-            format!(
-                "cannot be decompressed: compression method {method} is not supported; \
-                 a calibration file holds stored or deflated members"
-            ),
-        )),
+        CompressionMethod::Stored | CompressionMethod::Deflated => Ok(Some(file)),
+        method => Err(unsupported(method)),
     }
+}
+
+/// A zip compression method as the zip specification (APPNOTE 4.4.5) numbers and names
+/// it, e.g. `12 (bzip2)`.
+fn method_name(method: npyz::zip::CompressionMethod) -> String {
+    #[allow(deprecated)] // the number, for methods the zip crate has no name for
+    let number = method.to_u16();
+    let name = match number {
+        0 => "stored",
+        8 => "deflate",
+        9 => "deflate64",
+        12 => "bzip2",
+        14 => "LZMA",
+        93 => "zstd",
+        95 => "XZ",
+        96 => "JPEG",
+        97 => "WavPack",
+        98 => "PPMd",
+        99 => "AES encryption",
+        _ => "unknown",
+    };
+    format!("{number} ({name})")
 }
 
 /// The `.npy` header of member `name` of a calibration archive, checked against the
