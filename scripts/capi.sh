@@ -130,7 +130,7 @@ hostile=("$work/hostile" "$work/tmp" "$work/small.npz" "$work/crc.npz" "$work/bo
 # In a subshell, so that the cap ends with it; a hang is ended by the test's alarm().
 (ulimit -v 1000000 && exec "${hostile[@]}")
 
-step "valgrind: the error test and a stream"
+step "valgrind: the error test, the hostile-file test and a stream"
 if ! command -v valgrind > /dev/null; then
     if [ "$(id -u)" = 0 ] && command -v apt-get > /dev/null; then
         apt-get update -qq && apt-get install -y -qq valgrind > /dev/null
@@ -143,5 +143,6 @@ fi
 vg=(valgrind --quiet --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite,indirect,possible
     --suppressions=examples/c/valgrind.supp)
 "${vg[@]}" "${errors[@]}"
+"${vg[@]}" "${hostile[@]}"   # about 35 s: every flipped file's error path, for leaks
 "${vg[@]}" "$work/stream" "$work/corridor-multi.npz" data/corridor/deploy_S.npy 0 0 0 2 > "$work/valgrind.jsonl"
 python3 scripts/capi_check.py compare "$work/corridor-multi.jsonl" "$work/valgrind.jsonl"

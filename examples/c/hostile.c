@@ -230,7 +230,7 @@ int main(int argc, char **argv) {
     alarm(60);
     flip_every_byte(argv[2], argv[1]);
 
-    bomb(argv[4], "(array s) cannot be decompressed: compression method Bzip2 is not supported");
+    bomb(argv[4], "(array s) cannot be decompressed: compression method 12 (bzip2) is not supported");
     bomb(argv[5], "ground truth shape 1x1 does not match calibration similarity shape 5000x1000");
     alarm(0);
 
