@@ -17,7 +17,8 @@ contract that the Rust and CLI tests hold the core to:
   it, never replacing either with a regular file.
 
 Every FIFO, link and device is made in ``tmp_path``. Calls that a regression would
-block forever run in a subprocess with a timeout, so that they fail instead of hanging.
+block forever run in a subprocess with a timeout, or in a thread that the test releases
+after a timeout, so that they fail instead of hanging.
 """
 
 from __future__ import annotations
@@ -88,6 +89,30 @@ def run_child(call: str, *args: str, address_space: int | None = None, timeout: 
     )
     assert proc.returncode == 0, f"the interpreter died ({proc.returncode}): {proc.stderr[-2000:]}"
     return json.loads(proc.stdout.splitlines()[-1])
+
+
+def load_in_time(path: Path, timeout: float = 10) -> qtvpr.Calibration:
+    """``qtvpr.Calibration.load(path)`` of a FIFO, in a thread: a load that blocks in
+    open(2) (what a FIFO with no writer did) fails the test instead of hanging it, and
+    is released by a writer opened and closed at once."""
+    result: list = []
+
+    def load() -> None:
+        try:
+            result.append(qtvpr.Calibration.load(path))
+        except BaseException as e:  # noqa: BLE001 - re-raised below
+            result.append(e)
+
+    thread = threading.Thread(target=load, daemon=True)
+    thread.start()
+    thread.join(timeout)
+    if thread.is_alive():
+        os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))  # the blocked open returns
+        thread.join(5)
+        pytest.fail(f"Calibration.load({path}) blocked for {timeout} s")
+    if isinstance(result[0], BaseException):
+        raise result[0]
+    return result[0]
 
 
 def calibration() -> qtvpr.Calibration:
@@ -402,7 +427,7 @@ def test_a_fifo_with_a_writer_is_read_as_a_stream(tmp_path):
     thread = threading.Thread(target=write, daemon=True)
     thread.start()
     try:
-        loaded = qtvpr.Calibration.load(fifo)
+        loaded = load_in_time(fifo)
     finally:
         os.close(holder)
         thread.join(timeout=10)
@@ -424,7 +449,7 @@ def test_a_fifo_stream_that_is_not_a_zip_is_refused_at_its_first_bytes(tmp_path)
         os.write(writer, b"\x93NUMPY and so on")
         os.close(writer)
         with pytest.raises(ValueError) as info:
-            qtvpr.Calibration.load(fifo)
+            load_in_time(fifo)
     finally:
         os.close(holder)
     assert str(info.value) == (
