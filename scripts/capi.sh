@@ -6,8 +6,10 @@
 # `qtvpr-cli stream --format jsonl` on real data in both matching modes (the embedded
 # VPR-Bench Corridor always; Nordland HOG and VPR-Bench SPEDTest when ../shared/data is
 # there). Then runs a forked child (examples/c/fork.c: its decisions must equal the
-# parent's), the C error-path test, and runs it and one stream under valgrind (no leak,
-# no invalid access). That include/qtvpr.h is current is checked by
+# parent's), the C error-path test, the hostile-file test (examples/c/hostile.c: a FIFO,
+# bit flips, bombs; under `ulimit -v 1000000`), and runs the error-path and hostile
+# tests and one stream under valgrind (no leak, no invalid access). That
+# include/qtvpr.h is current is checked by
 # `cargo test` (crates/qtvpr-capi/tests/header.rs).
 #
 # Called by scripts/test.sh; runs alone from a fresh clone too. Needs cc, c++, python3
@@ -44,6 +46,7 @@ c++ -std=c++17 -Wall -Wextra -Wpedantic -Werror -Iinclude -Iexamples/c examples/
 cc "${cflags[@]}" -pthread examples/c/errors.c "${shared[@]}" -lm -o "$work/errors"
 cc "${cflags[@]}" examples/c/minimal.c "${shared[@]}" -o "$work/minimal"
 cc "${cflags[@]}" examples/c/fork.c "${shared[@]}" -o "$work/fork"
+cc "${cflags[@]}" examples/c/hostile.c "${shared[@]}" -o "$work/hostile"
 if ldd "$work/stream-static" | grep -q libqtvpr; then
     echo "stream-static links libqtvpr.so" >&2
     exit 1
@@ -128,7 +131,19 @@ step "error paths from C"
 errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp")
 "${errors[@]}"
 
-step "valgrind: the error test and a stream"
+step "hostile calibration files from C, under ulimit -v 1000000 (issue 19)"
+# A small calibration to flip byte by byte, it with a bad CRC in s, and two bombs: a few
+# kB of bzip2 expanding to 1 GiB, and 40 MB deflated whose shape disagrees with gt.
+python3 scripts/capi_check.py small "$work/small-s.npy" "$work/small-gt.npy"
+"$cli" calibrate --cal "$work/small-s.npy" --cal-gt "$work/small-gt.npy" --window 4 --output "$work/small.npz"
+python3 scripts/capi_check.py flip "$work/small.npz" s "$work/crc.npz"
+python3 scripts/capi_check.py bomb "$work/bomb-bzip2.npz" bzip2
+python3 scripts/capi_check.py bomb "$work/bomb-deflate.npz" deflate
+hostile=("$work/hostile" "$work/tmp" "$work/small.npz" "$work/crc.npz" "$work/bomb-bzip2.npz" "$work/bomb-deflate.npz")
+# In a subshell, so that the cap ends with it; a hang is ended by the test's alarm().
+(ulimit -v 1000000 && exec "${hostile[@]}")
+
+step "valgrind: the error test, the hostile-file test and a stream"
 if ! command -v valgrind > /dev/null; then
     if [ "$(id -u)" = 0 ] && command -v apt-get > /dev/null; then
         apt-get update -qq && apt-get install -y -qq valgrind > /dev/null
@@ -141,5 +156,6 @@ fi
 vg=(valgrind --quiet --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite,indirect,possible
     --suppressions=examples/c/valgrind.supp)
 "${vg[@]}" "${errors[@]}"
+"${vg[@]}" "${hostile[@]}"   # about 35 s: every flipped file's error path, for leaks
 "${vg[@]}" "$work/stream" "$work/corridor-multi.npz" data/corridor/deploy_S.npy 0 0 0 2 > "$work/valgrind.jsonl"
 python3 scripts/capi_check.py compare "$work/corridor-multi.jsonl" "$work/valgrind.jsonl"

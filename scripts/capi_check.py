@@ -10,6 +10,16 @@
         Check that two `qtvpr-cli stream --format jsonl` outputs have the same lines: the
         same keys, equal integers and booleans, and numbers within TOLERANCE (default
         1e-12) of each other. Prints the largest difference; exits 1 on a mismatch.
+    capi_check.py small S.npy GT.npy
+        Write a small calibration traverse: a 6 x 9 float64 similarity with ties (a fixed
+        LCG) and its bool ground truth (row i matches column j when i == j % 6).
+    capi_check.py flip CAL.npz MEMBER OUT.npz
+        Copy CAL.npz with one bit flipped in the last byte of MEMBER's data (stored), so
+        that only the member's CRC-32 tells.
+    capi_check.py bomb OUT.npz bzip2|deflate
+        A hostile calibration file: bzip2, an s.npy of 1 GiB of zeros in a few kB (its
+        shape agrees with nothing, but it has to be decompressed to find out); deflate,
+        40 MB of zeros in about 40 kB whose shape 5000x1000 disagrees with gt's 1x1.
 """
 
 from __future__ import annotations
@@ -18,6 +28,7 @@ import ast
 import json
 import struct
 import sys
+import zipfile
 
 
 def read_npy(path: str) -> tuple[dict, bytes]:
@@ -36,12 +47,17 @@ def read_npy(path: str) -> tuple[dict, bytes]:
     return header, raw[start + n :]
 
 
-def write_npy(path: str, descr: str, shape: tuple[int, int], data: bytes) -> None:
-    """A version 1 .npy file, its header padded to a multiple of 64 bytes."""
+def npy_header(descr: str, shape: tuple) -> bytes:
+    """A version 1 .npy header, padded to a multiple of 64 bytes."""
     header = repr({"descr": descr, "fortran_order": False, "shape": shape})
     header += " " * (63 - (10 + len(header)) % 64) + "\n"
+    return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode("latin1")
+
+
+def write_npy(path: str, descr: str, shape: tuple[int, int], data: bytes) -> None:
+    """A version 1 .npy file."""
     with open(path, "wb") as f:
-        f.write(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode("latin1") + data)
+        f.write(npy_header(descr, shape) + data)
 
 
 def split(source: str, n_cal: str, cal: str, deploy: str) -> None:
@@ -92,8 +108,54 @@ def compare(expected: str, actual: str, tolerance: str = "1e-12") -> None:
     print(f"{actual}: {len(got)} decisions equal {expected} (largest difference {worst:.3g})")
 
 
+def small(s_path: str, gt_path: str) -> None:
+    x, values = 3, []
+    for _ in range(6 * 9):
+        x = (x * 6364136223846793005 + 1442695040888963407) % (1 << 64)
+        values.append((x >> 33) % 50 / 50 - 0.3)
+    write_npy(s_path, "<f8", (6, 9), struct.pack("<54d", *values))
+    write_npy(gt_path, "|b1", (6, 9), bytes(int(i == j % 6) for i in range(6) for j in range(9)))
+
+
+def flip(source: str, member: str, out: str) -> None:
+    with open(source, "rb") as f:
+        data = bytearray(f.read())
+    with zipfile.ZipFile(source) as z:
+        info = z.getinfo(f"{member}.npy")
+    if info.compress_type != zipfile.ZIP_STORED:
+        sys.exit(f"{source}: {member}.npy is not stored")
+    at = info.header_offset
+    name_len, extra_len = struct.unpack("<HH", data[at + 26 : at + 30])
+    data[at + 30 + name_len + extra_len + info.compress_size - 1] ^= 0x10
+    with open(out, "wb") as f:
+        f.write(data)
+
+
+META = json.dumps({"format": "qtvpr-calibration", "version": 1, "matching": "single",
+                   "params": {"k": 1, "precision": 1.0, "window": 2}})
+
+
+def bomb(out: str, method: str) -> None:
+    compression, shape = {
+        "bzip2": (zipfile.ZIP_BZIP2, (1 << 17, 1 << 10)),
+        "deflate": (zipfile.ZIP_DEFLATED, (5000, 1000)),
+    }[method]
+    n = shape[0] * shape[1] * 8
+    zeros = bytes(1 << 20)
+    with zipfile.ZipFile(out, "w") as z:
+        info = zipfile.ZipInfo("s.npy")
+        info.compress_type = compression
+        with z.open(info, "w", force_zip64=True) as f:
+            f.write(npy_header("<f8", shape))
+            for _ in range(n >> 20):
+                f.write(zeros)
+            f.write(bytes(n & ((1 << 20) - 1)))
+        z.writestr("gt.npy", npy_header("|b1", (1, 1)) + b"\x01")
+        z.writestr("meta.npy", npy_header(f"<U{len(META)}", ()) + META.encode("utf-32-le"))
+
+
 if __name__ == "__main__":
-    commands = {"split": split, "raw": raw, "compare": compare}
+    commands = {"split": split, "raw": raw, "compare": compare, "small": small, "flip": flip, "bomb": bomb}
     if len(sys.argv) < 2 or sys.argv[1] not in commands:
         sys.exit(__doc__)
     commands[sys.argv[1]](*sys.argv[2:])

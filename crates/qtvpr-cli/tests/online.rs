@@ -383,6 +383,40 @@ fn threshold_takes_a_calibration_file() {
         ]),
         want
     );
+    // A zip with bytes prepended (a self-extracting archive, say): `stream` loads it
+    // (the zip reader finds the archive from its end), and so does `threshold`, which
+    // used to call it "a similarity matrix, which needs its ground truth".
+    let mut prefixed = b"#!/bin/sh\nexit 0\n".to_vec();
+    prefixed.extend(std::fs::read(case.path("cal.npz")).unwrap());
+    std::fs::write(case.path("prefixed.npz"), prefixed).unwrap();
+    assert_eq!(
+        case.ok(&[
+            "threshold",
+            "--cal",
+            "prefixed.npz",
+            "--val",
+            "val.npy",
+            "--segment-size",
+            "20"
+        ]),
+        want
+    );
+    // A .npy is still a matrix, and junk that is neither is read as a .npy (whose
+    // message says what a .npy must start with).
+    std::fs::write(case.path("junk.bin"), b"neither a zip nor a .npy").unwrap();
+    case.fails(
+        &[
+            "threshold",
+            "--cal",
+            "junk.bin",
+            "--cal-gt",
+            "cal_gt.npy",
+            "--val",
+            "val.npy",
+        ],
+        &[],
+        &["junk.bin is not a valid .npy file"],
+    );
     // --cal-gt with a calibration file, a different --matching, no --cal-gt with a matrix.
     case.fails(
         &[&file[..], &["--cal-gt", "cal_gt.npy", "-o", "out.json"]].concat(),

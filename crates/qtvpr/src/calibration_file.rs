@@ -848,16 +848,29 @@ mod tests {
     #[test]
     fn members_other_than_stored_or_deflated_are_refused() {
         let s = npy_bytes((1, 1), 8);
-        for method in [npyz::zip::CompressionMethod::Bzip2, npyz::zip::CompressionMethod::Zstd] {
-            let e = Calibration::from_bytes(&archive(&s, method), "c.npz")
-                .err()
-                .unwrap()
-                .to_string();
-            assert!(
-                e.starts_with("c.npz (array s) cannot be decompressed: compression method")
-                    && e.contains("a calibration file holds stored or deflated members"),
-                "{method}: {e}"
+        let refused = |bytes: &[u8], name: &str| {
+            let e = Calibration::from_bytes(bytes, "c.npz").err().unwrap().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "c.npz (array s) cannot be decompressed: compression method {name} is not supported; \
+                     a calibration file holds stored or deflated members"
+                )
             );
+        };
+        refused(&archive(&s, npyz::zip::CompressionMethod::Bzip2), "12 (bzip2)");
+        refused(&archive(&s, npyz::zip::CompressionMethod::Zstd), "93 (zstd)");
+        // Stored members marked with another method in the local header and the
+        // directory: zstd (known to the zip reader, which would try to decompress the
+        // raw .npy as zstd) and LZMA (unknown to it, which refused it in its own words).
+        for (method, name) in [(93u16, "93 (zstd)"), (14, "14 (LZMA)"), (95, "95 (XZ)")] {
+            let mut b = archive(&s, npyz::zip::CompressionMethod::Stored);
+            assert_eq!(&b[..4], b"PK\x03\x04");
+            b[8..10].copy_from_slice(&method.to_le_bytes()); // s.npy is the first member
+            let cd = b.windows(4).position(|w| w == b"PK\x01\x02").unwrap();
+            assert_eq!(&b[cd + 46..cd + 51], b"s.npy");
+            b[cd + 10..cd + 12].copy_from_slice(&method.to_le_bytes());
+            refused(&b, name);
         }
         // Deflated is read.
         let e = Calibration::from_bytes(&archive(&s, npyz::zip::CompressionMethod::Deflated), "c.npz");
@@ -905,6 +918,142 @@ mod tests {
             ),
             "{e}"
         );
+    }
+
+    /// A FIFO made in `dir`.
+    #[cfg(unix)]
+    fn fifo(dir: &Path, name: &str) -> PathBuf {
+        use std::os::unix::ffi::OsStrExt;
+        let path = dir.join(name);
+        let c = std::ffi::CString::new(path.as_os_str().as_bytes()).unwrap();
+        // SAFETY: mkfifo reads a NUL-terminated path that outlives the call.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        path
+    }
+
+    /// Open `path` without blocking (`write`: for writing, else for reading); for
+    /// writing, the descriptor is then made blocking again.
+    #[cfg(unix)]
+    fn open_nonblocking(path: &Path, write: bool) -> std::fs::File {
+        use std::os::fd::AsRawFd;
+        use std::os::unix::fs::OpenOptionsExt;
+        let file = std::fs::OpenOptions::new()
+            .read(!write)
+            .write(write)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)
+            .unwrap();
+        // SAFETY: fcntl on a descriptor this function owns, with integer arguments only.
+        unsafe {
+            let flags = libc::fcntl(file.as_raw_fd(), libc::F_GETFL);
+            assert_eq!(
+                libc::fcntl(file.as_raw_fd(), libc::F_SETFL, flags & !libc::O_NONBLOCK),
+                0
+            );
+        }
+        file
+    }
+
+    /// A FIFO input with no writer is an error at once; one with a writer is read as a
+    /// stream (a zip is read from its end, so it is read whole first), here larger than
+    /// a pipe's buffer so that the writer blocks until it is read.
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_input_is_an_error_without_a_writer_and_a_stream_with_one() {
+        let d = dir();
+        let path = fifo(d.path(), "cal.fifo");
+        let start = std::time::Instant::now();
+        let e = Calibration::load(&path).err().unwrap();
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(2),
+            "{:?}",
+            start.elapsed()
+        );
+        assert_eq!(
+            e.to_string(),
+            format!("cannot read {}: is a FIFO with no writer", path.display())
+        );
+
+        let mut x = 5u64;
+        let s = Array2::from_shape_fn((100, 120), |_| {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f64 / 1000.0
+        });
+        let gt = GroundTruth::new(Array2::from_shape_fn((100, 120), |(i, j)| i == j % 100).view()).unwrap();
+        let cal = Calibration::new(s.view(), &gt, Matching::Single).unwrap();
+        let bytes = cal.to_bytes(&DEFAULTS).unwrap();
+        assert!(bytes.len() > 1 << 16, "{}", bytes.len());
+        // A reader held open first, so that the writer opens without waiting (and is a
+        // writer before the load looks for one); it never reads.
+        let _holder = open_nonblocking(&path, false);
+        let mut writer = open_nonblocking(&path, true);
+        let sent = bytes.clone();
+        let thread = std::thread::spawn(move || std::io::Write::write_all(&mut writer, &sent));
+        let loaded = Calibration::load(&path).unwrap();
+        thread.join().unwrap().unwrap();
+        assert_eq!(loaded.defaults(), &DEFAULTS);
+        // The same arrays and meta, so the same decisions (same_results is for |DB| = 6).
+        assert_eq!(loaded.to_bytes(&DEFAULTS).unwrap(), bytes);
+        assert_eq!(
+            loaded.threshold(0.9).unwrap().to_bits(),
+            cal.threshold(0.9).unwrap().to_bits()
+        );
+
+        // A stream that is not a zip archive is refused at its first bytes.
+        let mut writer = open_nonblocking(&path, true);
+        std::io::Write::write_all(&mut writer, b"\x93NUMPY not an archive").unwrap();
+        drop(writer);
+        let e = Calibration::load(&path).err().unwrap().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{} is not a valid .npz archive: a stream must start with a zip local header (PK\\x03\\x04)",
+                path.display()
+            )
+        );
+    }
+
+    /// Saving through a symbolic link replaces its target and leaves the link; saving
+    /// to a FIFO with a reader sends the whole file; to one with none is an error.
+    #[cfg(unix)]
+    #[test]
+    fn save_follows_links_and_writes_fifos_in_place() {
+        let d = dir();
+        let cal = calibration(Matching::Multi, true);
+        let target = d.path().join("target.npz");
+        std::fs::write(&target, b"old").unwrap();
+        let link = d.path().join("link.npz");
+        std::os::unix::fs::symlink("target.npz", &link).unwrap();
+        cal.save(&link, &DEFAULTS).unwrap();
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read(&target).unwrap(), cal.to_bytes(&DEFAULTS).unwrap());
+
+        let path = fifo(d.path(), "out.fifo");
+        let e = cal.save(&path, &DEFAULTS).err().unwrap().to_string();
+        assert!(
+            e.contains(&path.display().to_string()) && e.contains("is a FIFO that nobody reads"),
+            "{e}"
+        );
+        let mut reader = open_nonblocking(&path, false);
+        // Until the writer opens, a read finds no writer and returns 0 at once: read
+        // until something came and then the end.
+        let thread = std::thread::spawn(move || {
+            let (mut got, mut chunk) = (Vec::new(), [0u8; 4096]);
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+            while std::time::Instant::now() < deadline {
+                match reader.read(&mut chunk).unwrap() {
+                    0 if got.is_empty() => std::thread::sleep(std::time::Duration::from_millis(1)),
+                    0 => break,
+                    n => got.extend_from_slice(&chunk[..n]),
+                }
+            }
+            got
+        });
+        cal.save(&path, &DEFAULTS).unwrap();
+        let got = thread.join().unwrap();
+        assert_eq!(got, cal.to_bytes(&DEFAULTS).unwrap());
+        let kind = std::fs::metadata(&path).unwrap().file_type();
+        assert!(std::os::unix::fs::FileTypeExt::is_fifo(&kind));
     }
 
     #[test]

@@ -756,9 +756,8 @@ fn is_npz(path: &Path) -> bool {
 }
 
 /// `GThard` of an `.npz` archive, and the archive (for its `GTsoft`).
-fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<io::BufReader<File>>)> {
-    let mut npz = NpzArchive::new(io::BufReader::new(open_file(path)?))
-        .map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))?;
+fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<NpzInput>)> {
+    let mut npz = open_npz_file(path)?;
     let npy = npz_array(&mut npz, "GThard", path)?
         .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
     let gt = ground_truth_of(npy, path, None)?;
@@ -779,30 +778,69 @@ pub(crate) struct MemberHeader {
     pub label: PathBuf,
 }
 
-/// The zip member `NAME.npy` of `npz`, refused unless stored or deflated.
+/// The zip member `NAME.npy` of `npz`, refused unless stored or deflated. The method
+/// is read from the member's directory entry first (without a decompressor), so that
+/// every other method, including one the zip reader does not know (LZMA, XZ, ...), is
+/// refused by its name and number rather than with the reader's own words.
 fn zip_member<'a, R: Read + Seek>(
     npz: &'a mut NpzArchive<R>,
     name: &str,
     label: &Path,
 ) -> Result<Option<npyz::zip::read::ZipFile<'a>>> {
+    use npyz::zip::CompressionMethod;
     let zip = npz.zip_archive();
     let member = format!("{name}.npy");
     if !zip.file_names().any(|n| n == member) {
         return Ok(None);
     }
+    let method = (0..zip.len()).find_map(|i| {
+        let raw = zip.by_index_raw(i).ok()?;
+        (raw.name() == member).then(|| raw.compression())
+    });
+    let unsupported = |method| {
+        file_error(
+            label,
+            format!(
+                "cannot be decompressed: compression method {} is not supported; \
+                 a calibration file holds stored or deflated members",
+                method_name(method)
+            ),
+        )
+    };
+    match method {
+        None | Some(CompressionMethod::Stored | CompressionMethod::Deflated) => {}
+        Some(method) => return Err(unsupported(method)),
+    }
     let file = zip
         .by_name(&member)
         .map_err(|e| file_error(label, format!("cannot be read: {e}")))?;
+    // The local header may disagree with the directory; the reader goes by the latter.
     match file.compression() {
-        npyz::zip::CompressionMethod::Stored | npyz::zip::CompressionMethod::Deflated => Ok(Some(file)),
-        method => Err(file_error(
-            label,
-            format!(
-                "cannot be decompressed: compression method {method} is not supported; \
-                 a calibration file holds stored or deflated members"
-            ),
-        )),
+        CompressionMethod::Stored | CompressionMethod::Deflated => Ok(Some(file)),
+        method => Err(unsupported(method)),
     }
+}
+
+/// A zip compression method as the zip specification (APPNOTE 4.4.5) numbers and names
+/// it, e.g. `12 (bzip2)`.
+fn method_name(method: npyz::zip::CompressionMethod) -> String {
+    #[allow(deprecated)] // the number, for methods the zip crate has no name for
+    let number = method.to_u16();
+    let name = match number {
+        0 => "stored",
+        8 => "deflate",
+        9 => "deflate64",
+        12 => "bzip2",
+        14 => "LZMA",
+        93 => "zstd",
+        95 => "XZ",
+        96 => "JPEG",
+        97 => "WavPack",
+        98 => "PPMd",
+        99 => "AES encryption",
+        _ => "unknown",
+    };
+    format!("{number} ({name})")
 }
 
 /// The `.npy` header of member `name` of a calibration archive, checked against the
@@ -892,9 +930,78 @@ pub(crate) fn open_npz<R: Read + Seek>(reader: R, path: &Path) -> Result<NpzArch
     NpzArchive::new(reader).map_err(|e| file_error(path, format!("is not a valid .npz archive: {e}")))
 }
 
-/// Open the `.npz` archive `path`.
-pub(crate) fn open_npz_file(path: &Path) -> Result<NpzArchive<io::BufReader<File>>> {
-    open_npz(io::BufReader::new(open_file(path)?), path)
+/// Open the `.npz` archive `path`: a regular file is read where it lies; a stream (a
+/// FIFO with a writer, a pipe, a device) is read whole into memory first, since a zip
+/// archive is read from its end.
+pub(crate) fn open_npz_file(path: &Path) -> Result<NpzArchive<NpzInput>> {
+    let file = open_file(path)?;
+    let input = if is_regular(&file) {
+        NpzInput::File(io::BufReader::new(file))
+    } else {
+        NpzInput::Stream(Cursor::new(read_stream(file, path)?))
+    };
+    open_npz(input, path)
+}
+
+/// Where an `.npz` archive is read from: a seekable file, or the bytes of a stream.
+pub(crate) enum NpzInput {
+    /// A regular file.
+    File(io::BufReader<File>),
+    /// A stream read to its end.
+    Stream(Cursor<Vec<u8>>),
+}
+
+impl Read for NpzInput {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self {
+            NpzInput::File(f) => f.read(buf),
+            NpzInput::Stream(c) => c.read(buf),
+        }
+    }
+}
+
+impl Seek for NpzInput {
+    fn seek(&mut self, pos: io::SeekFrom) -> io::Result<u64> {
+        match self {
+            NpzInput::File(f) => f.seek(pos),
+            NpzInput::Stream(c) => c.seek(pos),
+        }
+    }
+}
+
+/// The whole of stream `file` (`path` names it): it must start as a zip archive does
+/// (so that `/dev/zero` or a `.npy` is refused at once, not read forever), and memory
+/// for it is reserved fallibly, so that an endless stream is an error when memory runs
+/// out, never an abort.
+fn read_stream(mut file: File, path: &Path) -> Result<Vec<u8>> {
+    const CHUNK: usize = 1 << 16;
+    let mut bytes = Vec::new();
+    let mut chunk = vec![0u8; CHUNK];
+    loop {
+        let n = match file.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(io_error(path, &e)),
+        };
+        bytes.try_reserve(n).map_err(|_| {
+            file_error(
+                path,
+                format!(
+                    "is a stream of more than {} bytes, more memory than can be allocated",
+                    bytes.len()
+                ),
+            )
+        })?;
+        bytes.extend_from_slice(&chunk[..n]);
+        if bytes.len() >= 4 && !bytes.starts_with(b"PK\x03\x04") {
+            return Err(file_error(
+                path,
+                "is not a valid .npz archive: a stream must start with a zip local header (PK\\x03\\x04)",
+            ));
+        }
+    }
+    Ok(bytes)
 }
 
 /// A float32/float64 matrix read into memory from `npy` (`path` names it).
