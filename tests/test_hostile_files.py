@@ -338,8 +338,9 @@ def test_the_bzip2_bomb_is_refused_fast_and_small(bzip2_bomb):
     assert out["error"] == "ValueError", out
     assert out["message"].startswith(f"{bzip2_bomb} (array s) cannot be decompressed: compression method 12 (bzip2)")
     assert out["seconds"] < 1.0, out
+    # The load's own growth: an absolute peak would measure the process it was forked
+    # from too (ru_maxrss is not reset by exec on every kernel).
     assert out["rss_kib"] - out["rss_before_kib"] < 100 * 1024, out
-    assert out["rss_kib"] < 200 * 1024, out  # the interpreter, NumPy and qtvpr included
 
 
 def test_the_bzip2_bomb_raises_under_an_address_space_cap(bzip2_bomb):

@@ -1013,15 +1013,13 @@ def test_cli_stream_equals_reference(stream_cli, shared_data, tmp_path, dataset,
     for key, name in (("threshold", "thresholds"), ("quantile", "quantiles"),
                       ("query_quantile", "query_quantiles"), ("weight", "weights")):
         assert_close([line[key] for line in lines], getattr(want, name), key)
-    if matching == "single":
-        assert [line["best"] for line in lines] == want.best.tolist()
-        assert [line["accept"] for line in lines] == want.accept.tolist()
-        assert_close([line["score"] for line in lines], want.score, "score")
-        assert all("accepted" not in line for line in lines)
-    else:
-        assert [line["accepted"] for line in lines] == want.accepted.tolist()
-        assert [line["accept"] for line in lines] == (want.accepted > 0).tolist()
-        assert all("best" not in line and "score" not in line for line in lines)
+    # The nine fields of the decision record, in both matching modes.
+    assert all(list(line) == ["query", "query_quantile", "weight", "quantile", "threshold", "best", "score",
+                              "accepted", "accept"] for line in lines)
+    assert [line["best"] for line in lines] == want.best.tolist()
+    assert_close([line["score"] for line in lines], want.score, "score")
+    assert [line["accepted"] for line in lines] == want.accepted.tolist()
+    assert [line["accept"] for line in lines] == want.accept.tolist() == (want.accepted > 0).tolist()
     # The CLI's file is the wheel's and the reference's too.
     assert ref.Calibration.load(cal_file).defaults == {"k": 10, "precision": precision, "window": window}
     got = qtvpr.Online(qtvpr.Calibration.load(cal_file), min_window=min_window).push_many(s_val)

@@ -3,10 +3,8 @@
 //! `--cal` is either a calibration similarity matrix (`.npy`, with its ground truth
 //! from `--cal-gt...`) or a calibration file written by `calibrate` (an `.npz`, which
 //! holds its ground truth, matching mode and default `k` and precision). The two are
-//! told apart by the file's bytes, not its name: a zip archive (as the zip reader of
-//! [`Calibration::load`] finds one: a local header first, or an end-of-central-directory
-//! record near the end of a file that is not a `.npy`) is a calibration file, anything
-//! else is read as a `.npy` matrix.
+//! told apart by the file's bytes, not its name ([`qtvpr::npy::is_zip_archive`]): a zip
+//! archive is a calibration file, anything else is read as a `.npy` matrix.
 //!
 //! In place of `--cal` and `--val`, one `--similarity` matrix or descriptor files
 //! (`--db-descriptors`, `--query-descriptors`) may be split by `--cal-queries` /
@@ -16,7 +14,6 @@
 //! ([`qtvpr::Calibration::transfer_descriptors`]) and never held whole.
 
 use std::fmt::Write as _;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -142,46 +139,6 @@ struct ReportParams {
     matching: Matching,
 }
 
-/// Whether `path` is a zip archive (a calibration file) rather than a `.npy`: by its
-/// bytes, whatever its name, exactly as [`Calibration::load`] finds an archive. A file
-/// that starts with a zip local header is one; so is a file that does not start as a
-/// `.npy` and has a zip end-of-central-directory record in its last 64 KiB (a zip with
-/// something prepended, such as a self-extracting archive, which the zip reader finds
-/// from the end). A file that cannot be read is left to the reader that follows, which
-/// names the problem; so is a stream (a pipe or a device), whose first bytes cannot be
-/// read twice.
-pub fn is_calibration_file(path: &Path) -> bool {
-    match qtvpr::npy::open_input(path) {
-        Ok((file, true)) => has_zip_signature(file).unwrap_or(false),
-        _ => false,
-    }
-}
-
-/// The `.npy` magic string.
-const NPY_MAGIC: &[u8] = b"\x93NUMPY";
-
-/// How far from its end the zip reader looks for the end-of-central-directory record:
-/// the record (22 bytes) and the longest comment (65535).
-const EOCD_SEARCH: u64 = 22 + 65_535;
-
-/// See [`is_calibration_file`].
-fn has_zip_signature(mut file: std::fs::File) -> std::io::Result<bool> {
-    use std::io::{Seek, SeekFrom};
-    let mut head = [0u8; 6];
-    let n = file.read(&mut head)?;
-    if head[..n].starts_with(b"PK\x03\x04") {
-        return Ok(true);
-    }
-    if n == NPY_MAGIC.len() && head[..] == *NPY_MAGIC {
-        return Ok(false);
-    }
-    let len = file.seek(SeekFrom::End(0))?;
-    file.seek(SeekFrom::Start(len.saturating_sub(EOCD_SEARCH)))?;
-    let mut tail = Vec::new();
-    file.take(EOCD_SEARCH).read_to_end(&mut tail)?;
-    Ok(tail.windows(4).any(|w| w == b"PK\x05\x06"))
-}
-
 /// Where the scores come from.
 enum Source<'a> {
     /// A matrix, oriented |DB| x |Q|, and `--option FILE` that named it.
@@ -231,7 +188,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
              --cal-fraction to calibrate on the first queries of the descriptors"
         );
     }
-    let from_file = args.cal.as_deref().is_some_and(is_calibration_file);
+    let from_file = args.cal.as_deref().is_some_and(qtvpr::npy::is_zip_archive);
     if from_file && let Some(source) = args.cal_gt.source() {
         bail!(
             "{}: --cal {} is a calibration file, which holds its own ground truth; \

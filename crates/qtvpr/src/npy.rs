@@ -344,6 +344,47 @@ pub fn open_input(path: &Path) -> Result<(File, bool)> {
     Ok((file, regular))
 }
 
+/// Whether `path` is a zip archive (an `.npz`, e.g. a calibration file) rather than a
+/// `.npy`: by its bytes, whatever its name, as the zip reader of
+/// [`crate::Calibration::load`] finds an archive. A file
+/// that starts with a zip local header is one; so is a file that does not start as a
+/// `.npy` and has a zip end-of-central-directory record in its last 64 KiB (a zip with
+/// something prepended, such as a self-extracting archive, which the zip reader finds
+/// from the end). A file that cannot be read is left to the reader that follows, which
+/// names the problem; so is a stream (a pipe or a device), whose first bytes cannot be
+/// read twice.
+pub fn is_zip_archive(path: &Path) -> bool {
+    match open_input(path) {
+        Ok((file, true)) => has_zip_signature(file).unwrap_or(false),
+        _ => false,
+    }
+}
+
+/// The `.npy` magic string.
+const NPY_MAGIC: &[u8] = b"\x93NUMPY";
+
+/// How far from its end the zip reader looks for the end-of-central-directory record:
+/// the record (22 bytes) and the longest comment (65535).
+const EOCD_SEARCH: u64 = 22 + 65_535;
+
+/// See [`is_zip_archive`].
+fn has_zip_signature(mut file: File) -> io::Result<bool> {
+    use io::SeekFrom;
+    let mut head = [0u8; 6];
+    let n = file.read(&mut head)?;
+    if head[..n].starts_with(b"PK\x03\x04") {
+        return Ok(true);
+    }
+    if n == NPY_MAGIC.len() && head[..] == *NPY_MAGIC {
+        return Ok(false);
+    }
+    let len = file.seek(SeekFrom::End(0))?;
+    file.seek(SeekFrom::Start(len.saturating_sub(EOCD_SEARCH)))?;
+    let mut tail = Vec::new();
+    file.take(EOCD_SEARCH).read_to_end(&mut tail)?;
+    Ok(tail.windows(4).any(|w| w == b"PK\x05\x06"))
+}
+
 /// The longest header read: NumPy's own reader refuses more than 10000 bytes by default
 /// (`max_header_size`), and a plain matrix needs under 128.
 const MAX_HEADER: usize = 10_000;
@@ -378,7 +419,7 @@ fn read_header<R: Read>(mut reader: R, path: &Path) -> Result<Vec<u8>> {
     reader
         .read_exact(&mut header)
         .map_err(|_| invalid("it is shorter than the magic string"))?;
-    if &header[..6] != b"\x93NUMPY" {
+    if &header[..6] != NPY_MAGIC {
         return Err(invalid("it does not start with the magic string \\x93NUMPY"));
     }
     let len = match header[6] {
