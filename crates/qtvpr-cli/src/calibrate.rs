@@ -50,7 +50,7 @@ pub struct CalibrateArgs {
     #[arg(long, default_value_t = qtvpr::DEFAULT_K)]
     k: usize,
     /// Default target precision tau stored in the file, in (0, 1].
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = qtvpr::DEFAULT_PRECISION, allow_negative_numbers = true)]
     precision: f64,
     /// Default window stored in the file: the queries each online threshold is taken
     /// over (`stream --window`). Default: none, so `stream` then needs --window.
@@ -67,12 +67,7 @@ pub struct CalibrateArgs {
 
 /// Run `calibrate`.
 pub fn run(args: &CalibrateArgs) -> Result<()> {
-    let defaults = Defaults {
-        k: args.k,
-        precision: args.precision,
-        window: args.window,
-    };
-    defaults.validate()?;
+    let defaults = Defaults::default().resolve(Some(args.k), Some(args.precision), args.window)?;
     let split = args.split.split()?;
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
     let matching = Matching::from(args.matching);

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
-use qtvpr::{Defaults, Matching, Params};
+use qtvpr::{Matching, Params};
 
 use crate::convert::{GroundTruthArgs, Scores, count};
 use crate::descriptors::PyDescriptors;
@@ -130,12 +130,15 @@ impl PyCalibration {
         precision: Option<f64>,
         window: Option<i64>,
     ) -> PyResult<()> {
-        let own = self.inner.defaults();
-        let defaults = Defaults {
-            k: k.map(|k| count("k", k)).transpose()?.unwrap_or(own.k),
-            precision: precision.unwrap_or(own.precision),
-            window: window.map(|m| count("window", m)).transpose()?.or(own.window),
-        };
+        let defaults = self
+            .inner
+            .defaults()
+            .resolve(
+                k.map(|k| count("k", k)).transpose()?,
+                precision,
+                window.map(|m| count("window", m)).transpose()?,
+            )
+            .map_err(|e| FILE_ARGS.error(e))?;
         py.detach(|| self.inner.save(&path, &defaults))
             .map_err(|e| FILE_ARGS.error(e))
     }

@@ -62,12 +62,13 @@ fn quantile_transfer(
     query_major: bool,
 ) -> PyResult<TransferResult> {
     // Check the cheap parameters before the calibration does any work.
-    let params = qtvpr::Params {
-        k: convert::count("k", k)?,
-        precision,
-        segment_size: segment_size.map(|m| convert::count("segment_size", m)).transpose()?,
-    };
-    params.validate().map_err(|e| {
+    qtvpr::Params::resolve(
+        &qtvpr::Defaults::default(),
+        Some(convert::count("k", k)?),
+        Some(precision),
+        segment_size.map(|m| convert::count("segment_size", m)).transpose()?,
+    )
+    .map_err(|e| {
         Args {
             gt: "gt_cal",
             query_major,

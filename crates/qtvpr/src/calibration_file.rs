@@ -24,49 +24,6 @@
 //! `matching` and `params`; every error names the file. A loaded calibration is built
 //! from the same scores and labels as the one saved, so its results are bit-identical.
 
-use crate::error::{Error, Result};
-use crate::input::check_precision;
-use crate::transfer::DEFAULT_K;
-
-/// Defaults stored in a calibration file's `meta` `params`; each can be overridden by
-/// its user.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Defaults {
-    /// Calibration queries sampled per deployment query.
-    pub k: usize,
-    /// Precision target tau in (0, 1].
-    pub precision: f64,
-    /// Window (or segment) size; `None` when the file sets none.
-    pub window: Option<usize>,
-}
-
-impl Default for Defaults {
-    fn default() -> Self {
-        Self {
-            k: DEFAULT_K,
-            precision: 1.0,
-            window: None,
-        }
-    }
-}
-
-impl Defaults {
-    /// Check `k >= 1`, tau in (0, 1] and a window, if any, of at least 1.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the parameter.
-    pub fn validate(&self) -> Result<()> {
-        if self.k < 1 {
-            return Err(Error::param("k", format!("must be >= 1, got {}", self.k)));
-        }
-        check_precision(self.precision)?;
-        if self.window == Some(0) {
-            return Err(Error::param("window", "must be >= 1, got 0"));
-        }
-        Ok(())
-    }
-}
-
 /// The `format` of a calibration file's `meta`.
 pub const FORMAT: &str = "qtvpr-calibration";
 
@@ -81,11 +38,12 @@ mod file {
     use ndarray::Array2;
     use serde::{Deserialize, Serialize};
 
-    use super::{Defaults, FORMAT, VERSION};
+    use super::{FORMAT, VERSION};
     use crate::decisions::Matching;
     use crate::error::{Error, Result};
     use crate::input::{GroundTruth, ScoreMatrix, Truth};
     use crate::npy::{self, NpyArray};
+    use crate::params::Defaults;
     use crate::transfer::Calibration;
 
     /// The `meta` JSON.
@@ -326,9 +284,8 @@ mod tests {
 
     use ndarray::{Array2, array};
 
-    use super::*;
     use crate::npy::{NpyArray, write_npz};
-    use crate::{Calibration, GroundTruth, Matching, Online, OnlineParams, Params};
+    use crate::{Calibration, Defaults, Error, GroundTruth, Matching, Online, OnlineParams, Params};
 
     /// A fixed LCG matrix with ties, and GT i == j % 6 with a soft neighbour row.
     fn calibration(matching: Matching, f32: bool) -> Calibration {

@@ -34,9 +34,10 @@ use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
 use crate::names::SIMILARITY;
-use crate::online::{Online, OnlineParams};
+use crate::online::Online;
+use crate::params::{DEFAULT_K, OnlineParams, Params};
 use crate::threads;
-use crate::transfer::{Calibration, DEFAULT_K, Params};
+use crate::transfer::Calibration;
 
 /// Tolerance of the "meets the target" test (semantics §8.3).
 const EPS: f64 = 1e-12;

@@ -73,6 +73,7 @@ pub mod names;
 #[cfg(feature = "npy")]
 pub mod npy;
 pub mod online;
+pub mod params;
 pub mod ranked_correlation;
 pub mod report;
 pub mod sequence;
@@ -83,17 +84,17 @@ pub mod transfer;
 
 pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
-pub use calibration_file::Defaults;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
 pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
-pub use online::{Decision, Online, OnlineParams};
+pub use online::{Decision, Online};
+pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Params};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};
 pub use threads::set_threads;
-pub use transfer::{Calibration, DEFAULT_K, Params, Segment, Transfer};
+pub use transfer::{Calibration, Segment, Transfer};
 
 /// Call generic code on the typed view inside a [`ScoresView`]: `$body` is compiled
 /// once with `$v` an `ArrayView2<'_, f32>` and once with an `ArrayView2<'_, f64>`, the

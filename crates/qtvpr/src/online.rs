@@ -28,79 +28,14 @@ use std::sync::Arc;
 
 use ndarray::{ArrayView1, ArrayView2, Axis, ShapeBuilder, s};
 
-use crate::calibration_file::Defaults;
 use crate::decisions::{Matching, best_match};
 use crate::deployment::{sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
-use crate::input::{Score, check_precision};
+use crate::input::Score;
+use crate::params::OnlineParams;
 use crate::ranked_correlation::Ranked;
 use crate::threads;
 use crate::transfer::{CHUNK_SCORES, Calibration, QueryTransfer};
-
-/// Parameters of an [`Online`] state.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OnlineParams {
-    /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
-    pub k: usize,
-    /// Precision target tau in (0, 1].
-    pub precision: f64,
-    /// Window size `m`: each query is thresholded on its last `m` queries; at least 1.
-    pub window: usize,
-    /// Warm-up: queries before the `min_window`-th are reject-all; in `1..=window`.
-    pub min_window: usize,
-}
-
-impl OnlineParams {
-    /// Check `k >= 1`, precision in (0, 1], `window >= 1` and `1 <= min_window <= window`.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the parameter.
-    pub fn validate(&self) -> Result<()> {
-        if self.k < 1 {
-            return Err(Error::param("k", format!("must be >= 1, got {}", self.k)));
-        }
-        check_precision(self.precision)?;
-        if self.window < 1 {
-            return Err(Error::param("window", format!("must be >= 1, got {}", self.window)));
-        }
-        if !(1..=self.window).contains(&self.min_window) {
-            return Err(Error::param(
-                "min window",
-                format!(
-                    "must be between 1 and the window ({}), got {}",
-                    self.window, self.min_window
-                ),
-            ));
-        }
-        Ok(())
-    }
-
-    /// Parameters from those given, each `None` taking the calibration's default
-    /// (`min_window`: 1), validated.
-    ///
-    /// # Errors
-    /// No window given and none in `defaults` ([`Error::InvalidParameter`]: "window is
-    /// not given and the calibration sets none"), or [`OnlineParams::validate`].
-    pub fn resolve(
-        defaults: &Defaults,
-        k: Option<usize>,
-        precision: Option<f64>,
-        window: Option<usize>,
-        min_window: Option<usize>,
-    ) -> Result<OnlineParams> {
-        let window = window
-            .or(defaults.window)
-            .ok_or_else(|| Error::param("window", "is not given and the calibration sets none"))?;
-        let params = OnlineParams {
-            k: k.unwrap_or(defaults.k),
-            precision: precision.unwrap_or(defaults.precision),
-            window,
-            min_window: min_window.unwrap_or(1),
-        };
-        params.validate()?;
-        Ok(params)
-    }
-}
 
 /// The decision of one deployment query: the record of semantics §11, the same values
 /// in every front end (the CLI's `stream` line, Python, C) and in both matching modes.
@@ -420,7 +355,7 @@ impl Online {
 mod tests {
     use super::*;
     use crate::input::GroundTruth;
-    use crate::transfer::Params;
+    use crate::params::{Defaults, Params};
     use ndarray::{Array2, array};
 
     /// The calibration of the transfer tests (|DB| = 3):

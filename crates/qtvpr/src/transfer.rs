@@ -25,76 +25,16 @@ use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
 use crate::best_threshold::subset_threshold;
-use crate::calibration_file::Defaults;
 use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
+use crate::params::{Defaults, Params};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
 use crate::similarity::{DescriptorColumns, Descriptors};
 use crate::subset_quantile::subset_quantile;
 use crate::threads;
-
-/// The paper gives no value of `k`; 10 is this project's default.
-pub const DEFAULT_K: usize = 10;
-
-/// Parameters of a transfer.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize))]
-pub struct Params {
-    /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
-    pub k: usize,
-    /// Precision target tau in (0, 1].
-    pub precision: f64,
-    /// Deployment queries per segment; `None` is one batch of all of them.
-    pub segment_size: Option<usize>,
-}
-
-impl Default for Params {
-    fn default() -> Self {
-        Self {
-            k: DEFAULT_K,
-            precision: 1.0,
-            segment_size: None,
-        }
-    }
-}
-
-impl Params {
-    /// Check `k >= 1` and tau in (0, 1].
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the parameter.
-    pub fn validate(&self) -> Result<()> {
-        if self.k < 1 {
-            return Err(Error::param("k", format!("must be >= 1, got {}", self.k)));
-        }
-        check_precision(self.precision)
-    }
-
-    /// Parameters from those given, each `None` taking the calibration's default (the
-    /// `params` of its file: SPEC section 12, one left out never falls back to a library
-    /// default while the file has a value), validated. Every front end resolves its
-    /// arguments here.
-    ///
-    /// # Errors
-    /// [`Params::validate`].
-    pub fn resolve(
-        defaults: &Defaults,
-        k: Option<usize>,
-        precision: Option<f64>,
-        segment_size: Option<usize>,
-    ) -> Result<Params> {
-        let params = Params {
-            k: k.unwrap_or(defaults.k),
-            precision: precision.unwrap_or(defaults.precision),
-            segment_size,
-        };
-        params.validate()?;
-        Ok(params)
-    }
-}
 
 /// The threshold of one segment of deployment queries.
 #[derive(Debug, Clone, Copy, PartialEq)]

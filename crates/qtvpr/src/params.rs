@@ -1,0 +1,251 @@
+//! The parameters of a request, checked and resolved in one place for every front end.
+//!
+//! A transfer takes [`Params`], an online state [`OnlineParams`], and a calibration
+//! file stores [`Defaults`] for whoever uses it (semantics §12: its `params` are the
+//! defaults of every front end, batch and online). Each front end passes what its user
+//! gave, `None` for what was left out, to [`Params::resolve`] or
+//! [`OnlineParams::resolve`] with the calibration's defaults; nothing else decides a
+//! default or checks a parameter.
+
+use crate::error::{Error, Result};
+use crate::input::check_precision;
+
+/// The paper gives no value of `k`; 10 is this project's default.
+pub const DEFAULT_K: usize = 10;
+
+/// The precision target when none is given: the paper's 100%.
+pub const DEFAULT_PRECISION: f64 = 1.0;
+
+/// `k >= 1`.
+fn check_k(k: usize) -> Result<()> {
+    if k < 1 {
+        return Err(Error::param("k", format!("must be >= 1, got {k}")));
+    }
+    Ok(())
+}
+
+/// A window (or segment) size of at least 1.
+fn check_window(window: usize) -> Result<()> {
+    if window < 1 {
+        return Err(Error::param("window", format!("must be >= 1, got {window}")));
+    }
+    Ok(())
+}
+
+/// Defaults stored in a calibration file's `meta` `params`; each can be overridden by
+/// its user. A calibration made from arrays has [`Defaults::default`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Defaults {
+    /// Calibration queries sampled per deployment query.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Window (or segment) size; `None` when the file sets none.
+    pub window: Option<usize>,
+}
+
+impl Default for Defaults {
+    fn default() -> Self {
+        Self {
+            k: DEFAULT_K,
+            precision: DEFAULT_PRECISION,
+            window: None,
+        }
+    }
+}
+
+impl Defaults {
+    /// Check `k >= 1`, tau in (0, 1] and a window, if any, of at least 1.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        check_k(self.k)?;
+        check_precision(self.precision)?;
+        self.window.map_or(Ok(()), check_window)
+    }
+
+    /// These defaults with each value given replacing its own (`None`: keep it),
+    /// validated: what a calibration saved again with new values stores.
+    ///
+    /// # Errors
+    /// [`Defaults::validate`].
+    pub fn resolve(&self, k: Option<usize>, precision: Option<f64>, window: Option<usize>) -> Result<Defaults> {
+        let defaults = Defaults {
+            k: k.unwrap_or(self.k),
+            precision: precision.unwrap_or(self.precision),
+            window: window.or(self.window),
+        };
+        defaults.validate()?;
+        Ok(defaults)
+    }
+}
+
+/// Parameters of a transfer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct Params {
+    /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Deployment queries per segment; `None` is one batch of all of them.
+    pub segment_size: Option<usize>,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            k: DEFAULT_K,
+            precision: DEFAULT_PRECISION,
+            segment_size: None,
+        }
+    }
+}
+
+impl Params {
+    /// Check `k >= 1` and tau in (0, 1] (a segment size is checked against the number
+    /// of deployment queries by the transfer).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        check_k(self.k)?;
+        check_precision(self.precision)
+    }
+
+    /// Parameters from those given, each `None` taking the calibration's default (one
+    /// left out never falls back to a library default while the file has a value),
+    /// validated.
+    ///
+    /// # Errors
+    /// [`Params::validate`].
+    pub fn resolve(
+        defaults: &Defaults,
+        k: Option<usize>,
+        precision: Option<f64>,
+        segment_size: Option<usize>,
+    ) -> Result<Params> {
+        let params = Params {
+            k: k.unwrap_or(defaults.k),
+            precision: precision.unwrap_or(defaults.precision),
+            segment_size,
+        };
+        params.validate()?;
+        Ok(params)
+    }
+}
+
+/// Parameters of an [`Online`](crate::Online) state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OnlineParams {
+    /// Calibration queries sampled per deployment query (clipped to |Qcal|); at least 1.
+    pub k: usize,
+    /// Precision target tau in (0, 1].
+    pub precision: f64,
+    /// Window size `m`: each query is thresholded on its last `m` queries; at least 1.
+    pub window: usize,
+    /// Warm-up: queries before the `min_window`-th are reject-all; in `1..=window`.
+    pub min_window: usize,
+}
+
+impl OnlineParams {
+    /// Check `k >= 1`, precision in (0, 1], `window >= 1` and `1 <= min_window <= window`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        check_k(self.k)?;
+        check_precision(self.precision)?;
+        check_window(self.window)?;
+        if !(1..=self.window).contains(&self.min_window) {
+            return Err(Error::param(
+                "min window",
+                format!(
+                    "must be between 1 and the window ({}), got {}",
+                    self.window, self.min_window
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Parameters from those given, each `None` taking the calibration's default
+    /// (`min_window`: 1), validated.
+    ///
+    /// # Errors
+    /// No window given and none in `defaults` ([`Error::InvalidParameter`]: "window is
+    /// not given and the calibration sets none"), or [`OnlineParams::validate`].
+    pub fn resolve(
+        defaults: &Defaults,
+        k: Option<usize>,
+        precision: Option<f64>,
+        window: Option<usize>,
+        min_window: Option<usize>,
+    ) -> Result<OnlineParams> {
+        let window = window
+            .or(defaults.window)
+            .ok_or_else(|| Error::param("window", "is not given and the calibration sets none"))?;
+        let params = OnlineParams {
+            k: k.unwrap_or(defaults.k),
+            precision: precision.unwrap_or(defaults.precision),
+            window,
+            min_window: min_window.unwrap_or(1),
+        };
+        params.validate()?;
+        Ok(params)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_files_values_are_the_defaults_and_each_given_one_overrides() {
+        let file = Defaults {
+            k: 3,
+            precision: 0.9,
+            window: Some(28),
+        };
+        let p = Params::resolve(&file, None, None, Some(5)).unwrap();
+        assert_eq!((p.k, p.precision, p.segment_size), (3, 0.9, Some(5)));
+        let p = Params::resolve(&file, Some(7), Some(1.0), None).unwrap();
+        assert_eq!((p.k, p.precision, p.segment_size), (7, 1.0, None));
+        let o = OnlineParams::resolve(&file, None, None, None, None).unwrap();
+        assert_eq!((o.k, o.precision, o.window, o.min_window), (3, 0.9, 28, 1));
+        let o = OnlineParams::resolve(&file, Some(1), Some(0.5), Some(4), Some(4)).unwrap();
+        assert_eq!((o.k, o.precision, o.window, o.min_window), (1, 0.5, 4, 4));
+        assert_eq!(file.resolve(None, None, None).unwrap(), file);
+        assert_eq!(file.resolve(Some(4), None, Some(2)).unwrap().window, Some(2));
+        // No file: the library's.
+        let p = Params::resolve(&Defaults::default(), None, None, None).unwrap();
+        assert_eq!(p, Params::default());
+    }
+
+    #[test]
+    fn one_set_of_checks_and_messages() {
+        let d = Defaults::default();
+        let err = |r: Result<Params>| r.unwrap_err().to_string();
+        assert_eq!(err(Params::resolve(&d, Some(0), None, None)), "k must be >= 1, got 0");
+        assert_eq!(
+            err(Params::resolve(&d, None, Some(1.5), None)),
+            "precision must be in (0, 1], got 1.5"
+        );
+        let online = |w, m| OnlineParams::resolve(&d, None, None, w, m).unwrap_err().to_string();
+        assert_eq!(online(None, None), "window is not given and the calibration sets none");
+        assert_eq!(online(Some(0), None), "window must be >= 1, got 0");
+        assert_eq!(
+            online(Some(3), Some(4)),
+            "min window must be between 1 and the window (3), got 4"
+        );
+        assert_eq!(
+            d.resolve(Some(0), None, None).unwrap_err().to_string(),
+            "k must be >= 1, got 0"
+        );
+        assert_eq!(
+            d.resolve(None, None, Some(0)).unwrap_err().to_string(),
+            "window must be >= 1, got 0"
+        );
+    }
+}
