@@ -131,7 +131,7 @@ step "error paths from C"
 errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp")
 "${errors[@]}"
 
-step "hostile calibration files from C, under ulimit -v 1000000 (issue 19)"
+step "hostile calibration files from C, under ulimit -v 1000000"
 # A small calibration to flip byte by byte, it with a bad CRC in s, and two bombs: a few
 # kB of bzip2 expanding to 1 GiB, and 40 MB deflated whose shape disagrees with gt.
 python3 scripts/capi_check.py small "$work/small-s.npy" "$work/small-gt.npy"

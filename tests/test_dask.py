@@ -429,9 +429,9 @@ CORRIDOR = Path(__file__).resolve().parent.parent / "data" / "corridor"
 
 @pytest.mark.parametrize("matching", ["single", "multi"])
 def test_the_files_params_are_every_front_ends_defaults(client, cli, tmp_path, matching):
-    # Regression (issue 20): with a file of k = 3 and tau = 0.9, `qtvpr-cli threshold --cal`
+    # Regression: with a file of k = 3 and tau = 0.9, `qtvpr-cli threshold --cal`
     # used them while `Calibration.load(...).transfer` and `qtvpr.dask.transfer` silently
-    # used k = 10, tau = 1 (SPEC section 12: the file's params are every front end's
+    # used k = 10, tau = 1 (semantics §12: the file's params are every front end's
     # defaults). On the embedded VPR-Bench Corridor data.
     cal_file = tmp_path / "k3.npz"
     subprocess.run([str(cli), "calibrate", "--cal", str(CORRIDOR / "cal_S.npy"), "--cal-gt",

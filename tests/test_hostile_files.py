@@ -1,5 +1,5 @@
-"""Hostile calibration files and paths, through the wheel (issue 19; ../shared/SPEC.md
-§10 "Files and processes" and §12 integrity).
+"""Hostile calibration files and paths, through the wheel (docs/semantics.md §10, files
+and processes, and §12, integrity).
 
 ``qtvpr.Calibration.load``, ``qtvpr.Online`` on what it loads, and ``Calibration.save``
 go through the core's reader and writer; these tests hold the Python surface to the

@@ -15,32 +15,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "check.h"
 #include "qtvpr.h"
 
-static int failures = 0;
-
-#define CHECK(cond)                                                                                          \
-    do {                                                                                                     \
-        if (!(cond)) {                                                                                       \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond);                         \
-            failures++;                                                                                      \
-        }                                                                                                    \
-    } while (0)
-
-/* The last call failed with code, and its message contains each of the given words. */
-static void expect_error(int line, int code, const char *word1, const char *word2) {
-    const char *message = qtvpr_last_error();
-    int ok = qtvpr_last_error_code() == code && message && strstr(message, word1) &&
-             (!word2 || strstr(message, word2));
-    if (!ok) {
-        fprintf(stderr, "errors.c:%d: expected code %d with '%s'%s%s%s, got code %d: %s\n", line, code, word1,
-                word2 ? " and '" : "", word2 ? word2 : "", word2 ? "'" : "", qtvpr_last_error_code(),
-                message ? message : "(NULL)");
-        failures++;
-    }
-}
-#define EXPECT_ERROR(code, word1, word2) expect_error(__LINE__, code, word1, word2)
-#define EXPECT_OK() CHECK(qtvpr_last_error_code() == QTVPR_OK && qtvpr_last_error() == NULL)
 
 static void *error_in_thread(void *arg) {
     (void)arg;

@@ -1,5 +1,5 @@
 /*
- * Hostile calibration files from C (issue 19; ../shared/SPEC.md §10 "Files and
+ * Hostile calibration files from C (docs/semantics.md §10 "Files and
  * processes" and §12 integrity): qtvpr_calibration_load returns NULL with an error code
  * and a message naming the file (and the member) instead of hanging, aborting or
  * loading other values. Run by scripts/capi.sh, under `ulimit -v 1000000`.
@@ -33,32 +33,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "check.h"
 #include "qtvpr.h"
 
-static int failures = 0;
-
-#define CHECK(cond)                                                                                          \
-    do {                                                                                                     \
-        if (!(cond)) {                                                                                       \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond);                         \
-            failures++;                                                                                      \
-        }                                                                                                    \
-    } while (0)
-
-/* The last call failed with code, and its message contains each of the given words. */
-static int expect_error(int line, int code, const char *word1, const char *word2, const char *word3) {
-    const char *message = qtvpr_last_error();
-    int ok = qtvpr_last_error_code() == code && message && strstr(message, word1) &&
-             (!word2 || strstr(message, word2)) && (!word3 || strstr(message, word3));
-    if (!ok) {
-        fprintf(stderr, "hostile.c:%d: expected code %d with '%s', '%s', '%s'; got code %d: %s\n", line, code,
-                word1, word2 ? word2 : "", word3 ? word3 : "", qtvpr_last_error_code(),
-                message ? message : "(NULL)");
-        failures++;
-    }
-    return ok;
-}
-#define EXPECT_ERROR(code, w1, w2, w3) expect_error(__LINE__, code, w1, w2, w3)
 
 static double now(void) {
     struct timespec t;

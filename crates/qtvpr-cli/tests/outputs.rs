@@ -1,4 +1,4 @@
-//! Standard output as a supervisor sees it (SPEC section 10, "Files and processes"): a
+//! Standard output as a supervisor sees it (docs/semantics.md §10, files and processes): a
 //! closed pipe ends every command that writes to standard output quietly with status 0,
 //! and any other write error names the output ("standard output" or the `--output`
 //! path), never an input. On the embedded VPR-Bench Corridor data.
