@@ -6,6 +6,7 @@
 use std::io;
 use std::process::ExitCode;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 mod calibrate;
@@ -100,14 +101,11 @@ fn main() -> ExitCode {
     }
 }
 
+/// Size the library's own pool (qtvpr::threads), not rayon's global one: the core runs
+/// every parallel region there, so that a forked child gets live threads. The core
+/// refuses 0.
 fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
-    match threads {
-        Some(0) => anyhow::bail!("--threads must be at least 1"),
-        // The library's own pool (qtvpr::threads), not rayon's global one: the core runs
-        // every parallel region there, so that a forked child gets live threads.
-        Some(n) => Ok(qtvpr::set_threads(n)?),
-        None => Ok(()),
-    }
+    threads.map_or(Ok(()), |n| qtvpr::set_threads(n).context("--threads"))
 }
 
 fn is_broken_pipe(err: &anyhow::Error) -> bool {

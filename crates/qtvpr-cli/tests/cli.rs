@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 use tempfile::TempDir;
 
 mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw};
+use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw, run_in};
 
 /// The `transfer.rs` unit-test example: |DB| = 3, two calibration, two deployment queries.
 struct Case {
@@ -166,6 +166,9 @@ fn bad_parameters() {
         &["segment size must be between 1 and the number of deployment queries (2), got 0"],
     );
     case.fails(&[], &["--segment-size", "3"], &["got 3"]);
+    // The pool size is the core's to check, named by the option.
+    let out = run_in(case.dir.path(), &["--threads", "0", "evaluate"]);
+    assert_clean_failure(&out, case.dir.path(), &[], &["--threads: threads must be >= 1, got 0"]);
     // clap's own usage errors also exit 2.
     let out = case.run(&[], &["--matching", "best"]);
     assert_eq!(out.status.code(), Some(2));

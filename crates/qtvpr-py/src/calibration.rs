@@ -267,7 +267,12 @@ impl PyCalibration {
             gt: "gt_cal",
             query_major: false,
         };
-        let precision = precision.unwrap_or(self.inner.defaults().precision);
+        let precision = self
+            .inner
+            .defaults()
+            .resolve(None, precision, None)
+            .map_err(|e| args.error(e))?
+            .precision;
         py.detach(|| self.inner.threshold(precision)).map_err(|e| args.error(e))
     }
 

@@ -222,11 +222,7 @@ fn set_threads(py: Python<'_>, n: i64) -> PyResult<()> {
         gt: "gt",
         query_major: false,
     };
-    let Ok(n) = usize::try_from(n) else {
-        return Err(pyo3::exceptions::PyValueError::new_err(format!(
-            "threads must be >= 1, got {n}"
-        )));
-    };
+    let n = convert::count("threads", n)?;
     py.detach(|| qtvpr::set_threads(n)).map_err(|e| args.error(e))
 }
 

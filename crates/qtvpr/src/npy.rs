@@ -363,6 +363,9 @@ pub fn is_zip_archive(path: &Path) -> bool {
 /// The `.npy` magic string.
 const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 
+/// The signature a zip archive starts with: its first local file header.
+const ZIP_LOCAL_HEADER: &[u8] = b"PK\x03\x04";
+
 /// How far from its end the zip reader looks for the end-of-central-directory record:
 /// the record (22 bytes) and the longest comment (65535).
 const EOCD_SEARCH: u64 = 22 + 65_535;
@@ -372,7 +375,7 @@ fn has_zip_signature(mut file: File) -> io::Result<bool> {
     use io::SeekFrom;
     let mut head = [0u8; 6];
     let n = file.read(&mut head)?;
-    if head[..n].starts_with(b"PK\x03\x04") {
+    if head[..n].starts_with(ZIP_LOCAL_HEADER) {
         return Ok(true);
     }
     if n == NPY_MAGIC.len() && head[..] == *NPY_MAGIC {
@@ -1035,7 +1038,7 @@ fn read_stream(mut file: File, path: &Path) -> Result<Vec<u8>> {
             )
         })?;
         bytes.extend_from_slice(&chunk[..n]);
-        if bytes.len() >= 4 && !bytes.starts_with(b"PK\x03\x04") {
+        if bytes.len() >= ZIP_LOCAL_HEADER.len() && !bytes.starts_with(ZIP_LOCAL_HEADER) {
             return Err(file_error(
                 path,
                 "is not a valid .npz archive: a stream must start with a zip local header (PK\\x03\\x04)",
