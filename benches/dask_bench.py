@@ -15,12 +15,12 @@ segments, zarr's default compression), and thresholded:
 
 Reported: wall time (cluster start excluded, reading included), the peak RSS of each
 worker process (or of the CLI), and the cost of one block per worker-second, from which
-the README's paragraph on a city-scale deployment is worked out. Every Dask result is
+the paragraph of docs/dask.md on a city-scale deployment is worked out. Every Dask result is
 checked equal to the one-machine ``Calibration.transfer`` of the same scores.
 
     python benches/dask_bench.py [--cli target/release/qtvpr-cli] [--work DIR] [--no-readme]
 
-Writes its figures into README.md between <!-- dask-bench:start --> and
+Writes its figures into docs/dask.md between <!-- dask-bench:start --> and
 <!-- dask-bench:end -->. Needs the wheel with its dask extra (pip install ".[dask]") and
 a release CLI (cargo build --release -p qtvpr-cli). The inputs (about 1.6 GB) are
 written under --work (default: a temporary directory) and deleted at the end.
@@ -97,7 +97,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cli", type=Path, default=REPO / "target" / "release" / "qtvpr-cli")
     ap.add_argument("--work", type=Path, default=None, help="where to write the inputs (deleted afterwards)")
-    ap.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    ap.add_argument("--no-readme", action="store_true", help="print only; leave docs/dask.md alone")
     ap.add_argument("--db", type=int, default=N_DB, help="|DB| (a smaller case, to try the script)")
     ap.add_argument("--queries", type=int, default=N_Q, help="|Q|, calibration included")
     args = ap.parse_args()
@@ -109,7 +109,7 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     if not args.no_readme:
-        write_block(REPO / "README.md", "dask-bench", text)
+        write_block(REPO / "docs" / "dask.md", "dask-bench", text)
 
 
 def measure(cli: Path, work: Path, n_db: int, n_q: int) -> list[str]:

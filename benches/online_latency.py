@@ -18,7 +18,7 @@ measured on the same column with NumPy as a yardstick.
 
     python benches/online_latency.py [--no-readme] [--queries N]
 
-Writes the table into README.md between <!-- online-bench:start --> and
+Writes the table into docs/deployment.md between <!-- online-bench:start --> and
 <!-- online-bench:end -->. Needs the wheel (pip install .) and ../shared/data.
 """
 
@@ -119,7 +119,7 @@ def measure(name: str, s_cal, gt_cal, s_val, window: int, k: int = 10) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    ap.add_argument("--no-readme", action="store_true", help="print only; leave docs/deployment.md alone")
     ap.add_argument("--queries", type=int, default=1000, help="deployment queries pushed at the synthetic scales")
     args = ap.parse_args()
 
@@ -151,7 +151,7 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     if not args.no_readme:
-        write_block(REPO / "README.md", "online-bench", text)
+        write_block(REPO / "docs" / "deployment.md", "online-bench", text)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Regenerate the results table of README.md on every real matrix in ../shared/data.
+"""Regenerate the results table of docs/results.md on every real matrix in ../shared/data.
 
 The paper's protocol (semantics §8) with the project's defaults: the first 10% of the
 queries calibrate, segments of ceil(1%) of |Q| deployment queries, target precision
@@ -12,9 +12,9 @@ Matrices:
   truth |i - j| <= 1.
 
 Uses the installed wheel (``pip install .``) and NumPy only. Writes the table between
-``<!-- results:start -->`` and ``<!-- results:end -->`` in README.md and prints it.
+``<!-- results:start -->`` and ``<!-- results:end -->`` in docs/results.md and prints it.
 
-    python benches/results_table.py [--data ../shared/data] [--readme README.md]
+    python benches/results_table.py [--data ../shared/data] [--output docs/results.md]
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def table(rows) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
-    parser.add_argument("--readme", type=Path, default=REPO / "README.md")
+    parser.add_argument("--output", type=Path, default=REPO / "docs" / "results.md")
     args = parser.parse_args()
 
     rows = []
@@ -127,8 +127,8 @@ def main() -> None:
         "Regenerate with `python benches/results_table.py`.\n\n" + table(rows)
     )
     print(f"\n{text}")
-    write_block(args.readme, "results", text)
-    print(f"total {time.perf_counter() - start:.1f} s; table written to {args.readme}")
+    write_block(args.output, "results", text)
+    print(f"total {time.perf_counter() - start:.1f} s; table written to {args.output}")
 
 
 if __name__ == "__main__":
