@@ -12,11 +12,12 @@
 //!
 //! ```json
 //! {"format": "qtvpr-calibration", "version": 1, "matching": "single",
-//!  "params": {"k": 10, "precision": 1.0, "window": 28}, "qtvpr": "0.1.0"}
+//!  "params": {"k": 10, "precision": 1.0, "window": 28, "gate": "none"}, "qtvpr": "0.1.0"}
 //! ```
 //!
 //! `params` are [`Defaults`] for whoever uses the file (`window` is `null` when none is
-//! set); each can be overridden there. `qtvpr` is the version of the crate that wrote
+//! set; `gate`, `"none"` or `"margin"`, is `"none"` when left out); each can be
+//! overridden there. `qtvpr` is the version of the crate that wrote
 //! it. Keys beyond these are ignored on load.
 //!
 //! Loading checks everything the same arrays are checked for as input (finite, non-empty
@@ -42,6 +43,7 @@ mod file {
     use crate::decisions::Matching;
     use crate::error::{Error, Result};
     use crate::input::{GroundTruth, ScoreMatrix, Truth};
+    use crate::margin::Gate;
     use crate::npy::{self, NpyArray};
     use crate::params::Defaults;
     use crate::transfer::Calibration;
@@ -64,6 +66,9 @@ mod file {
         k: usize,
         precision: f64,
         window: Option<usize>,
+        /// Left out by files written before the gate: none.
+        #[serde(default)]
+        gate: Option<String>,
     }
 
     fn file_error(path: &Path, message: impl Into<String>) -> Error {
@@ -88,7 +93,7 @@ mod file {
         /// # Errors
         /// [`Error::InvalidParameter`] for bad `defaults`; [`Error::Write`] naming `path`.
         pub fn save(&self, path: &Path, defaults: &Defaults) -> Result<()> {
-            defaults.validate()?;
+            self.check_defaults(defaults)?;
             let (meta, gt, soft) = self.file_arrays(defaults);
             npy::write_npz(path, &self.members(&meta, &gt, soft.as_ref()))
         }
@@ -98,7 +103,7 @@ mod file {
         /// # Errors
         /// [`Error::InvalidParameter`] for bad `defaults`.
         pub fn to_bytes(&self, defaults: &Defaults) -> Result<Vec<u8>> {
-            defaults.validate()?;
+            self.check_defaults(defaults)?;
             let (meta, gt, soft) = self.file_arrays(defaults);
             let mut out = Cursor::new(Vec::new());
             npy::write_npz_to(&mut out, &self.members(&meta, &gt, soft.as_ref())).map_err(|e| Error::Write {
@@ -141,6 +146,7 @@ mod file {
                     k: defaults.k,
                     precision: defaults.precision,
                     window: defaults.window,
+                    gate: Some(defaults.gate.as_str().into()),
                 },
                 qtvpr: env!("CARGO_PKG_VERSION").into(),
             };
@@ -264,14 +270,19 @@ mod file {
                 meta.matching
             ))
         })?;
+        let bad_params = |e: Error| bad(format!("has bad meta params: {e}"));
         let defaults = Defaults {
             k: meta.params.k,
             precision: meta.params.precision,
             window: meta.params.window,
+            gate: meta
+                .params
+                .gate
+                .as_deref()
+                .map_or(Ok(Gate::None), str::parse)
+                .map_err(bad_params)?,
         };
-        defaults
-            .validate()
-            .map_err(|e| bad(format!("has bad meta params: {e}")))?;
+        defaults.validate().map_err(bad_params)?;
         Ok((matching, defaults))
     }
 }
@@ -285,7 +296,7 @@ mod tests {
     use ndarray::{Array2, array};
 
     use crate::npy::{NpyArray, write_npz};
-    use crate::{Calibration, Defaults, Error, GroundTruth, Matching, Online, OnlineParams, Params};
+    use crate::{Calibration, Defaults, Error, Gate, GroundTruth, Matching, Online, OnlineParams, Params};
 
     /// A fixed LCG matrix with ties, and GT i == j % 6 with a soft neighbour row.
     fn calibration(matching: Matching, f32: bool) -> Calibration {
@@ -321,6 +332,7 @@ mod tests {
         k: 3,
         precision: 0.9,
         window: Some(4),
+        gate: Gate::None,
     };
 
     fn same_results(a: &Calibration, b: &Calibration) {
@@ -330,6 +342,7 @@ mod tests {
                 k: 3,
                 precision: 0.9,
                 segment_size,
+                gate: Gate::None,
             };
             assert_eq!(a.transfer(s.view(), &p).unwrap(), b.transfer(s.view(), &p).unwrap());
         }
@@ -338,6 +351,7 @@ mod tests {
             precision: 0.9,
             window: 4,
             min_window: 2,
+            gate: Gate::None,
         };
         let run = |c: &Calibration| {
             let c = Arc::new(Calibration::from_bytes(&c.to_bytes(&DEFAULTS).unwrap(), "x").unwrap());
@@ -410,7 +424,7 @@ mod tests {
             m[3].1
         );
         let meta = format!(
-            r#"{{"format":"qtvpr-calibration","version":1,"matching":"multi","params":{{"k":10,"precision":1.0,"window":null}},"qtvpr":"{}"}}"#,
+            r#"{{"format":"qtvpr-calibration","version":1,"matching":"multi","params":{{"k":10,"precision":1.0,"window":null,"gate":"none"}},"qtvpr":"{}"}}"#,
             env!("CARGO_PKG_VERSION")
         );
         assert!(m[3].1.contains(&format!("'<U{}'", meta.len())), "{}", m[3].1);

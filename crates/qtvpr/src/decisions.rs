@@ -179,6 +179,24 @@ pub struct Counts {
     pub positives: usize,
 }
 
+/// Counts of disjoint sets of decisions add up.
+impl std::iter::Sum for Counts {
+    fn sum<I: Iterator<Item = Counts>>(iter: I) -> Counts {
+        iter.fold(
+            Counts {
+                tp: 0,
+                fp: 0,
+                positives: 0,
+            },
+            |a, c| Counts {
+                tp: a.tp + c.tp,
+                fp: a.fp + c.fp,
+                positives: a.positives + c.positives,
+            },
+        )
+    }
+}
+
 impl Counts {
     /// `TP / (TP + FP)`, 1 when nothing is accepted.
     pub fn precision(&self) -> f64 {

@@ -33,6 +33,7 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
+use crate::margin::{self, Gate, margins};
 use crate::names::SIMILARITY;
 use crate::online::Online;
 use crate::params::{DEFAULT_K, OnlineParams, Params};
@@ -50,6 +51,13 @@ pub enum Method {
     /// Online quantile transfer (section 11): every deployment query decided at the
     /// threshold of its causal window of one segment size.
     QuantileTransferOnline,
+    /// Quantile transfer with the margin gate (section 13): a best match is accepted
+    /// at the segment's quantile-transfer threshold when its margin is at least the
+    /// calibration's `m*` too. Single matching only.
+    QuantileTransferMargin,
+    /// The margin gate alone (section 13): threshold `-inf`, a best match accepted when
+    /// its margin is at least `m*`. Single matching only.
+    Margin,
     /// Schubert et al.'s threshold fitted to each segment's raw scores.
     Schubert,
     /// Schubert et al.'s threshold fitted once to the calibration scores.
@@ -63,9 +71,11 @@ pub enum Method {
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 8] = [
         Method::QuantileTransfer,
         Method::QuantileTransferOnline,
+        Method::QuantileTransferMargin,
+        Method::Margin,
         Method::Schubert,
         Method::SchubertCalibrated,
         Method::CalibrationThreshold,
@@ -77,11 +87,30 @@ impl Method {
         match self {
             Method::QuantileTransfer => "quantile-transfer",
             Method::QuantileTransferOnline => "quantile-transfer-online",
+            Method::QuantileTransferMargin => "quantile-transfer-margin",
+            Method::Margin => "margin",
             Method::Schubert => "schubert",
             Method::SchubertCalibrated => "schubert-calibrated",
             Method::CalibrationThreshold => "calibration-threshold",
             Method::Oracle => "oracle",
         }
+    }
+}
+
+impl Method {
+    /// Whether the method gates decisions on their margin (semantics §13), which needs
+    /// single matching.
+    pub fn is_gated(self) -> bool {
+        matches!(self, Method::QuantileTransferMargin | Method::Margin)
+    }
+
+    /// Every method that applies to `matching`, in report order: what "all methods"
+    /// means (the gated ones need single matching).
+    pub fn all_for(matching: Matching) -> Vec<Method> {
+        Method::ALL
+            .into_iter()
+            .filter(|m| matching == Matching::Single || !m.is_gated())
+            .collect()
     }
 }
 
@@ -221,7 +250,7 @@ impl Protocol {
         Params {
             k: self.k,
             precision: self.precision,
-            segment_size: None,
+            ..Params::default()
         }
         .validate()?;
         match self.calibration {
@@ -300,6 +329,10 @@ pub struct SegmentResult {
     pub threshold: f64,
     /// The oracle's threshold of the segment (`inf` when no threshold meets the target).
     pub oracle_threshold: f64,
+    /// A gated method's `m*` (semantics §13), the margin a best match needs besides its
+    /// score; `None` (and left out of the JSON) for the other methods.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
+    pub gate: Option<f64>,
     /// TP, FP and positives at `threshold` (serialised with the figures derived from
     /// them: precision, recall and the precision's lower bound).
     #[cfg_attr(feature = "serde", serde(flatten))]
@@ -500,36 +533,59 @@ pub fn evaluate_with_progress<T: Score>(
             .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
             .collect()
     });
+    let gated = unique.iter().any(|m| m.is_gated());
+    if gated {
+        margin::check(protocol.matching, s.nrows())?;
+    }
     let needs_calibration = unique.iter().any(|m| {
-        matches!(
-            m,
-            Method::QuantileTransfer | Method::QuantileTransferOnline | Method::CalibrationThreshold
-        )
+        m.is_gated()
+            || matches!(
+                m,
+                Method::QuantileTransfer | Method::QuantileTransferOnline | Method::CalibrationThreshold
+            )
     });
     let calibration = needs_calibration
         .then(|| Calibration::with_labels(s_cal, gt_cal, protocol.matching).map(Arc::new))
         .transpose()?;
+    // The gate's margins and m*, and the quantile-transfer thresholds: each found once
+    // for the methods that share them.
+    let gate = if gated {
+        let cal = calibration.as_ref().expect("built for the gate");
+        Some((margins(s_dep)?, cal.gate(tau)?))
+    } else {
+        None
+    };
+    let transferred = std::cell::OnceCell::new();
+    let transfer_thresholds = || -> Result<Vec<f64>> {
+        if let Some(t) = transferred.get() {
+            return Ok(Vec::clone(t));
+        }
+        let params = Params {
+            k: protocol.k,
+            precision: tau,
+            segment_size: Some(size),
+            gate: Gate::None,
+        };
+        let cal = calibration.as_ref().expect("built for quantile transfer");
+        let t: Vec<f64> = cal
+            .transfer(s_dep, &params)?
+            .segments
+            .iter()
+            .map(|g| g.threshold)
+            .collect();
+        Ok(Vec::clone(transferred.get_or_init(|| t)))
+    };
 
     let mut results = Vec::with_capacity(unique.len());
     for &method in &unique {
         // Every method but the online one gives each segment one threshold.
-        let scored = |thresholds: Vec<f64>| score(method, &deployment, &ranges, &thresholds, &oracle, tau);
+        let scored = |thresholds: Vec<f64>| {
+            let gate = gate.as_ref().filter(|_| method.is_gated());
+            score(method, &deployment, &ranges, &thresholds, &oracle, tau, gate)
+        };
         let result = match method {
-            Method::QuantileTransfer => {
-                let params = Params {
-                    k: protocol.k,
-                    precision: tau,
-                    segment_size: Some(size),
-                };
-                let cal = calibration.as_ref().expect("built for quantile transfer");
-                scored(
-                    cal.transfer(s_dep, &params)?
-                        .segments
-                        .iter()
-                        .map(|g| g.threshold)
-                        .collect(),
-                )
-            }
+            Method::QuantileTransfer | Method::QuantileTransferMargin => scored(transfer_thresholds()?),
+            Method::Margin => scored(vec![f64::NEG_INFINITY; ranges.len()]),
             Method::Schubert => scored(threads::install(|| {
                 ranges
                     .par_iter()
@@ -648,7 +704,9 @@ pub fn ablation_with_progress<T: Score>(
     Ok(Ablation { runs })
 }
 
-/// Count every segment at its threshold and summarise (semantics §8-§8).
+/// Count every segment at its threshold and summarise (semantics §8). With a `gate`
+/// (every deployment query's margin, and `m*`), a query whose margin is below `m*`
+/// accepts nothing (semantics §13).
 fn score(
     method: Method,
     deployment: &Candidates,
@@ -656,17 +714,33 @@ fn score(
     thresholds: &[f64],
     oracle: &[f64],
     tau: f64,
+    gate: Option<&(Vec<f64>, f64)>,
 ) -> MethodResult {
     let segments: Vec<SegmentResult> = threads::install(|| {
         (ranges, thresholds, oracle)
             .into_par_iter()
             .map(|(r, &threshold, &oracle_threshold)| {
-                let counts = deployment.counts(r.clone(), threshold);
+                let counts = match gate {
+                    None => deployment.counts(r.clone(), threshold),
+                    // Scores are finite: no score is at or above +inf.
+                    Some((margins, m_star)) => r
+                        .clone()
+                        .map(|j| {
+                            let t = if margins[j] >= *m_star {
+                                threshold
+                            } else {
+                                f64::INFINITY
+                            };
+                            deployment.counts(j..j + 1, t)
+                        })
+                        .sum(),
+                };
                 SegmentResult {
                     start: r.start,
                     end: r.end,
                     threshold,
                     oracle_threshold,
+                    gate: gate.map(|g| g.1),
                     counts,
                     meets: counts.precision() >= tau - EPS,
                 }
@@ -693,32 +767,23 @@ fn online_segments<T: Score>(
         precision: protocol.precision,
         window: ranges[0].len(),
         min_window: 1,
+        gate: Gate::None,
     };
     let decisions = Online::new(Arc::clone(cal), params)?.push_many(s_dep)?;
     let segments = ranges
         .iter()
         .zip(oracle)
         .map(|(r, &oracle_threshold)| {
-            let counts = r.clone().fold(
-                Counts {
-                    tp: 0,
-                    fp: 0,
-                    positives: 0,
-                },
-                |a, j| {
-                    let c = deployment.counts(j..j + 1, decisions[j].threshold);
-                    Counts {
-                        tp: a.tp + c.tp,
-                        fp: a.fp + c.fp,
-                        positives: a.positives + c.positives,
-                    }
-                },
-            );
+            let counts = r
+                .clone()
+                .map(|j| deployment.counts(j..j + 1, decisions[j].threshold))
+                .sum();
             SegmentResult {
                 start: r.start,
                 end: r.end,
                 threshold: decisions[r.end - 1].threshold,
                 oracle_threshold,
+                gate: None,
                 counts,
                 meets: counts.precision() >= protocol.precision - EPS,
             }
@@ -747,18 +812,7 @@ fn summarise(method: Method, segments: Vec<SegmentResult>) -> MethodResult {
         .map(|g| (g.threshold - g.oracle_threshold).powi(2))
         .collect();
     let threshold_mse = (!squares.is_empty()).then(|| squares.iter().sum::<f64>() / squares.len() as f64);
-    let pooled = segments.iter().fold(
-        Counts {
-            tp: 0,
-            fp: 0,
-            positives: 0,
-        },
-        |a, g| Counts {
-            tp: a.tp + g.counts.tp,
-            fp: a.fp + g.counts.fp,
-            positives: a.positives + g.counts.positives,
-        },
-    );
+    let pooled = segments.iter().map(|g| g.counts).sum();
     MethodResult {
         method,
         pct_segs,
@@ -974,6 +1028,7 @@ mod tests {
                 precision: 0.9,
                 window: 6,
                 min_window: 1,
+                gate: Gate::None,
             };
             let decisions = Online::new(Arc::new(cal), params)
                 .unwrap()

@@ -24,6 +24,7 @@
 //! | 9 machine-readable output (feature `serde`) | [`report`] |
 //! | 11 online thresholds over a causal window | [`online`] |
 //! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
+//! | 13 the margin gate (an extension) | [`margin`] |
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
@@ -69,6 +70,7 @@ pub mod ground_truth;
 pub mod image_names;
 pub mod input;
 mod kd_tree;
+pub mod margin;
 pub mod names;
 #[cfg(feature = "npy")]
 pub mod npy;
@@ -88,6 +90,7 @@ pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
 pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
+pub use margin::{Gate, margins};
 pub use online::{Decision, Online};
 pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Params};
 pub use ranked_correlation::ranked_correlation;

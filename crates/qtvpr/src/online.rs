@@ -57,8 +57,13 @@ pub struct Decision {
     /// `S[b_j, j]`, its score.
     pub score: f64,
     /// The number of accepted database entries: 0 or 1 in single matching (the best
-    /// match, when `score >= threshold`), every entry `>= threshold` in multi matching.
+    /// match, when `score >= threshold` and, with the gate, `margin >= gate`), every
+    /// entry `>= threshold` in multi matching.
     pub accepted: usize,
+    /// With the margin gate (semantics §13): the column's margin.
+    pub margin: Option<f64>,
+    /// With the margin gate: `m*`, the margin the best match needs.
+    pub gate: Option<f64>,
 }
 
 impl Decision {
@@ -69,12 +74,14 @@ impl Decision {
     }
 }
 
-/// The nine fields of semantics §11, `accept` included, in its order.
+/// The nine fields of semantics §11, `accept` included, in its order; then, with the
+/// margin gate, `margin` and `gate` (semantics §13).
 #[cfg(feature = "serde")]
 impl serde::Serialize for Decision {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
         use serde::ser::SerializeStruct;
-        let mut s = serializer.serialize_struct("Decision", 9)?;
+        let gated = self.margin.zip(self.gate);
+        let mut s = serializer.serialize_struct("Decision", if gated.is_some() { 11 } else { 9 })?;
         s.serialize_field("query", &self.query)?;
         s.serialize_field("query_quantile", &self.query_quantile)?;
         s.serialize_field("weight", &self.weight)?;
@@ -84,6 +91,10 @@ impl serde::Serialize for Decision {
         s.serialize_field("score", &self.score)?;
         s.serialize_field("accepted", &self.accepted)?;
         s.serialize_field("accept", &self.accept())?;
+        if let Some((margin, gate)) = gated {
+            s.serialize_field("margin", &margin)?;
+            s.serialize_field("gate", &gate)?;
+        }
         s.end()
     }
 }
@@ -93,12 +104,12 @@ impl serde::Serialize for Decision {
 /// ```
 /// use std::sync::Arc;
 /// use ndarray::array;
-/// use qtvpr::{Calibration, GroundTruth, Matching, Online, OnlineParams};
+/// use qtvpr::{Calibration, Gate, GroundTruth, Matching, Online, OnlineParams};
 ///
 /// let s_cal = array![[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]];
 /// let gt = GroundTruth::new(array![[true, false], [false, true], [false, false]].view())?;
 /// let cal = Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Single)?);
-/// let params = OnlineParams { k: 1, precision: 1.0, window: 2, min_window: 1 };
+/// let params = OnlineParams { k: 1, precision: 1.0, window: 2, min_window: 1, gate: Gate::None };
 /// let mut online = Online::new(cal, params)?;
 /// let d = online.push(array![0.7, 0.2, 0.1].view())?;
 /// assert_eq!(d.query, 0);
@@ -119,6 +130,8 @@ pub struct Online {
     pushed: usize,
     accepted: Vec<usize>,
     threshold: Option<f64>,
+    /// `m*` with the margin gate.
+    gate: Option<f64>,
 }
 
 impl Online {
@@ -128,11 +141,13 @@ impl Online {
     /// once it is full.
     ///
     /// # Errors
-    /// Invalid `params` ([`OnlineParams::validate`]), or a window whose full state
+    /// Invalid `params` ([`OnlineParams::validate`]), a gate the calibration cannot
+    /// have ([`Calibration::gate`]), or a window whose full state
     /// (`window x |DB|` scores) is more than any allocation can hold
     /// ([`Error::InvalidParameter`] naming the window).
     pub fn new(calibration: Arc<Calibration>, params: OnlineParams) -> Result<Online> {
         params.validate()?;
+        let gate = calibration.gate_of(params.gate, params.precision)?;
         let n_db = calibration.db_size();
         // The full window holds `window x |DB|` scores as f64 (and a q and w per
         // query): a window whose state exceeds what any allocation can hold would only
@@ -161,6 +176,7 @@ impl Online {
             pushed: 0,
             accepted: Vec::new(),
             threshold: None,
+            gate,
         })
     }
 
@@ -258,7 +274,7 @@ impl Online {
 
     fn per_query<T: Score>(&self, ranked: &Ranked<T>, screen: &[f64]) -> Vec<QueryTransfer> {
         let p = &self.params;
-        self.calibration.queries(ranked, screen, p.k, p.precision)
+        self.calibration.queries(ranked, screen, p.k, p.precision, p.gate)
     }
 
     /// Make room for one more query while the window fills: doubling, up to the full
@@ -330,7 +346,10 @@ impl Online {
         let best = best_match(column);
         let score = column[best].to_f64();
         match self.calibration.matching() {
-            Matching::Single => self.accepted.extend((score >= threshold).then_some(best)),
+            Matching::Single => {
+                let passes = r.margin.zip(self.gate).is_none_or(|(margin, gate)| margin >= gate);
+                self.accepted.extend((score >= threshold && passes).then_some(best));
+            }
             Matching::Multi => {
                 let above = column.iter().enumerate().filter(|(_, v)| v.to_f64() >= threshold);
                 self.accepted.extend(above.map(|(i, _)| i));
@@ -347,6 +366,8 @@ impl Online {
             best,
             score,
             accepted: self.accepted.len(),
+            margin: r.margin,
+            gate: self.gate,
         }
     }
 }
@@ -355,6 +376,7 @@ impl Online {
 mod tests {
     use super::*;
     use crate::input::GroundTruth;
+    use crate::margin::Gate;
     use crate::params::{Defaults, Params};
     use ndarray::{Array2, array};
 
@@ -382,6 +404,7 @@ mod tests {
             precision: 1.0,
             window,
             min_window,
+            gate: Gate::None,
         }
     }
 
@@ -499,6 +522,7 @@ mod tests {
             precision: 0.5,
             window: 1,
             min_window: 1,
+            gate: Gate::None,
         };
         // u0 = [5, 5, 1]: best is the first maximum, row 0; ascending [1, 5, 5],
         //   h = 2 * 0.8 = 1.6 -> 5 + 0.6 * 0 = 5: 5 >= 5 is accepted (inclusive).
@@ -556,6 +580,7 @@ mod tests {
                     precision,
                     window,
                     min_window,
+                    gate: Gate::None,
                 };
                 let (one, _) = run(&cal, p, &s_val);
                 let mut online = Online::new(Arc::clone(&cal), p).unwrap();
@@ -568,6 +593,7 @@ mod tests {
                             k: 3,
                             precision,
                             segment_size: None,
+                            gate: Gate::None,
                         },
                     )
                     .unwrap();
@@ -586,6 +612,7 @@ mod tests {
                                 k: 3,
                                 precision,
                                 segment_size: None,
+                                gate: Gate::None,
                             },
                         )
                         .unwrap();
@@ -715,34 +742,37 @@ mod tests {
             k: 4,
             precision: 0.9,
             window: Some(28),
+            gate: Gate::None,
         };
         assert_eq!(
-            OnlineParams::resolve(&d, None, None, None, None).unwrap(),
+            OnlineParams::resolve(&d, None, None, None, None, None).unwrap(),
             OnlineParams {
                 k: 4,
                 precision: 0.9,
                 window: 28,
-                min_window: 1
+                min_window: 1,
+                gate: Gate::None,
             }
         );
         assert_eq!(
-            OnlineParams::resolve(&d, Some(2), Some(1.0), Some(5), Some(5)).unwrap(),
+            OnlineParams::resolve(&d, Some(2), Some(1.0), Some(5), Some(5), None).unwrap(),
             OnlineParams {
                 k: 2,
                 precision: 1.0,
                 window: 5,
-                min_window: 5
+                min_window: 5,
+                gate: Gate::None,
             }
         );
         let none = Defaults::default();
         assert_eq!(
-            OnlineParams::resolve(&none, None, None, None, None)
+            OnlineParams::resolve(&none, None, None, None, None, None)
                 .unwrap_err()
                 .to_string(),
             "window is not given and the calibration sets none"
         );
         assert_eq!(
-            OnlineParams::resolve(&none, None, None, Some(3), Some(4))
+            OnlineParams::resolve(&none, None, None, Some(3), Some(4), None)
                 .unwrap_err()
                 .to_string(),
             "min window must be between 1 and the window (3), got 4"

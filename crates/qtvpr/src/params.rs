@@ -9,6 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::input::check_precision;
+use crate::margin::Gate;
 
 /// The paper gives no value of `k`; 10 is this project's default.
 pub const DEFAULT_K: usize = 10;
@@ -42,6 +43,8 @@ pub struct Defaults {
     pub precision: f64,
     /// Window (or segment) size; `None` when the file sets none.
     pub window: Option<usize>,
+    /// The margin gate (semantics §13); [`Gate::None`] unless the file sets one.
+    pub gate: Gate,
 }
 
 impl Default for Defaults {
@@ -50,6 +53,7 @@ impl Default for Defaults {
             k: DEFAULT_K,
             precision: DEFAULT_PRECISION,
             window: None,
+            gate: Gate::None,
         }
     }
 }
@@ -70,11 +74,18 @@ impl Defaults {
     ///
     /// # Errors
     /// [`Defaults::validate`].
-    pub fn resolve(&self, k: Option<usize>, precision: Option<f64>, window: Option<usize>) -> Result<Defaults> {
+    pub fn resolve(
+        &self,
+        k: Option<usize>,
+        precision: Option<f64>,
+        window: Option<usize>,
+        gate: Option<Gate>,
+    ) -> Result<Defaults> {
         let defaults = Defaults {
             k: k.unwrap_or(self.k),
             precision: precision.unwrap_or(self.precision),
             window: window.or(self.window),
+            gate: gate.unwrap_or(self.gate),
         };
         defaults.validate()?;
         Ok(defaults)
@@ -91,6 +102,9 @@ pub struct Params {
     pub precision: f64,
     /// Deployment queries per segment; `None` is one batch of all of them.
     pub segment_size: Option<usize>,
+    /// The margin gate (semantics §13): with [`Gate::Margin`] the transfer also gives
+    /// `m*` and every query's margin.
+    pub gate: Gate,
 }
 
 impl Default for Params {
@@ -99,6 +113,7 @@ impl Default for Params {
             k: DEFAULT_K,
             precision: DEFAULT_PRECISION,
             segment_size: None,
+            gate: Gate::None,
         }
     }
 }
@@ -125,11 +140,13 @@ impl Params {
         k: Option<usize>,
         precision: Option<f64>,
         segment_size: Option<usize>,
+        gate: Option<Gate>,
     ) -> Result<Params> {
         let params = Params {
             k: k.unwrap_or(defaults.k),
             precision: precision.unwrap_or(defaults.precision),
             segment_size,
+            gate: gate.unwrap_or(defaults.gate),
         };
         params.validate()?;
         Ok(params)
@@ -147,6 +164,8 @@ pub struct OnlineParams {
     pub window: usize,
     /// Warm-up: queries before the `min_window`-th are reject-all; in `1..=window`.
     pub min_window: usize,
+    /// The margin gate (semantics §13).
+    pub gate: Gate,
 }
 
 impl OnlineParams {
@@ -182,6 +201,7 @@ impl OnlineParams {
         precision: Option<f64>,
         window: Option<usize>,
         min_window: Option<usize>,
+        gate: Option<Gate>,
     ) -> Result<OnlineParams> {
         let window = window
             .or(defaults.window)
@@ -191,6 +211,7 @@ impl OnlineParams {
             precision: precision.unwrap_or(defaults.precision),
             window,
             min_window: min_window.unwrap_or(1),
+            gate: gate.unwrap_or(defaults.gate),
         };
         params.validate()?;
         Ok(params)
@@ -207,19 +228,20 @@ mod tests {
             k: 3,
             precision: 0.9,
             window: Some(28),
+            gate: Gate::None,
         };
-        let p = Params::resolve(&file, None, None, Some(5)).unwrap();
+        let p = Params::resolve(&file, None, None, Some(5), None).unwrap();
         assert_eq!((p.k, p.precision, p.segment_size), (3, 0.9, Some(5)));
-        let p = Params::resolve(&file, Some(7), Some(1.0), None).unwrap();
+        let p = Params::resolve(&file, Some(7), Some(1.0), None, None).unwrap();
         assert_eq!((p.k, p.precision, p.segment_size), (7, 1.0, None));
-        let o = OnlineParams::resolve(&file, None, None, None, None).unwrap();
+        let o = OnlineParams::resolve(&file, None, None, None, None, None).unwrap();
         assert_eq!((o.k, o.precision, o.window, o.min_window), (3, 0.9, 28, 1));
-        let o = OnlineParams::resolve(&file, Some(1), Some(0.5), Some(4), Some(4)).unwrap();
+        let o = OnlineParams::resolve(&file, Some(1), Some(0.5), Some(4), Some(4), None).unwrap();
         assert_eq!((o.k, o.precision, o.window, o.min_window), (1, 0.5, 4, 4));
-        assert_eq!(file.resolve(None, None, None).unwrap(), file);
-        assert_eq!(file.resolve(Some(4), None, Some(2)).unwrap().window, Some(2));
+        assert_eq!(file.resolve(None, None, None, None).unwrap(), file);
+        assert_eq!(file.resolve(Some(4), None, Some(2), None).unwrap().window, Some(2));
         // No file: the library's.
-        let p = Params::resolve(&Defaults::default(), None, None, None).unwrap();
+        let p = Params::resolve(&Defaults::default(), None, None, None, None).unwrap();
         assert_eq!(p, Params::default());
     }
 
@@ -227,12 +249,19 @@ mod tests {
     fn one_set_of_checks_and_messages() {
         let d = Defaults::default();
         let err = |r: Result<Params>| r.unwrap_err().to_string();
-        assert_eq!(err(Params::resolve(&d, Some(0), None, None)), "k must be >= 1, got 0");
         assert_eq!(
-            err(Params::resolve(&d, None, Some(1.5), None)),
+            err(Params::resolve(&d, Some(0), None, None, None)),
+            "k must be >= 1, got 0"
+        );
+        assert_eq!(
+            err(Params::resolve(&d, None, Some(1.5), None, None)),
             "precision must be in (0, 1], got 1.5"
         );
-        let online = |w, m| OnlineParams::resolve(&d, None, None, w, m).unwrap_err().to_string();
+        let online = |w, m| {
+            OnlineParams::resolve(&d, None, None, w, m, None)
+                .unwrap_err()
+                .to_string()
+        };
         assert_eq!(online(None, None), "window is not given and the calibration sets none");
         assert_eq!(online(Some(0), None), "window must be >= 1, got 0");
         assert_eq!(
@@ -240,11 +269,11 @@ mod tests {
             "min window must be between 1 and the window (3), got 4"
         );
         assert_eq!(
-            d.resolve(Some(0), None, None).unwrap_err().to_string(),
+            d.resolve(Some(0), None, None, None).unwrap_err().to_string(),
             "k must be >= 1, got 0"
         );
         assert_eq!(
-            d.resolve(None, None, Some(0)).unwrap_err().to_string(),
+            d.resolve(None, None, Some(0), None).unwrap_err().to_string(),
             "window must be >= 1, got 0"
         );
     }

@@ -29,6 +29,7 @@ use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
+use crate::margin::{self, CalibrationMargins, Gate};
 use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
 use crate::params::{Defaults, Params};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
@@ -63,6 +64,11 @@ pub struct Transfer {
     pub query_weights: Vec<f64>,
     /// |Qval| x min(k, |Qcal|): each query's calibration neighbours, most correlated first.
     pub neighbours: Array2<usize>,
+    /// With the margin gate (semantics §13): `m*`, the margin a query's best match needs
+    /// besides a score at or above its segment's threshold (`inf`: reject-all).
+    pub gate: Option<f64>,
+    /// With the margin gate: every deployment query's margin.
+    pub query_margins: Option<Vec<f64>>,
 }
 
 /// A calibration traverse with ground truth, ready to transfer thresholds.
@@ -89,6 +95,9 @@ pub struct Calibration {
     gt: GroundTruth,
     /// The defaults of a calibration file's `params`.
     defaults: Defaults,
+    /// The single-match decisions with their margins, for the gate's `m*` (empty in
+    /// multi matching).
+    margins: CalibrationMargins,
 }
 
 /// What the calibration gives one deployment query (semantics §4 and §5).
@@ -102,6 +111,8 @@ pub(crate) struct QueryTransfer {
     pub(crate) threshold: f64,
     /// The quantile `q_j` of that threshold.
     pub(crate) quantile: f64,
+    /// Its margin (semantics §13), when the gate asks for it.
+    pub(crate) margin: Option<f64>,
 }
 
 /// What the transfer asks of the calibration profiles, whatever their score type.
@@ -158,16 +169,30 @@ impl Calibration {
     fn from_ranked<T: Score>(mut ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
         let reference = Reference::mean_of(&ranked);
         ranked.rescreen(&reference);
+        let n_db = scores.dim().0;
+        let candidates = crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching));
+        let margins = if margin::check(matching, n_db).is_ok() {
+            let of_columns: Vec<f64> = threads::install(|| {
+                (0..ranked.ncols())
+                    .into_par_iter()
+                    .map(|j| margin::of_sorted(ranked.column(j)))
+                    .collect()
+            });
+            CalibrationMargins::new(&of_columns, &candidates)
+        } else {
+            CalibrationMargins::default()
+        };
         Self {
             matching,
             cal_spread: ranked.screen().max_spread(),
             profiles: Box::new(ranked),
             reference,
-            candidates: crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching)),
-            n_db: scores.dim().0,
+            candidates,
+            n_db,
             scores,
             gt,
             defaults: Defaults::default(),
+            margins,
         }
     }
 
@@ -175,11 +200,25 @@ impl Calibration {
     /// `params` (what `Calibration::load` gives a loaded one).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1] or a window of 0.
+    /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1], a window of 0,
+    /// or a margin gate on a calibration that cannot have one ([`margin::check`]).
     pub fn with_defaults(mut self, defaults: Defaults) -> Result<Self> {
-        defaults.validate()?;
+        self.check_defaults(&defaults)?;
         self.defaults = defaults;
         Ok(self)
+    }
+
+    /// Check `defaults` for this calibration: [`Defaults::validate`], and a margin gate
+    /// only where it applies ([`margin::check`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn check_defaults(&self, defaults: &Defaults) -> Result<()> {
+        defaults.validate()?;
+        if defaults.gate.is_on() {
+            margin::check(self.matching, self.n_db)?;
+        }
+        Ok(())
     }
 
     /// The defaults this calibration was loaded with ([`Defaults::default`] for one built
@@ -228,6 +267,7 @@ impl Calibration {
         screen: &[f64],
         k: usize,
         precision: f64,
+        gate: Gate,
     ) -> Vec<QueryTransfer> {
         threads::install(|| {
             screen
@@ -246,6 +286,7 @@ impl Calibration {
                             weight,
                             threshold,
                             quantile,
+                            margin: gate.is_on().then(|| margin::of_sorted(ranked.column(j))),
                         }
                     },
                 )
@@ -277,6 +318,24 @@ impl Calibration {
         check_precision(precision)?;
         let all: Vec<usize> = (0..self.len()).collect();
         Ok(subset_threshold(&self.candidates, &all, precision))
+    }
+
+    /// The margin gate `m*` of semantics §13 at precision target `precision`: the
+    /// semantics §3 threshold of the calibration's single-match decisions with their
+    /// margins in place of their scores (`+inf`: reject-all).
+    ///
+    /// # Errors
+    /// A multi-match calibration or one of fewer than 2 database images
+    /// ([`margin::check`]); tau outside (0, 1].
+    pub fn gate(&self, precision: f64) -> Result<f64> {
+        margin::check(self.matching, self.n_db)?;
+        check_precision(precision)?;
+        Ok(self.margins.gate(precision))
+    }
+
+    /// `Some(m*)` when `gate` is on, checked against this calibration.
+    pub(crate) fn gate_of(&self, gate: Gate, precision: f64) -> Result<Option<f64>> {
+        gate.is_on().then(|| self.gate(precision)).transpose()
     }
 
     /// Transfer thresholds to deployment similarity `s` (|DB| x |Qval|).
@@ -410,6 +469,8 @@ impl Calibration {
         }
         let ranges = segments(n_val, params.segment_size)?;
         let k = params.k.min(self.len());
+        let gate = self.gate_of(params.gate, params.precision)?;
+        let mut query_margins = gate.map(|_| vec![0.0; n_val]);
 
         let mut query_quantiles = vec![0.0; n_val];
         let mut query_thresholds = vec![0.0; n_val];
@@ -435,13 +496,16 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             let screen = self.rank(&mut ranked, source.columns(start..end), start)?;
-            for (j, r) in (start..end).zip(self.queries(&ranked, &screen, k, params.precision)) {
+            for (j, r) in (start..end).zip(self.queries(&ranked, &screen, k, params.precision, params.gate)) {
                 neighbours
                     .row_mut(j)
                     .iter_mut()
                     .zip(r.neighbours)
                     .for_each(|(d, i)| *d = i);
                 (query_weights[j], query_thresholds[j], query_quantiles[j]) = (r.weight, r.threshold, r.quantile);
+                if let (Some(m), Some(margin)) = (query_margins.as_mut(), r.margin) {
+                    m[j] = margin;
+                }
             }
             if in_chunks {
                 let sorted = ranked.view();
@@ -475,6 +539,8 @@ impl Calibration {
             query_thresholds,
             query_weights,
             neighbours,
+            gate,
+            query_margins,
         })
     }
 }
@@ -566,6 +632,7 @@ mod tests {
             k,
             precision: 1.0,
             segment_size,
+            gate: Gate::None,
         }
     }
 
@@ -650,6 +717,7 @@ mod tests {
                     k: 1,
                     precision: 0.6,
                     segment_size: None,
+                    gate: Gate::None,
                 },
             )
             .unwrap();
@@ -686,6 +754,7 @@ mod tests {
                     k: 4,
                     precision: 0.8,
                     segment_size,
+                    gate: Gate::None,
                 };
                 let one = cal.transfer_in_chunks(s_val.view(), &p, |_, _| (), usize::MAX).unwrap();
                 let many = cal.transfer_in_chunks(s_val.view(), &p, |_, _| (), 0).unwrap();
@@ -733,6 +802,7 @@ mod tests {
                     k: 4,
                     precision: 0.8,
                     segment_size,
+                    gate: Gate::None,
                 };
                 let want = cal.transfer(s.slice(ndarray::s![.., 23..]), &p).unwrap();
                 for chunk_scores in [0, usize::MAX] {

@@ -13,7 +13,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::npy::{FloatMatrix, read_float_matrix};
 use qtvpr::similarity::TILE;
-use qtvpr::{Calibration, Descriptors, GroundTruth, Matching, Params, ScoresView, cosine_similarity};
+use qtvpr::{Calibration, Descriptors, Gate, GroundTruth, Matching, Params, ScoresView, cosine_similarity};
 
 fn data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -102,6 +102,7 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
                 k: 10,
                 precision: 1.0,
                 segment_size,
+                gate: Gate::None,
             };
             let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
             let got = fused.transfer_descriptors(d, n_cal..n_q, &p).unwrap();

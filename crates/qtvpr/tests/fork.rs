@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use ndarray::{ArrayView2, s};
 use qtvpr::npy::{read_ground_truth, read_scores};
-use qtvpr::{Calibration, Decision, Matching, Online, OnlineParams, Params, ScoresView, Transfer};
+use qtvpr::{Calibration, Decision, Gate, Matching, Online, OnlineParams, Params, ScoresView, Transfer};
 
 fn corridor(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -28,6 +28,7 @@ const PARAMS: OnlineParams = OnlineParams {
     precision: 1.0,
     window: 20,
     min_window: 1,
+    gate: Gate::None,
 };
 
 /// The calibration (111 x 11) and the deployment scores (111 x 100).
@@ -50,6 +51,7 @@ fn transfer(cal: &Calibration, s: ArrayView2<'_, f64>) -> Transfer {
         k: 5,
         precision: 1.0,
         segment_size: Some(20),
+        gate: Gate::None,
     };
     cal.transfer(s, &params).unwrap()
 }

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use ndarray::{ArrayView2, s};
 use qtvpr::ScoresView;
 use qtvpr::npy::{read_ground_truth, read_scores};
-use qtvpr::{Calibration, Defaults, GroundTruth, Matching, Online, OnlineParams, Params, Score};
+use qtvpr::{Calibration, Defaults, Gate, GroundTruth, Matching, Online, OnlineParams, Params, Score};
 
 fn data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -29,6 +29,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize, matchin
         k: p.k,
         precision: p.precision,
         segment_size: None,
+        gate: Gate::None,
     };
     for (j, d) in decisions.iter().enumerate() {
         if j + 1 < p.min_window {
@@ -61,6 +62,7 @@ fn run(dir: &str, technique: &str, n_cal: usize) {
                 precision,
                 window,
                 min_window,
+                gate: Gate::None,
             };
             match scores.view() {
                 ScoresView::F32(v) => check(v, &gt, n_cal, matching, p),

@@ -30,7 +30,8 @@ use ndarray::{Array2, ArrayView2, Axis};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
 use qtvpr::{
-    Calibration, Counts, GroundTruth, Matching, Params, Transfer, Truth, best_threshold, counts, ranked_correlation,
+    Calibration, Counts, Gate, GroundTruth, Matching, Params, Transfer, Truth, best_threshold, counts,
+    ranked_correlation,
 };
 
 /// Deterministic: a fixed seed, no persistence files, a bounded number of cases.
@@ -61,6 +62,7 @@ impl Problem {
             k: self.k,
             precision: self.tau,
             segment_size: self.segment_size,
+            gate: Gate::None,
         }
     }
 
