@@ -56,6 +56,7 @@ fn stages(c: &mut Criterion) {
                 k: 10,
                 precision,
                 segment_size: Some(36),
+                ..Params::default()
             };
             g.bench_function(format!("transfer/{}/tau={precision}", matching.as_str()), |b| {
                 b.iter(|| cal.transfer(s_val, &p).unwrap())
