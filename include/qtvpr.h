@@ -195,6 +195,16 @@ typedef struct {
      * clipped at 0.
      */
     double weight;
+    /**
+     * With the margin gate: the query's margin, how far its best match stands out of
+     * its scores ((best - second best) / their standard deviation). NaN without it.
+     */
+    double margin;
+    /**
+     * With the margin gate: m*, the margin a best match needs besides a score >=
+     * threshold (accepted is 1 only with both). NaN without it.
+     */
+    double gate;
 } qtvpr_decision;
 
 #ifdef __cplusplus
@@ -285,6 +295,8 @@ int qtvpr_calibration_matching(const qtvpr_calibration *cal);
  *   the application can hold (e.g. 1000 queries x 10000 images = 80 MB);
  * - min_window, queries before the min_window-th are rejected: in 1..=window.
  *
+ * The gate is the file's (see qtvpr_online_new_gate to choose it).
+ *
  * Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
  * QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, e.g. window
  * SIZE_MAX, or window 0 and the file sets none; the message names the parameter). The
@@ -299,6 +311,24 @@ qtvpr_online *qtvpr_online_new(const qtvpr_calibration *cal,
                                double precision,
                                size_t window,
                                size_t min_window);
+
+/**
+ * qtvpr_online_new with a gate: gate is NULL (the file's), "none", or "margin": a
+ * best match is then accepted only if its margin is also at least the calibration's
+ * m* (single matching only), and each qtvpr_decision carries margin and gate.
+ *
+ * Returns as qtvpr_online_new; QTVPR_ERR_PARAM also for another gate name, or
+ * "margin" on a multi-matching calibration (the message says why).
+ *
+ * # Safety
+ * cal is NULL or a live calibration; gate is NULL or a NUL-terminated string.
+ */
+qtvpr_online *qtvpr_online_new_gate(const qtvpr_calibration *cal,
+                                    size_t k,
+                                    double precision,
+                                    size_t window,
+                                    size_t min_window,
+                                    const char *gate);
 
 /**
  * Decide the next deployment query from its n_db float scores against the database

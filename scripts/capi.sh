@@ -61,15 +61,21 @@ cc -std=c89 -pedantic -Wall -Wextra -Werror -Iinclude "$work/c89.c" "${shared[@]
 # check that every example prints what `qtvpr-cli stream` prints.
 check_stream() {
     local name=$1 cal_s=$2 gt=$3 deploy=$4 window=$5 matching
-    for matching in single multi; do
-        local cal="$work/$name-$matching.npz" want="$work/$name-$matching.jsonl"
+    # single, multi, and single with the margin gate (its decisions carry margin and gate).
+    for matching in single multi margin; do
+        local cal="$work/$name-$matching.npz" want="$work/$name-$matching.jsonl" mode=(--matching "$matching")
+        [ "$matching" = margin ] && mode=(--matching single --gate margin)
         # shellcheck disable=SC2086 # gt is the ground-truth arguments
-        "$cli" calibrate --cal "$cal_s" $gt --matching "$matching" --window "$window" --output "$cal"
+        "$cli" calibrate --cal "$cal_s" $gt "${mode[@]}" --window "$window" --output "$cal"
         "$cli" --quiet stream --calibration "$cal" --val "$deploy" --min-window 2 > "$want"
         for example in stream stream-static stream-cpp; do
             "$work/$example" "$cal" "$deploy" 0 0 0 2 > "$work/$name-$matching-$example.jsonl"
             python3 scripts/capi_check.py compare "$want" "$work/$name-$matching-$example.jsonl"
         done
+        if [ "$matching" = margin ] && ! grep -q '"margin":.*"gate":' "$want"; then
+            echo "$want: gated decisions without margin and gate" >&2
+            exit 1
+        fi
     done
 }
 
@@ -128,7 +134,7 @@ else
 fi
 
 step "error paths from C"
-errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp")
+errors=("$work/errors" "$work/corridor-single.npz" 111 "$work/tmp" "$work/corridor-multi.npz")
 "${errors[@]}"
 
 step "hostile calibration files from C, under ulimit -v 1000000"

@@ -2,9 +2,10 @@
  * The error paths of the C interface, from C: every documented code, the message it
  * sets, and that nothing crashes. Run by scripts/capi.sh (once under valgrind).
  *
- *     errors CAL.npz N_DB SCRATCH_DIR
+ *     errors CAL.npz N_DB SCRATCH_DIR MULTI.npz
  *
- * CAL.npz is a valid calibration file over N_DB database images that sets a window;
+ * CAL.npz is a valid single-matching calibration file over N_DB database images that
+ * sets a window, MULTI.npz a multi-matching one;
  * SCRATCH_DIR is a writable directory for a corrupt file. Prints each failed check and
  * exits 1 if there is any.
  */
@@ -30,7 +31,7 @@ static void *error_in_thread(void *arg) {
 int main(int argc, char **argv) {
     char corrupt[4096], directory[4096];
     size_t n_db, i, idx[4];
-    qtvpr_calibration *cal;
+    qtvpr_calibration *cal, *multi;
     qtvpr_online *o;
     qtvpr_decision d, untouched;
     double *scores;
@@ -38,8 +39,8 @@ int main(int argc, char **argv) {
     FILE *f;
     pthread_t thread;
 
-    if (argc != 4) {
-        fprintf(stderr, "usage: %s CAL.npz N_DB SCRATCH_DIR\n", argv[0]);
+    if (argc != 5) {
+        fprintf(stderr, "usage: %s CAL.npz N_DB SCRATCH_DIR MULTI.npz\n", argv[0]);
         return 2;
     }
     n_db = strtoul(argv[2], NULL, 10);
@@ -101,6 +102,21 @@ int main(int argc, char **argv) {
     CHECK(o != NULL);
     EXPECT_OK();
     qtvpr_online_free(o);
+    /* The gate: a name the core knows (NULL: the file's), and only where it applies. */
+    CHECK(qtvpr_online_new_gate(cal, 0, 0.0, 3, 1, "ratio") == NULL);
+    EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_online_new_gate: gate must be one of none, margin, got \"ratio\"", NULL);
+    o = qtvpr_online_new_gate(cal, 0, 0.0, 3, 1, "margin");
+    CHECK(o != NULL);
+    EXPECT_OK();
+    qtvpr_online_free(o);
+    o = qtvpr_online_new_gate(cal, 0, 0.0, 3, 1, NULL);
+    CHECK(o != NULL);
+    qtvpr_online_free(o);
+    multi = qtvpr_calibration_load(argv[4]);
+    CHECK(multi != NULL && qtvpr_calibration_matching(multi) == QTVPR_MULTI);
+    CHECK(qtvpr_online_new_gate(multi, 0, 0.0, 3, 1, "margin") == NULL);
+    EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_online_new_gate: gate margin needs single matching", NULL);
+    qtvpr_calibration_free(multi);
     /* The thread pool cannot be empty. */
     CHECK(qtvpr_set_threads(0) == QTVPR_ERR_PARAM);
     EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_set_threads: threads must be >= 1, got 0", NULL);

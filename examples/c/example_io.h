@@ -10,6 +10,7 @@
 #ifndef QTVPR_EXAMPLE_IO_H
 #define QTVPR_EXAMPLE_IO_H
 
+#include <float.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -109,13 +110,23 @@ static void npy_column(const npy_matrix *m, size_t j, void *out) {
 }
 
 /* Print d as `qtvpr-cli stream --format jsonl` does: the nine fields of the decision
- * record, the same keys in the same order in both matching modes; %.17g gives every
- * double exactly (the CLI writes the shortest form of the same value). */
+ * record, the same keys in the same order in both matching modes, then the margin
+ * gate's margin and gate when it is on (they are NaN when it is off); %.17g gives
+ * every double exactly (the CLI writes the shortest form of the same value, and null
+ * for an infinite one: a reject-all gate). */
 static void print_decision(const qtvpr_decision *d) {
     printf("{\"query\":%zu,\"query_quantile\":%.17g,\"weight\":%.17g,\"quantile\":%.17g,"
-           "\"threshold\":%.17g,\"best\":%zu,\"score\":%.17g,\"accepted\":%zu,\"accept\":%s}\n",
+           "\"threshold\":%.17g,\"best\":%zu,\"score\":%.17g,\"accepted\":%zu,\"accept\":%s",
            d->query, d->query_quantile, d->weight, d->quantile, d->threshold, d->best, d->score, d->accepted,
            d->accept ? "true" : "false");
+    if (d->margin == d->margin) {
+        printf(",\"margin\":%.17g,\"gate\":", d->margin);
+        if (d->gate > DBL_MAX)
+            printf("null");
+        else
+            printf("%.17g", d->gate);
+    }
+    printf("}\n");
 }
 
 #endif /* QTVPR_EXAMPLE_IO_H */

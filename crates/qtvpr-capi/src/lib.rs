@@ -81,6 +81,12 @@ pub struct qtvpr_decision {
     /// The query's weight w_j in that median: the mean correlation of its neighbours,
     /// clipped at 0.
     pub weight: f64,
+    /// With the margin gate: the query's margin, how far its best match stands out of
+    /// its scores ((best - second best) / their standard deviation). NaN without it.
+    pub margin: f64,
+    /// With the margin gate: m*, the margin a best match needs besides a score >=
+    /// threshold (accepted is 1 only with both). NaN without it.
+    pub gate: f64,
 }
 
 /// How a calibration matches queries, as qtvpr_calibration_matching returns it.
@@ -235,6 +241,8 @@ pub unsafe extern "C" fn qtvpr_calibration_matching(cal: *const qtvpr_calibratio
 ///   the application can hold (e.g. 1000 queries x 10000 images = 80 MB);
 /// - min_window, queries before the min_window-th are rejected: in 1..=window.
 ///
+/// The gate is the file's (see qtvpr_online_new_gate to choose it).
+///
 /// Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
 /// QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, e.g. window
 /// SIZE_MAX, or window 0 and the file sets none; the message names the parameter). The
@@ -254,18 +262,64 @@ pub unsafe extern "C" fn qtvpr_online_new(
     guard("qtvpr_online_new", || {
         // SAFETY: the caller passes NULL or a live calibration.
         let cal = unsafe { arg(cal, "cal") }?;
-        let given = |v: usize| (v != 0).then_some(v);
-        let params = OnlineParams::resolve(
-            cal.inner.defaults(),
-            given(k),
-            (precision != 0.0).then_some(precision),
-            given(window),
-            given(min_window),
-        )?;
-        let inner = Online::new(Arc::clone(&cal.inner), params)?;
-        Ok(Box::into_raw(Box::new(qtvpr_online { inner })))
+        online_new(cal, k, precision, window, min_window, None)
     })
     .unwrap_or(ptr::null_mut())
+}
+
+/// qtvpr_online_new with a gate: gate is NULL (the file's), "none", or "margin": a
+/// best match is then accepted only if its margin is also at least the calibration's
+/// m* (single matching only), and each qtvpr_decision carries margin and gate.
+///
+/// Returns as qtvpr_online_new; QTVPR_ERR_PARAM also for another gate name, or
+/// "margin" on a multi-matching calibration (the message says why).
+///
+/// # Safety
+/// cal is NULL or a live calibration; gate is NULL or a NUL-terminated string.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_new_gate(
+    cal: *const qtvpr_calibration,
+    k: usize,
+    precision: f64,
+    window: usize,
+    min_window: usize,
+    gate: *const c_char,
+) -> *mut qtvpr_online {
+    guard("qtvpr_online_new_gate", || {
+        // SAFETY: the caller passes NULL or a live calibration.
+        let cal = unsafe { arg(cal, "cal") }?;
+        let gate = if gate.is_null() {
+            None
+        } else {
+            // SAFETY: the caller passes a NUL-terminated string.
+            let name = unsafe { CStr::from_ptr(gate) }.to_string_lossy();
+            Some(name.parse::<qtvpr::Gate>()?)
+        };
+        online_new(cal, k, precision, window, min_window, gate)
+    })
+    .unwrap_or(ptr::null_mut())
+}
+
+/// The state of qtvpr_online_new, each parameter 0 (or None) taking the file's value.
+fn online_new(
+    cal: &qtvpr_calibration,
+    k: usize,
+    precision: f64,
+    window: usize,
+    min_window: usize,
+    gate: Option<qtvpr::Gate>,
+) -> Result<*mut qtvpr_online, Failure> {
+    let given = |v: usize| (v != 0).then_some(v);
+    let params = OnlineParams::resolve(
+        cal.inner.defaults(),
+        given(k),
+        (precision != 0.0).then_some(precision),
+        given(window),
+        given(min_window),
+        gate,
+    )?;
+    let inner = Online::new(Arc::clone(&cal.inner), params)?;
+    Ok(Box::into_raw(Box::new(qtvpr_online { inner })))
 }
 
 /// Decide the next deployment query from its n_db float scores against the database
@@ -367,6 +421,8 @@ fn decision(d: &qtvpr::Decision) -> qtvpr_decision {
         accepted: d.accepted,
         query_quantile: d.query_quantile,
         weight: d.weight,
+        margin: d.margin.unwrap_or(f64::NAN),
+        gate: d.gate.unwrap_or(f64::NAN),
     }
 }
 

@@ -9,7 +9,7 @@ use clap::Args;
 use qtvpr::{Calibration, Defaults, Matching, Split};
 
 use crate::gt_source::{CalGtSource, GtSource};
-use crate::inputs::{DescriptorFiles, SplitArgs};
+use crate::inputs::{DescriptorFiles, SplitArgs, gate_parser};
 use crate::threshold::{MatchingArg, split_ground_truth};
 use qtvpr::npy::read_scores;
 use qtvpr::with_scores;
@@ -56,6 +56,11 @@ pub struct CalibrateArgs {
     /// over (`stream --window`). Default: none, so `stream` then needs --window.
     #[arg(long, value_name = "M")]
     window: Option<usize>,
+    /// Default gate stored in the file: `margin` also requires each best match to stand
+    /// out of its column by the margin the calibration calibrates (single matching
+    /// only; see docs/semantics.md section 13) [default: none].
+    #[arg(long, value_parser = gate_parser())]
+    gate: Option<qtvpr::Gate>,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention); the file
     /// holds |DB| x |Qcal| whatever the input's orientation.
     #[arg(long)]
@@ -67,7 +72,7 @@ pub struct CalibrateArgs {
 
 /// Run `calibrate`.
 pub fn run(args: &CalibrateArgs) -> Result<()> {
-    let defaults = Defaults::default().resolve(Some(args.k), Some(args.precision), args.window)?;
+    let defaults = Defaults::default().resolve(Some(args.k), Some(args.precision), args.window, args.gate)?;
     let split = args.split.split()?;
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
     let matching = Matching::from(args.matching);
@@ -79,6 +84,9 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         (None, Some((db, q))) => from_descriptors(db, q, split, gt_source, matching)?,
         (None, None) => bail!("give --cal, or --db-descriptors and --query-descriptors"),
     };
+    // The gate is checked against the calibration (its matching) before the file is
+    // touched, so that the error names the option, not the output.
+    cal.check_defaults(&defaults).context("--gate")?;
     cal.save(&args.output, &defaults).context("--output")
 }
 

@@ -59,9 +59,11 @@ pub struct EvaluateArgs {
     /// this flag for them.
     #[arg(long)]
     query_major: bool,
-    /// Methods to evaluate, comma-separated, or `all`: quantile-transfer,
-    /// quantile-transfer-online (each query at the threshold of its last segment-size
-    /// queries), schubert, schubert-calibrated, calibration-threshold, oracle.
+    /// Methods to evaluate, comma-separated, or `all` (every method that applies to
+    /// --matching): quantile-transfer, quantile-transfer-online (each query at the
+    /// threshold of its last segment-size queries), quantile-transfer-margin and margin
+    /// (quantile transfer with the margin gate, and the gate alone; single matching
+    /// only), schubert, schubert-calibrated, calibration-threshold, oracle.
     #[arg(long, value_delimiter = ',', default_value = "all", value_name = "M1,M2,...")]
     method: Vec<String>,
     /// Calibration queries sampled per deployment query by quantile transfer. A list
@@ -177,12 +179,12 @@ pub fn fmt_num(x: f64) -> String {
     s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
-fn methods_of(names: &[String]) -> Result<Vec<Method>> {
+fn methods_of(names: &[String], matching: qtvpr::Matching) -> Result<Vec<Method>> {
     let mut out = Vec::new();
     for name in names {
         let name = name.trim();
         if name == "all" {
-            out.extend(Method::ALL);
+            out.extend(Method::all_for(matching));
         } else {
             out.push(name.parse::<Method>()?);
         }
@@ -195,7 +197,7 @@ fn methods_of(names: &[String]) -> Result<Vec<Method>> {
 
 /// Run `evaluate`.
 pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
-    let methods = methods_of(&args.method).context("--method")?;
+    let methods = methods_of(&args.method, args.matching.into()).context("--method")?;
     let calibrations: Vec<Split> = if !args.cal_queries.is_empty() {
         args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
     } else if !args.cal_fraction.is_empty() {

@@ -53,6 +53,13 @@ impl SplitArgs {
     }
 }
 
+/// The values of `--gate` (semantics §13), named and parsed by the core.
+pub fn gate_parser() -> impl clap::builder::TypedValueParser<Value = qtvpr::Gate> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(qtvpr::Gate::ALL.map(|g| g.as_str()))
+        .map(|s| s.parse::<qtvpr::Gate>().expect("a possible value is a gate"))
+}
+
 /// `--db-descriptors` and `--query-descriptors`, read (memory-mapped where possible) and
 /// held for the [`Descriptors`] that view them.
 pub struct DescriptorFiles {

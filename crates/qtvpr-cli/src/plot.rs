@@ -50,6 +50,8 @@ fn colour(m: Method) -> RGBColor {
     match m {
         Method::QuantileTransfer => RGBColor(31, 119, 180),
         Method::QuantileTransferOnline => RGBColor(23, 190, 207),
+        Method::QuantileTransferMargin => RGBColor(44, 160, 44),
+        Method::Margin => RGBColor(188, 189, 34),
         Method::Schubert => RGBColor(255, 127, 14),
         Method::SchubertCalibrated => RGBColor(148, 103, 189),
         Method::CalibrationThreshold => RGBColor(140, 86, 75),
@@ -67,16 +69,20 @@ enum Shape {
     Diamond,
     Cross,
     InvertedTriangle,
+    Plus,
+    Hexagon,
 }
 
 /// Shapes in the order series get them.
-const SHAPES: [Shape; 6] = [
+const SHAPES: [Shape; 8] = [
     Shape::Circle,
     Shape::Triangle,
     Shape::Square,
     Shape::Diamond,
     Shape::Cross,
     Shape::InvertedTriangle,
+    Shape::Plus,
+    Shape::Hexagon,
 ];
 
 /// The marker of a method, the same in every figure.
@@ -88,6 +94,8 @@ fn shape(m: Method) -> Shape {
         Method::CalibrationThreshold => Shape::Diamond,
         Method::Oracle => Shape::Cross,
         Method::QuantileTransferOnline => Shape::InvertedTriangle,
+        Method::QuantileTransferMargin => Shape::Hexagon,
+        Method::Margin => Shape::Plus,
     }
 }
 
@@ -114,6 +122,14 @@ where
             &(at + PathElement::new(vec![(-h, -h), (h, h)], c.stroke_width(3))
                 + PathElement::new(vec![(-h, h), (h, -h)], c.stroke_width(3))),
         ),
+        Shape::Plus => area.draw(
+            &(at + PathElement::new(vec![(-r, 0), (r, 0)], c.stroke_width(3))
+                + PathElement::new(vec![(0, -r), (0, r)], c.stroke_width(3))),
+        ),
+        Shape::Hexagon => {
+            let q = r / 2;
+            area.draw(&(at + Polygon::new(vec![(-r, 0), (-q, -h), (q, -h), (r, 0), (q, h), (-q, h)], c.filled())))
+        }
     }
     .map_err(err)
 }

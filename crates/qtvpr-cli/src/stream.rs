@@ -11,6 +11,7 @@ use clap::Args;
 use ndarray::ArrayView2;
 use qtvpr::{Calibration, Decision, Online, OnlineParams, Score};
 
+use crate::inputs::gate_parser;
 use crate::output::{self, emit};
 use crate::{Global, progress};
 use qtvpr::npy::{Scores, read_scores};
@@ -39,6 +40,11 @@ pub struct StreamArgs {
     /// score), so that no decision rests on fewer than W queries.
     #[arg(long, value_name = "W", default_value_t = 1)]
     min_window: usize,
+    /// `margin`: accept a best match only if its margin (how far it stands out of its
+    /// column) is at least the calibration's m* too; each line then also carries
+    /// `margin` and `gate` (single matching only) [default: the file's, else none].
+    #[arg(long, value_parser = gate_parser())]
+    gate: Option<qtvpr::Gate>,
     /// --val is stored query-major, |Qval| x |DB| (the VPR-Bench convention).
     #[arg(long)]
     query_major: bool,
@@ -59,28 +65,31 @@ pub enum StreamFormat {
     Csv,
 }
 
-/// The CSV header: the fields of the decision record (semantics §11), in its order.
-const CSV_HEADER: &str = "query,query_quantile,weight,quantile,threshold,best,score,accepted,accept\n";
-
-/// Write one decision as a line of `format`: the core's record, as it serialises.
+/// Write one decision as a line of `format`: the core's record, as it serialises (the
+/// CSV columns are [`Decision::fields`], in order).
 fn write_line(d: &Decision, format: StreamFormat, out: &mut impl Write) -> io::Result<()> {
     match format {
         // Into io::Error, which keeps the write's own error (a closed pipe) for main to
         // find: serde_json's error does not expose it as a source.
         StreamFormat::Jsonl => serde_json::to_writer(&mut *out, d).map_err(io::Error::from)?,
-        StreamFormat::Csv => write!(
-            out,
-            "{},{},{},{},{},{},{},{},{}",
-            d.query,
-            d.query_quantile,
-            d.weight,
-            d.quantile,
-            d.threshold,
-            d.best,
-            d.score,
-            d.accepted,
-            d.accept()
-        )?,
+        StreamFormat::Csv => {
+            write!(
+                out,
+                "{},{},{},{},{},{},{},{},{}",
+                d.query,
+                d.query_quantile,
+                d.weight,
+                d.quantile,
+                d.threshold,
+                d.best,
+                d.score,
+                d.accepted,
+                d.accept()
+            )?;
+            if let (Some(margin), Some(gate)) = (d.margin, d.gate) {
+                write!(out, ",{margin},{gate}")?;
+            }
+        }
     }
     writeln!(out)
 }
@@ -97,6 +106,7 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         args.precision,
         args.window,
         Some(args.min_window),
+        args.gate,
     )?;
     let mut online = Online::new(Arc::new(cal), params)?;
     let file = read_scores(&args.val).context("--val")?;
@@ -113,7 +123,8 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
     let replayed = (|| {
         if args.format == StreamFormat::Csv {
-            out.write_all(CSV_HEADER.as_bytes()).map_err(Failure::Output)?;
+            let header = Decision::fields(online.params().gate).join(",");
+            writeln!(out, "{header}").map_err(Failure::Output)?;
         }
         let progress = |done| bar.set_position(done as u64);
         with_scores!(s_val, |v| replay(

@@ -88,6 +88,12 @@ pub struct ThresholdArgs {
     /// Default: all deployment queries form one segment.
     #[arg(long, value_name = "M")]
     segment_size: Option<usize>,
+    /// `margin`: also calibrate the margin gate m* (single matching only; see
+    /// docs/semantics.md section 13): a deployed best match is then accepted only if its
+    /// score is at or above its segment's threshold and its margin at or above m*
+    /// [default: a calibration file's, else none].
+    #[arg(long, value_parser = crate::inputs::gate_parser())]
+    gate: Option<qtvpr::Gate>,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
     /// VPR-Bench files are query-major; a square matrix cannot be detected, so pass
     /// this flag for them. A calibration file is |DB| x |Qcal| whatever this says.
@@ -126,6 +132,9 @@ struct Report<'a> {
     method: &'static str,
     params: ReportParams,
     segments: &'a [Segment],
+    /// With `--gate margin`: m*, the margin a best match needs besides its score.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gate: Option<f64>,
     calibration_queries: usize,
     deployment_queries: usize,
     database_size: usize,
@@ -213,7 +222,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     };
     // Parameters first, so that a typo fails before any file is read (a calibration
     // file's defaults are checked once it is loaded).
-    let params = |defaults: &Defaults| Params::resolve(defaults, args.k, args.precision, args.segment_size);
+    let params = |defaults: &Defaults| Params::resolve(defaults, args.k, args.precision, args.segment_size, args.gate);
     params(&Defaults::default())?;
     let matching_arg = args.matching.map_or(Matching::Single, Matching::from);
     // Errors about a file's content name the file; the flag says which input it was.
@@ -290,6 +299,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     };
     let matching = cal.matching();
     let params = params(cal.defaults())?;
+    cal.check_gate(params.gate).context("--gate")?;
     let n_val = queries.len();
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
     let progress = |done: usize, _| bar.set_position(done as u64);
@@ -317,6 +327,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
             matching,
         },
         segments: &transfer.segments,
+        gate: transfer.gate,
         calibration_queries: cal.len(),
         deployment_queries: n_val,
         database_size: n_db,
@@ -324,9 +335,11 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     let text = match args.format {
         Format::Json => serde_json::to_string_pretty(&report)? + "\n",
         Format::Csv => {
-            let mut t = String::from("start,end,quantile,threshold\n");
+            let gate = report.gate.map(|m| format!(",{m}")).unwrap_or_default();
+            let mut t = String::from("start,end,quantile,threshold");
+            t += if gate.is_empty() { "\n" } else { ",gate\n" };
             for s in report.segments {
-                writeln!(t, "{},{},{},{}", s.start, s.end, s.quantile, s.threshold)?;
+                writeln!(t, "{},{},{},{}{gate}", s.start, s.end, s.quantile, s.threshold)?;
             }
             t
         }

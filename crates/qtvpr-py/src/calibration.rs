@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use qtvpr::{Matching, Params};
 
-use crate::convert::{GroundTruthArgs, Scores, count};
+use crate::convert::{self, GroundTruthArgs, Scores, count};
 use crate::descriptors::PyDescriptors;
 use crate::error::Args;
 use qtvpr::with_scores;
@@ -110,18 +110,20 @@ impl PyCalibration {
     /// (bool), ``gt_soft``, the soft ground truth (bool; only when some entry is soft
     /// but not hard), and ``meta``, a 0-d string array of JSON: ``{"format":
     /// "qtvpr-calibration", "version": 1, "matching": ..., "params": {"k": ...,
-    /// "precision": ..., "window": ...}, "qtvpr": ...}``. ``k``, ``precision`` and
-    /// ``window`` are stored as the defaults of whoever uses the file (:class:`Online`,
-    /// ``qtvpr-cli stream``); each can be overridden there. Each left as ``None`` is
-    /// this calibration's own (:attr:`defaults`: a loaded file's, else 10, 1.0 and no
-    /// window), so a loaded file saved again keeps its ``params``. The name is used as
+    /// "precision": ..., "window": ..., "gate": ...}, "qtvpr": ...}``. ``k``,
+    /// ``precision``, ``window`` and ``gate`` are stored as the defaults of whoever uses
+    /// the file (:class:`Online`, :meth:`transfer`, ``qtvpr-cli stream``); each can be
+    /// overridden there. Each left as ``None`` is this calibration's own
+    /// (:attr:`defaults`: a loaded file's, else 10, 1.0, no window and ``"none"``), so a
+    /// loaded file saved again keeps its ``params``. The name is used as
     /// given (no ``.npz`` is appended).
     ///
-    /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1] or
-    /// ``window < 1``, and ``OSError`` (``FileNotFoundError``, ``PermissionError``,
+    /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1],
+    /// ``window < 1``, or a ``gate`` other than ``"none"`` or ``"margin"`` (or
+    /// ``"margin"`` on a multi-matching calibration), and ``OSError`` (``FileNotFoundError``, ``PermissionError``,
     /// ...) naming the file when it cannot be written; a failed save leaves no file
     /// behind.
-    #[pyo3(signature = (path, *, k = None, precision = None, window = None))]
+    #[pyo3(signature = (path, *, k = None, precision = None, window = None, gate = None))]
     fn save(
         &self,
         py: Python<'_>,
@@ -129,15 +131,14 @@ impl PyCalibration {
         k: Option<i64>,
         precision: Option<f64>,
         window: Option<i64>,
+        gate: Option<&str>,
     ) -> PyResult<()> {
-        let defaults = self
-            .inner
-            .defaults()
-            .resolve(
-                k.map(|k| count("k", k)).transpose()?,
-                precision,
-                window.map(|m| count("window", m)).transpose()?,
-            )
+        let (k, window) = (
+            k.map(|k| count("k", k)).transpose()?,
+            window.map(|m| count("window", m)).transpose()?,
+        );
+        let defaults = convert::gate(gate)
+            .and_then(|gate| self.inner.defaults().resolve(k, precision, window, gate))
             .map_err(|e| FILE_ARGS.error(e))?;
         py.detach(|| self.inner.save(&path, &defaults))
             .map_err(|e| FILE_ARGS.error(e))
@@ -182,8 +183,9 @@ impl PyCalibration {
     }
 
     /// The defaults of a calibration file's ``params``: ``{"k", "precision",
-    /// "window"}`` (``{"k": 10, "precision": 1.0, "window": None}`` for a calibration
-    /// built from arrays). :class:`Online` takes each one it is not given from here.
+    /// "window", "gate"}`` (``{"k": 10, "precision": 1.0, "window": None, "gate":
+    /// "none"}`` for a calibration built from arrays). :meth:`transfer` and
+    /// :class:`Online` take each one they are not given from here.
     #[getter]
     fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = self.inner.defaults();
@@ -191,6 +193,7 @@ impl PyCalibration {
         out.set_item("k", d.k)?;
         out.set_item("precision", d.precision)?;
         out.set_item("window", d.window)?;
+        out.set_item("gate", d.gate.as_str())?;
         Ok(out)
     }
 
@@ -217,9 +220,14 @@ impl PyCalibration {
     /// outside (0, 1], ``segment_size`` outside 1..=|Qval|); ``OSError`` (or its
     /// subclass ``FileNotFoundError``, ...) for a file that cannot be read.
     ///
-    /// ``k`` and ``precision`` left as ``None`` are the calibration's :attr:`defaults`
-    /// (its file's ``params``; 10 and 1.0 for a calibration made from arrays).
-    #[pyo3(signature = (s_val, *, k = None, precision = None, segment_size = None, query_major = false))]
+    /// ``k``, ``precision`` and ``gate`` left as ``None`` are the calibration's
+    /// :attr:`defaults` (its file's ``params``; 10, 1.0 and ``"none"`` for a calibration
+    /// made from arrays). With ``gate="margin"`` (single matching only) the result also
+    /// has the margin gate's ``gate`` (m*) and every query's margin
+    /// (``query_margins``): a best match is accepted when its score is at or above its
+    /// segment's threshold and its margin at or above m*.
+    #[pyo3(signature = (s_val, *, k = None, precision = None, segment_size = None, gate = None, query_major = false))]
+    #[allow(clippy::too_many_arguments)] // the Python signature
     pub(crate) fn transfer(
         &self,
         py: Python<'_>,
@@ -227,19 +235,20 @@ impl PyCalibration {
         k: Option<i64>,
         precision: Option<f64>,
         segment_size: Option<i64>,
+        gate: Option<&str>,
         query_major: bool,
     ) -> PyResult<TransferResult> {
         let args = Args {
             gt: "gt_cal",
             query_major,
         };
-        let params = Params::resolve(
-            self.inner.defaults(),
+        let (k, segment_size) = (
             k.map(|k| count("k", k)).transpose()?,
-            precision,
             segment_size.map(|m| count("segment_size", m)).transpose()?,
-        )
-        .map_err(|e| args.error(e))?;
+        );
+        let params = convert::gate(gate)
+            .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate))
+            .map_err(|e| args.error(e))?;
         if let Some(d) = PyDescriptors::of(s_val, query_major)? {
             let out = d
                 .get()
@@ -270,10 +279,30 @@ impl PyCalibration {
         let precision = self
             .inner
             .defaults()
-            .resolve(None, precision, None)
+            .resolve(None, precision, None, None)
             .map_err(|e| args.error(e))?
             .precision;
         py.detach(|| self.inner.threshold(precision)).map_err(|e| args.error(e))
+    }
+
+    /// The margin gate m* at precision target ``precision`` (``None``: the
+    /// calibration's default): the best threshold of the calibration's single-match
+    /// decisions with their margins (:func:`qtvpr.margins`) in place of their scores.
+    /// ``math.inf`` means reject all. Raises ``ValueError`` for a multi-matching
+    /// calibration, which has no gate.
+    #[pyo3(signature = (precision = None))]
+    fn gate(&self, precision: Option<f64>) -> PyResult<f64> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major: false,
+        };
+        let precision = self
+            .inner
+            .defaults()
+            .resolve(None, precision, None, None)
+            .map_err(|e| args.error(e))?
+            .precision;
+        self.inner.gate(precision).map_err(|e| args.error(e))
     }
 
     /// The number of calibration queries.
@@ -304,6 +333,8 @@ impl PyCalibration {
 /// deployment query: ``query_quantiles``, ``query_thresholds`` (the best threshold of
 /// its calibration neighbours, ``inf`` for reject-all), ``query_weights`` and
 /// ``neighbours`` (|Qval| x min(k, |Qcal|) calibration indices, most correlated first).
+/// With the margin gate: ``gate`` (m*, the margin a best match needs) and
+/// ``query_margins`` (every query's margin); both ``None`` without it.
 #[pyclass(frozen, module = "qtvpr", name = "TransferResult")]
 pub(crate) struct TransferResult {
     /// One threshold per segment (float64).
@@ -328,6 +359,13 @@ pub(crate) struct TransferResult {
     /// |Qval| x min(k, |Qcal|) calibration indices, most correlated first (int64).
     #[pyo3(get)]
     neighbours: Py<PyArray2<i64>>,
+    /// With the margin gate: m* (``None`` without it).
+    #[pyo3(get)]
+    gate: Option<f64>,
+    /// With the margin gate: per deployment query, its margin (float64; ``None``
+    /// without it).
+    #[pyo3(get)]
+    query_margins: Option<Py<PyArray1<f64>>>,
 }
 
 impl TransferResult {
@@ -342,6 +380,8 @@ impl TransferResult {
             query_weights: out.query_weights.into_pyarray(py).unbind(),
             // Indices are below |Qcal|, so they fit in an i64.
             neighbours: out.neighbours.mapv(|i| i as i64).into_pyarray(py).unbind(),
+            gate: out.gate,
+            query_margins: out.query_margins.map(|m| m.into_pyarray(py).unbind()),
         }
     }
 }
@@ -354,10 +394,14 @@ impl TransferResult {
     /// Raises ``TypeError`` for an array of another dtype or dimension, and
     /// ``ValueError`` when the per-segment fields (``thresholds``, ``quantiles``,
     /// ``segments``) or the per-query fields (``query_quantiles``,
-    /// ``query_thresholds``, ``query_weights``, the rows of ``neighbours``) differ in
-    /// length.
+    /// ``query_thresholds``, ``query_weights``, the rows of ``neighbours``,
+    /// ``query_margins``) differ in length.
     #[staticmethod]
-    #[pyo3(signature = (thresholds, quantiles, segments, query_quantiles, query_thresholds, query_weights, neighbours))]
+    #[pyo3(signature = (
+        thresholds, quantiles, segments, query_quantiles, query_thresholds, query_weights, neighbours,
+        gate = None, query_margins = None,
+    ))]
+    #[allow(clippy::too_many_arguments)] // the fields
     fn _from_parts(
         thresholds: Bound<'_, PyArray1<f64>>,
         quantiles: Bound<'_, PyArray1<f64>>,
@@ -366,6 +410,8 @@ impl TransferResult {
         query_thresholds: Bound<'_, PyArray1<f64>>,
         query_weights: Bound<'_, PyArray1<f64>>,
         neighbours: Bound<'_, PyArray2<i64>>,
+        gate: Option<f64>,
+        query_margins: Option<Bound<'_, PyArray1<f64>>>,
     ) -> PyResult<Self> {
         let per_segment = [thresholds.len(), quantiles.len(), segments.len()];
         let per_query = [
@@ -373,11 +419,12 @@ impl TransferResult {
             query_thresholds.len(),
             query_weights.len(),
             neighbours.shape()[0],
+            query_margins.as_ref().map_or(query_quantiles.len(), |m| m.len()),
         ];
         if per_segment.iter().any(|&n| n != per_segment[0]) || per_query.iter().any(|&n| n != per_query[0]) {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "TransferResult parts differ in length: thresholds, quantiles, segments {per_segment:?}; \
-                 query_quantiles, query_thresholds, query_weights, neighbours rows {per_query:?}"
+                 query_quantiles, query_thresholds, query_weights, neighbours rows, query_margins {per_query:?}"
             )));
         }
         Ok(Self {
@@ -388,6 +435,8 @@ impl TransferResult {
             query_thresholds: query_thresholds.unbind(),
             query_weights: query_weights.unbind(),
             neighbours: neighbours.unbind(),
+            gate,
+            query_margins: query_margins.map(Bound::unbind),
         })
     }
 

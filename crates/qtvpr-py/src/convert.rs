@@ -400,6 +400,11 @@ impl GroundTruthView<'_> {
 ///
 /// # Errors
 /// `ValueError` for a negative value.
+/// A ``gate=`` argument, parsed by the core: ``None`` leaves the calibration's default.
+pub(crate) fn gate(gate: Option<&str>) -> qtvpr::Result<Option<qtvpr::Gate>> {
+    gate.map(str::parse).transpose()
+}
+
 pub(crate) fn count(name: &str, value: i64) -> PyResult<usize> {
     usize::try_from(value).map_err(|_| PyValueError::new_err(format!("{name} must be >= 1, got {value}")))
 }

@@ -55,15 +55,15 @@ fn setup(
     query_major: bool,
 ) -> PyResult<Setup> {
     let args = Args { gt: "gt", query_major };
+    let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let methods: Vec<Method> = match methods {
-        None => Method::ALL.to_vec(),
+        None => Method::all_for(matching),
         Some(names) => names
             .iter()
             .map(|n| n.parse())
             .collect::<qtvpr::Result<_>>()
             .map_err(|e| args.error(e))?,
     };
-    let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let protocol = Protocol {
         calibration,
         deploy_fraction,

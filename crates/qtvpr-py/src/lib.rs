@@ -46,7 +46,7 @@ use qtvpr::with_scores;
 #[pyfunction]
 #[pyo3(signature = (
     s_cal, gt_cal, s_val, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
-    segment_size = None, query_major = false,
+    segment_size = None, gate = "none", query_major = false,
 ))]
 #[allow(clippy::too_many_arguments)] // the Python signature
 fn quantile_transfer(
@@ -59,30 +59,65 @@ fn quantile_transfer(
     precision: f64,
     matching: &str,
     segment_size: Option<i64>,
+    gate: &str,
     query_major: bool,
 ) -> PyResult<TransferResult> {
     // Check the cheap parameters before the calibration does any work.
-    qtvpr::Params::resolve(
-        &qtvpr::Defaults::default(),
-        Some(convert::count("k", k)?),
-        Some(precision),
+    let (k_checked, segments) = (
+        convert::count("k", k)?,
         segment_size.map(|m| convert::count("segment_size", m)).transpose()?,
-    )
-    .map_err(|e| {
-        Args {
-            gt: "gt_cal",
-            query_major,
-        }
-        .error(e)
-    })?;
+    );
+    convert::gate(Some(gate))
+        .and_then(|g| {
+            qtvpr::Params::resolve(
+                &qtvpr::Defaults::default(),
+                Some(k_checked),
+                Some(precision),
+                segments,
+                g,
+            )
+        })
+        .map_err(|e| {
+            Args {
+                gt: "gt_cal",
+                query_major,
+            }
+            .error(e)
+        })?;
     PyCalibration::new(py, s_cal, gt_cal, gt_soft, matching, query_major)?.transfer(
         py,
         s_val,
         Some(k),
         Some(precision),
         segment_size,
+        Some(gate),
         query_major,
     )
+}
+
+/// The margin of every query of a similarity matrix (semantics §13).
+///
+/// ``s`` is |DB| x |Q| (|Q| x |DB| with ``query_major=True``), float32 or float64, or
+/// the path of a ``.npy`` file. A query's margin is ``(s1 - s2) / sigma``: its largest
+/// score less its second largest (equal when the largest occurs twice) over the
+/// population standard deviation of its |DB| scores, 0 for a constant column. It does
+/// not change when a column's scores are shifted or scaled: it says how far the best
+/// match stands out, whatever the score scale. Returns a float64 array of |Q| margins.
+/// Raises ``ValueError`` for |DB| < 2, empty, NaN or infinite scores.
+#[pyfunction]
+#[pyo3(signature = (s, *, query_major = false))]
+fn margins<'py>(
+    py: Python<'py>,
+    s: &Bound<'py, PyAny>,
+    query_major: bool,
+) -> PyResult<Bound<'py, numpy::PyArray1<f64>>> {
+    let args = Args { gt: "gt", query_major };
+    let s = Scores::extract("s", s)?;
+    let s = s.view(query_major);
+    let m = py
+        .detach(|| with_scores!(s, |s| qtvpr::margins(s)))
+        .map_err(|e| args.error(e))?;
+    Ok(numpy::IntoPyArray::into_pyarray(m, py))
 }
 
 /// The best threshold of a similarity matrix under a precision target.
@@ -235,6 +270,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(best_threshold, m)?)?;
     m.add_function(wrap_pyfunction!(counts, m)?)?;
     m.add_function(wrap_pyfunction!(ranked_correlation, m)?)?;
+    m.add_function(wrap_pyfunction!(margins, m)?)?;
     // Extensions: similarity from descriptors, sequence matching, ground truth.
     m.add_function(wrap_pyfunction!(similarity::cosine_similarity, m)?)?;
     m.add_function(wrap_pyfunction!(similarity::sequence_match, m)?)?;

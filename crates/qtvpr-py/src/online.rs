@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use qtvpr::{Decision, Error, OnlineParams};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{Column, Scores, count};
+use crate::convert::{self, Column, Scores, count};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
 
@@ -31,13 +31,19 @@ use qtvpr::with_scores;
 /// ``min_window - 1`` queries are rejected (quantile 1, a threshold just above their
 /// window's highest score), so that no decision rests on fewer queries.
 ///
+/// ``gate="margin"`` (single matching only; ``None`` takes the calibration's default,
+/// else ``"none"``) also requires a best match's margin (how far it stands out of its
+/// column: :func:`qtvpr.margins`) to be at least the calibration's m*
+/// (:meth:`Calibration.gate`); each decision then carries its ``margin`` and ``gate``.
+///
 /// The state keeps only the window (its sorted columns with their quantiles and
 /// weights): memory ``8 * window * |DB|`` bytes. The GIL is released while a query is
 /// decided. One ``Online`` is one stream: calls on it from several threads at once
 /// raise ``RuntimeError`` (already borrowed); give each stream its own.
 ///
 /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1], ``window < 1``,
-/// no window at all, or ``min_window`` outside ``1..=window``.
+/// no window at all, ``min_window`` outside ``1..=window``, or a ``gate`` other than
+/// ``"none"`` or ``"margin"`` (or ``"margin"`` on a multi-matching calibration).
 #[pyclass(module = "qtvpr", name = "Online")]
 pub(crate) struct PyOnline {
     inner: qtvpr::Online,
@@ -47,23 +53,24 @@ pub(crate) struct PyOnline {
 #[pymethods]
 impl PyOnline {
     #[new]
-    #[pyo3(signature = (calibration, *, k = None, precision = None, window = None, min_window = 1))]
+    #[pyo3(signature = (calibration, *, k = None, precision = None, window = None, min_window = 1, gate = None))]
     fn new(
         calibration: Bound<'_, PyCalibration>,
         k: Option<i64>,
         precision: Option<f64>,
         window: Option<i64>,
         min_window: i64,
+        gate: Option<&str>,
     ) -> PyResult<Self> {
         let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
-        let params = OnlineParams::resolve(
-            cal.defaults(),
+        let (k, window, min_window) = (
             k.map(|k| count("k", k)).transpose()?,
-            precision,
             window.map(|m| count("window", m)).transpose()?,
-            Some(count("min_window", min_window)?),
-        )
-        .map_err(|e| ARGS.error(e))?;
+            count("min_window", min_window)?,
+        );
+        let params = convert::gate(gate)
+            .and_then(|gate| OnlineParams::resolve(cal.defaults(), k, precision, window, Some(min_window), gate))
+            .map_err(|e| ARGS.error(e))?;
         let inner = qtvpr::Online::new(Arc::clone(cal), params).map_err(|e| ARGS.error(e))?;
         Ok(Self {
             inner,
@@ -105,7 +112,7 @@ impl PyOnline {
         let decisions = py
             .detach(|| with_scores!(view, |s| online.push_many(s)))
             .map_err(|e| matrix_error(e, first, query_major))?;
-        Ok(OnlineDecisions::new(py, &decisions))
+        Ok(OnlineDecisions::new(py, &decisions, self.inner.params().gate))
     }
 
     /// The threshold of the last decision (``None`` before the first push).
@@ -144,6 +151,12 @@ impl PyOnline {
         self.inner.params().min_window
     }
 
+    /// The gate: ``"none"`` or ``"margin"``.
+    #[getter]
+    fn gate(&self) -> &'static str {
+        self.inner.params().gate.as_str()
+    }
+
     /// The :class:`Calibration` this state decides from.
     #[getter]
     fn calibration(&self, py: Python<'_>) -> Py<PyCalibration> {
@@ -153,11 +166,12 @@ impl PyOnline {
     fn __repr__(&self) -> String {
         let p = self.inner.params();
         format!(
-            "Online(k={}, precision={:?}, window={}, min_window={}, matching='{}', pushed={})",
+            "Online(k={}, precision={:?}, window={}, min_window={}, gate='{}', matching='{}', pushed={})",
             p.k,
             p.precision,
             p.window,
             p.min_window,
+            p.gate.as_str(),
             self.inner.calibration().matching().as_str(),
             self.inner.pushed()
         )
@@ -217,8 +231,10 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// matcher's own choice) and ``score`` that score, in both matching modes;
 /// ``accepted`` is the number of accepted database images (in ``"single"`` matching 1
 /// when ``score >= threshold``, else 0; in ``"multi"`` matching every image with a
-/// score ``>= threshold``) and ``accept`` is ``accepted > 0``. ``accepted_indices``
-/// are the accepted database indices, ascending (int64).
+/// score ``>= threshold``; with the margin gate, single matching also needs
+/// ``margin >= gate``) and ``accept`` is ``accepted > 0``. ``margin`` (the query's
+/// margin) and ``gate`` (m*) are those of the margin gate, ``None`` without it.
+/// ``accepted_indices`` are the accepted database indices, ascending (int64).
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecision")]
 pub(crate) struct OnlineDecision {
     /// The query's index in arrival order, from 0.
@@ -248,6 +264,12 @@ pub(crate) struct OnlineDecision {
     /// Whether anything is accepted (``accepted > 0``).
     #[pyo3(get)]
     accept: bool,
+    /// With the margin gate: the query's margin (``None`` without it).
+    #[pyo3(get)]
+    margin: Option<f64>,
+    /// With the margin gate: m*, the margin the best match needs (``None`` without it).
+    #[pyo3(get)]
+    gate: Option<f64>,
     /// The accepted database indices, ascending (int64).
     #[pyo3(get)]
     accepted_indices: Py<PyArray1<i64>>,
@@ -265,6 +287,8 @@ impl OnlineDecision {
             score: d.score,
             accepted: d.accepted,
             accept: d.accept(),
+            margin: d.margin,
+            gate: d.gate,
             // Indices are below |DB|, so they fit in an i64.
             accepted_indices: PyArray1::from_iter(py, accepted.iter().map(|&i| i as i64)).unbind(),
         }
@@ -292,7 +316,8 @@ impl OnlineDecision {
 ///
 /// ``queries`` (int64, their indices in arrival order), ``query_quantiles``,
 /// ``weights``, ``quantiles``, ``thresholds`` and ``score`` (float64), ``best`` and
-/// ``accepted`` (int64) and ``accept`` (bool).
+/// ``accepted`` (int64) and ``accept`` (bool); with the margin gate ``margins`` and
+/// ``gates`` (float64), ``None`` without it.
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecisions")]
 pub(crate) struct OnlineDecisions {
     /// Each query's index in arrival order (int64).
@@ -322,11 +347,23 @@ pub(crate) struct OnlineDecisions {
     /// Whether each query accepts anything.
     #[pyo3(get)]
     accept: Py<PyArray1<bool>>,
+    /// With the margin gate: each query's margin (``None`` without it).
+    #[pyo3(get)]
+    margins: Option<Py<PyArray1<f64>>>,
+    /// With the margin gate: each query's m* (``None`` without it).
+    #[pyo3(get)]
+    gates: Option<Py<PyArray1<f64>>>,
     len: usize,
 }
 
 impl OnlineDecisions {
-    fn new(py: Python<'_>, decisions: &[Decision]) -> Self {
+    /// The arrays of `decisions`, made by an `Online` with `gate`.
+    fn new(py: Python<'_>, decisions: &[Decision], gate: qtvpr::Gate) -> Self {
+        // An `Online` gates all its decisions or none.
+        let gated = |f: fn(&Decision) -> Option<f64>| {
+            gate.is_on()
+                .then(|| PyArray1::from_iter(py, decisions.iter().map(|d| f(d).unwrap_or(f64::NAN))).unbind())
+        };
         let f64s = |f: fn(&Decision) -> f64| PyArray1::from_iter(py, decisions.iter().map(f)).unbind();
         // Indices and counts are below |DB| and the number of queries: they fit in an i64.
         let i64s = |f: fn(&Decision) -> usize| PyArray1::from_iter(py, decisions.iter().map(|d| f(d) as i64)).unbind();
@@ -340,6 +377,8 @@ impl OnlineDecisions {
             score: f64s(|d| d.score),
             accepted: i64s(|d| d.accepted),
             accept: PyArray1::from_iter(py, decisions.iter().map(Decision::accept)).unbind(),
+            margins: gated(|d| d.margin),
+            gates: gated(|d| d.gate),
             len: decisions.len(),
         }
     }
@@ -353,7 +392,10 @@ impl OnlineDecisions {
     /// Raises ``TypeError`` for an array of another dtype or dimension, and
     /// ``ValueError`` for arrays of different lengths.
     #[staticmethod]
-    #[pyo3(signature = (queries, query_quantiles, weights, quantiles, thresholds, best, score, accepted, accept))]
+    #[pyo3(signature = (
+        queries, query_quantiles, weights, quantiles, thresholds, best, score, accepted, accept, margins = None,
+        gates = None,
+    ))]
     #[allow(clippy::too_many_arguments)]
     fn _from_parts(
         queries: Bound<'_, PyArray1<i64>>,
@@ -365,6 +407,8 @@ impl OnlineDecisions {
         score: Bound<'_, PyArray1<f64>>,
         accepted: Bound<'_, PyArray1<i64>>,
         accept: Bound<'_, PyArray1<bool>>,
+        margins: Option<Bound<'_, PyArray1<f64>>>,
+        gates: Option<Bound<'_, PyArray1<f64>>>,
     ) -> PyResult<Self> {
         let len = queries.len();
         let lengths = [
@@ -376,6 +420,8 @@ impl OnlineDecisions {
             score.len(),
             accepted.len(),
             accept.len(),
+            margins.as_ref().map_or(len, |m| m.len()),
+            gates.as_ref().map_or(len, |g| g.len()),
         ];
         if lengths.iter().any(|&n| n != len) {
             return Err(PyValueError::new_err(format!(
@@ -392,6 +438,8 @@ impl OnlineDecisions {
             score: score.unbind(),
             accepted: accepted.unbind(),
             accept: accept.unbind(),
+            margins: margins.map(Bound::unbind),
+            gates: gates.map(Bound::unbind),
             len,
         })
     }

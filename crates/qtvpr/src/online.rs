@@ -32,6 +32,7 @@ use crate::decisions::{Matching, best_match};
 use crate::deployment::{sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::Score;
+use crate::margin::Gate;
 use crate::params::OnlineParams;
 use crate::ranked_correlation::Ranked;
 use crate::threads;
@@ -67,6 +68,29 @@ pub struct Decision {
 }
 
 impl Decision {
+    /// The names of the record's fields (semantics §11), in order: what it serialises to,
+    /// and the columns of a table of decisions.
+    pub const FIELDS: [&'static str; 9] = [
+        "query",
+        "query_quantile",
+        "weight",
+        "quantile",
+        "threshold",
+        "best",
+        "score",
+        "accepted",
+        "accept",
+    ];
+
+    /// The fields a gated record has besides [`Decision::FIELDS`] (semantics §13).
+    pub const GATE_FIELDS: [&'static str; 2] = ["margin", "gate"];
+
+    /// Every field of a record decided with `gate`, in order.
+    pub fn fields(gate: Gate) -> Vec<&'static str> {
+        let extra: &[&str] = if gate.is_on() { &Self::GATE_FIELDS } else { &[] };
+        Self::FIELDS.iter().chain(extra).copied().collect()
+    }
+
     /// Whether anything is accepted (`accepted > 0`): in single matching, whether the
     /// best match is kept; in multi matching, whether any entry is.
     pub fn accept(&self) -> bool {
@@ -74,26 +98,37 @@ impl Decision {
     }
 }
 
-/// The nine fields of semantics §11, `accept` included, in its order; then, with the
-/// margin gate, `margin` and `gate` (semantics §13).
+/// [`Decision::FIELDS`] in order; then, with the margin gate, `margin` and `gate`.
 #[cfg(feature = "serde")]
 impl serde::Serialize for Decision {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
         use serde::ser::SerializeStruct;
         let gated = self.margin.zip(self.gate);
+        let [
+            query,
+            query_quantile,
+            weight,
+            quantile,
+            threshold,
+            best,
+            score,
+            accepted,
+            accept,
+        ] = Self::FIELDS;
         let mut s = serializer.serialize_struct("Decision", if gated.is_some() { 11 } else { 9 })?;
-        s.serialize_field("query", &self.query)?;
-        s.serialize_field("query_quantile", &self.query_quantile)?;
-        s.serialize_field("weight", &self.weight)?;
-        s.serialize_field("quantile", &self.quantile)?;
-        s.serialize_field("threshold", &self.threshold)?;
-        s.serialize_field("best", &self.best)?;
-        s.serialize_field("score", &self.score)?;
-        s.serialize_field("accepted", &self.accepted)?;
-        s.serialize_field("accept", &self.accept())?;
-        if let Some((margin, gate)) = gated {
-            s.serialize_field("margin", &margin)?;
-            s.serialize_field("gate", &gate)?;
+        s.serialize_field(query, &self.query)?;
+        s.serialize_field(query_quantile, &self.query_quantile)?;
+        s.serialize_field(weight, &self.weight)?;
+        s.serialize_field(quantile, &self.quantile)?;
+        s.serialize_field(threshold, &self.threshold)?;
+        s.serialize_field(best, &self.best)?;
+        s.serialize_field(score, &self.score)?;
+        s.serialize_field(accepted, &self.accepted)?;
+        s.serialize_field(accept, &self.accept())?;
+        if let Some((m, g)) = gated {
+            let [margin, gate] = Self::GATE_FIELDS;
+            s.serialize_field(margin, &m)?;
+            s.serialize_field(gate, &g)?;
         }
         s.end()
     }
@@ -376,7 +411,6 @@ impl Online {
 mod tests {
     use super::*;
     use crate::input::GroundTruth;
-    use crate::margin::Gate;
     use crate::params::{Defaults, Params};
     use ndarray::{Array2, array};
 

@@ -215,7 +215,15 @@ impl Calibration {
     /// [`Error::InvalidParameter`] naming the parameter.
     pub fn check_defaults(&self, defaults: &Defaults) -> Result<()> {
         defaults.validate()?;
-        if defaults.gate.is_on() {
+        self.check_gate(defaults.gate)
+    }
+
+    /// Check that decisions on this calibration can be gated with `gate`.
+    ///
+    /// # Errors
+    /// [`margin::check`] when the gate is on.
+    pub fn check_gate(&self, gate: Gate) -> Result<()> {
+        if gate.is_on() {
             margin::check(self.matching, self.n_db)?;
         }
         Ok(())

@@ -75,7 +75,15 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize) -> usiz
             gate: Gate::Margin,
         };
         let gated = cal.transfer(s_val, &params).unwrap();
-        let plain = cal.transfer(s_val, &Params { gate: Gate::None, ..params }).unwrap();
+        let plain = cal
+            .transfer(
+                s_val,
+                &Params {
+                    gate: Gate::None,
+                    ..params
+                },
+            )
+            .unwrap();
         assert_eq!(gated.segments, plain.segments);
         assert_eq!((gated.gate, plain.gate), (Some(m_star), None));
         assert_eq!(gated.query_margins.as_deref(), Some(&val_margins[..]));
@@ -162,7 +170,10 @@ fn check_evaluate<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth) {
 
 /// Every check on one matrix; the number of decisions its gate rejected.
 fn run(dir: &str, technique: &str, n_cal: usize) -> usize {
-    let (Some(scores), Some(gt)) = (data(&format!("{dir}/S_{technique}.npy")), data(&format!("{dir}/GT.npy"))) else {
+    let (Some(scores), Some(gt)) = (
+        data(&format!("{dir}/S_{technique}.npy")),
+        data(&format!("{dir}/GT.npy")),
+    ) else {
         return 0;
     };
     let scores = read_scores(&scores).unwrap();
@@ -212,7 +223,10 @@ fn refused_in_multi_matching<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth) {
         gate: Gate::Margin,
         ..Params::default()
     };
-    assert_eq!(cal.transfer(s.slice(s![.., 11..]), &params).unwrap_err().to_string(), why);
+    assert_eq!(
+        cal.transfer(s.slice(s![.., 11..]), &params).unwrap_err().to_string(),
+        why
+    );
     assert_eq!(cal.gate(1.0).unwrap_err().to_string(), why);
     let p = OnlineParams {
         k: 10,
@@ -232,7 +246,10 @@ fn refused_in_multi_matching<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth) {
         calibration: Split::Count(11),
         ..Protocol::default()
     };
-    assert_eq!(evaluate(s, gt, &protocol, &[Method::Margin]).unwrap_err().to_string(), why);
+    assert_eq!(
+        evaluate(s, gt, &protocol, &[Method::Margin]).unwrap_err().to_string(),
+        why
+    );
     // "All methods" in multi matching are those that apply.
     assert!(!Method::all_for(Matching::Multi).contains(&Method::QuantileTransferMargin));
     let e = evaluate(s, gt, &protocol, &Method::all_for(Matching::Multi)).unwrap();
