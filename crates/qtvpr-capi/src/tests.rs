@@ -6,7 +6,7 @@ use std::ffi::{CStr, CString};
 use std::path::Path;
 
 use ndarray::{Array2, array};
-use qtvpr::{Defaults, GroundTruth};
+use qtvpr::{Defaults, Gate, GroundTruth};
 
 use super::*;
 use crate::error::{last, qtvpr_status};
@@ -24,6 +24,7 @@ fn calibration(matching: Matching, window: Option<usize>) -> Calibration {
         k: 2,
         precision: 1.0,
         window,
+        gate: Gate::None,
     };
     Calibration::new(s.view(), &gt, matching)
         .unwrap()
@@ -56,6 +57,8 @@ fn no_decision() -> qtvpr_decision {
         accepted: 99,
         query_quantile: -1.0,
         weight: -1.0,
+        margin: -1.0,
+        gate: -1.0,
     }
 }
 
@@ -158,6 +161,7 @@ fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
             precision: 1.0,
             window: 2,
             min_window: 1,
+            gate: Gate::None,
         };
         assert_eq!(*(*o).inner.params(), params);
         qtvpr_online_free(o);
@@ -167,6 +171,7 @@ fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
             precision: 0.5,
             window: 3,
             min_window: 2,
+            gate: Gate::None,
         };
         assert_eq!(*(*o).inner.params(), params);
         qtvpr_online_free(o);
@@ -208,7 +213,11 @@ fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
 /// the calibration is freed first (the state keeps its own reference).
 #[test]
 fn pushes_are_the_rust_online_decisions() {
-    for matching in [Matching::Single, Matching::Multi] {
+    for (matching, gate) in [
+        (Matching::Single, Gate::None),
+        (Matching::Multi, Gate::None),
+        (Matching::Single, Gate::Margin),
+    ] {
         let mut rust = Online::new(
             Arc::new(calibration(matching, Some(3))),
             OnlineParams {
@@ -216,6 +225,7 @@ fn pushes_are_the_rust_online_decisions() {
                 precision: 1.0,
                 window: 3,
                 min_window: 2,
+                gate,
             },
         )
         .unwrap();
@@ -226,7 +236,8 @@ fn pushes_are_the_rust_online_decisions() {
                 Matching::Multi => qtvpr_matching::QTVPR_MULTI,
             };
             assert_eq!(qtvpr_calibration_matching(cal), expected as c_int);
-            let o = qtvpr_online_new(cal, 0, 0.0, 0, 2);
+            let name = CString::new(gate.as_str()).unwrap();
+            let o = qtvpr_online_new_gate(cal, 0, 0.0, 0, 2, name.as_ptr());
             qtvpr_calibration_free(cal);
             for (j, column) in QUERIES.iter().enumerate() {
                 let mut d = no_decision();
@@ -252,6 +263,13 @@ fn pushes_are_the_rust_online_decisions() {
                     (d.best, d.score.to_bits(), d.accepted, d.accept),
                     (want.best, want.score.to_bits(), want.accepted, want.accept())
                 );
+                // The gate's fields, NaN without it.
+                let bits = |x: Option<f64>| x.unwrap_or(f64::NAN).to_bits();
+                assert_eq!(
+                    (d.margin.to_bits(), d.gate.to_bits()),
+                    (bits(want.margin), bits(want.gate))
+                );
+                assert_eq!(d.margin.is_nan(), gate == Gate::None);
                 // The accepted indices, in full and cut to a buffer of 1.
                 let all = rust.accepted();
                 let mut out = [usize::MAX; 4];

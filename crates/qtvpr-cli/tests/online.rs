@@ -170,6 +170,7 @@ fn single_matching_stream_equals_online() {
         precision: 1.0,
         window: 5,
         min_window: 1,
+        gate: qtvpr::Gate::None,
     };
     let expected = case.expected(Matching::Single, None, p);
     // The window comes from the file.
@@ -213,6 +214,7 @@ fn single_matching_stream_equals_online() {
         precision: 0.9,
         window: 8,
         min_window: 4,
+        gate: qtvpr::Gate::None,
     };
     let csv = case.ok(&[
         "stream",
@@ -270,6 +272,7 @@ fn multi_matching_query_major_soft_ground_truth() {
         precision: 0.9,
         window: 6,
         min_window: 3,
+        gate: qtvpr::Gate::None,
     };
     let expected = case.expected(Matching::Multi, Some(&soft), p);
     let csv = case.ok(&[
@@ -678,6 +681,7 @@ fn evaluate_reports_the_online_method() {
         precision: 1.0,
         window: 5,
         min_window: 1,
+        gate: qtvpr::Gate::None,
     };
     let expected = case.expected(Matching::Single, None, p);
     let segments = online["segments"].as_array().unwrap();
@@ -778,4 +782,173 @@ fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
         assert!(elapsed < std::time::Duration::from_secs(2), "{args:?}: {elapsed:?}");
     }
+}
+
+/// The margin gate end to end: `calibrate --gate margin` stores it, `stream` and
+/// `threshold --cal` use it as the file's default (and `--gate none` overrides it),
+/// every line carries `margin` and `gate` equal to `qtvpr::Online`'s, `evaluate` has
+/// both gated methods, and multi matching with the gate exits 2 naming `--gate`.
+#[test]
+fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
+    let case = Case::new("AlexNet_VPR");
+    let calibrate = [
+        "calibrate",
+        "--cal",
+        "cal.npy",
+        "--cal-gt",
+        "cal_gt.npy",
+        "--window",
+        "5",
+    ];
+    case.ok(&[&calibrate[..], &["--gate", "margin", "-o", "gated.npz"]].concat());
+    let p = OnlineParams {
+        k: 10,
+        precision: 1.0,
+        window: 5,
+        min_window: 1,
+        gate: qtvpr::Gate::Margin,
+    };
+    let expected = case.expected(Matching::Single, None, p);
+    let plain = case.expected(
+        Matching::Single,
+        None,
+        OnlineParams {
+            gate: qtvpr::Gate::None,
+            ..p
+        },
+    );
+    // The gate turns some accepted decisions down on this matrix.
+    assert!(expected.iter().zip(&plain).any(|(g, u)| u.accept() && !g.accept()));
+
+    let jsonl = case.ok(&["stream", "--calibration", "gated.npz", "--val", "val.npy"]);
+    let lines: Vec<serde_json::Value> = jsonl.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), expected.len());
+    for ((l, text), d) in lines.iter().zip(jsonl.lines()).zip(&expected) {
+        // The record's fields, in its order.
+        let at: Vec<usize> = Decision::fields(qtvpr::Gate::Margin)
+            .iter()
+            .map(|k| text.find(&format!("\"{k}\":")).unwrap())
+            .collect();
+        assert!(at.is_sorted() && l.as_object().unwrap().len() == at.len(), "{text}");
+        // serde_json parses floats to within an ulp (the CSV below is compared bit for bit).
+        for (key, want) in [("margin", d.margin.unwrap()), ("gate", d.gate.unwrap())] {
+            assert!(
+                (l[key].as_f64().unwrap() - want).abs() <= 1e-15 * want.abs(),
+                "{key}: {l}"
+            );
+        }
+        assert_eq!(l["accept"].as_bool(), Some(d.accept()));
+        let (margin, gate) = (d.margin.unwrap(), d.gate.unwrap());
+        assert_eq!(d.accept(), d.score >= d.threshold && margin >= gate);
+    }
+    let csv = case.ok(&[
+        "stream",
+        "--calibration",
+        "gated.npz",
+        "--val",
+        "val.npy",
+        "--format",
+        "csv",
+    ]);
+    let mut rows = csv.lines();
+    assert_eq!(rows.next(), Some(&*Decision::fields(qtvpr::Gate::Margin).join(",")));
+    for (row, d) in rows.zip(&expected) {
+        let v: Vec<&str> = row.split(',').collect();
+        let f = |x: &str| x.parse::<f64>().unwrap().to_bits();
+        assert_eq!(
+            (f(v[9]), f(v[10])),
+            (d.margin.unwrap().to_bits(), d.gate.unwrap().to_bits())
+        );
+    }
+    // --gate none overrides the file: the nine fields, the ungated decisions.
+    let csv = case.ok(&[
+        "stream",
+        "--calibration",
+        "gated.npz",
+        "--val",
+        "val.npy",
+        "--format",
+        "csv",
+        "--gate",
+        "none",
+    ]);
+    assert_csv_equals(&csv, &plain);
+
+    // threshold: the file's gate by default, m* in the document and in the CSV.
+    // m*, as the calibration built in this process has it.
+    let m_star = expected[0].gate.unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&case.ok(&["threshold", "--cal", "gated.npz", "--val", "val.npy"])).unwrap();
+    assert_eq!(json["params"]["gate"], "margin");
+    assert!(
+        (json["gate"].as_f64().unwrap() - m_star).abs() <= 1e-15 * m_star,
+        "{json}"
+    );
+    let csv = case.ok(&["threshold", "--cal", "gated.npz", "--val", "val.npy", "--format", "csv"]);
+    assert_eq!(csv.lines().next(), Some("start,end,quantile,threshold,gate"));
+    let json: serde_json::Value =
+        serde_json::from_str(&case.ok(&["threshold", "--cal", "gated.npz", "--val", "val.npy", "--gate", "none"]))
+            .unwrap();
+    assert!(json.get("gate").is_none() && json["params"]["gate"] == "none", "{json}");
+
+    // evaluate: both gated methods, each segment with m*.
+    case.write_scores("S.npy", case.s.view());
+    write_npy(&case.path("GT.npy"), case.gt.view()).unwrap();
+    let eval = [
+        "evaluate",
+        "--similarity",
+        "S.npy",
+        "--gt",
+        "GT.npy",
+        "--cal-queries",
+        "11",
+    ];
+    let json: serde_json::Value =
+        serde_json::from_str(&case.ok(&[&eval[..], &["--method", "margin,quantile-transfer-margin"]].concat()))
+            .unwrap();
+    for method in ["margin", "quantile-transfer-margin"] {
+        let segments = json["methods"][method]["segments"].as_array().unwrap();
+        assert!(!segments.is_empty());
+        let close = |g: &serde_json::Value| (g["gate"].as_f64().unwrap() - m_star).abs() <= 1e-15 * m_star;
+        assert!(segments.iter().all(close), "{method}");
+    }
+    assert!(json["methods"]["margin"]["threshold_mse"].is_null());
+
+    // Multi matching has no gate: exit 2, naming --gate, and no file.
+    let why = "gate margin needs single matching";
+    case.fails(
+        &[
+            &calibrate[..],
+            &["--matching", "multi", "--gate", "margin", "-o", "multi.npz"],
+        ]
+        .concat(),
+        &["multi.npz"],
+        &["--gate", why],
+    );
+    case.fails(
+        &[&eval[..], &["--matching", "multi", "--method", "margin"]].concat(),
+        &[],
+        &[why],
+    );
+    // A gate the core does not know: clap's usage error (exit 2), listing the gates.
+    let out = case.run(&[
+        "stream",
+        "--calibration",
+        "gated.npz",
+        "--val",
+        "val.npy",
+        "--gate",
+        "ratio",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr.contains("'ratio'") && stderr.contains("[possible values: none, margin]"),
+        "{stderr}"
+    );
+    // `all` in multi matching is every method that applies.
+    let json: serde_json::Value =
+        serde_json::from_str(&case.ok(&[&eval[..], &["--matching", "multi"]].concat())).unwrap();
+    let methods = json["methods"].as_object().unwrap();
+    assert!(methods.contains_key("quantile-transfer") && !methods.contains_key("margin"));
 }
