@@ -2,7 +2,8 @@
 
 The paper's protocol (semantics §8) with the project's defaults: the first 10% of the
 queries calibrate, segments of ceil(1%) of |Q| deployment queries, target precision
-tau = 1, single-best-match decisions, k = 10, every method of semantics §7.
+tau = 1, single-best-match decisions, k = 10, every method of semantics §7, §11 and
+§13 (the margin gate alone, and with quantile transfer).
 
 Matrices:
 - the 20 VPR-Bench similarity matrices (Corridor and SPEDTest, 10 techniques each);
@@ -37,12 +38,14 @@ TECHNIQUES = [
     "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
 ]
 METHODS = [
-    "quantile-transfer", "quantile-transfer-online", "schubert", "schubert-calibrated",
-    "calibration-threshold", "oracle",
+    "quantile-transfer", "quantile-transfer-online", "quantile-transfer-margin", "margin", "schubert",
+    "schubert-calibrated", "calibration-threshold", "oracle",
 ]
 SHORT = {
     "quantile-transfer": "QT",
     "quantile-transfer-online": "QT-online",
+    "quantile-transfer-margin": "QT+gate",
+    "margin": "Gate",
     "schubert": "Schubert",
     "schubert-calibrated": "Schubert-cal",
     "calibration-threshold": "Cal-thr",
@@ -122,7 +125,8 @@ def main() -> None:
         "Protocol: the first 10% of the queries calibrate; the rest are cut into segments of "
         "ceil(1% of |Q|) queries (remainder dropped); target precision 1 (AvgR is AvgR@100P); "
         "single-best-match decisions; k = 10; QT-online decides each query on its window of the last "
-        "segment-size queries. %Segs: segments kept at 100% precision; AvgR: mean "
+        "segment-size queries; QT+gate and Gate add the margin gate (docs/margin-gate.md). "
+        "%Segs: segments kept at 100% precision; AvgR: mean "
         "recall of the counted segments, 0 for a segment that missed the target. "
         "Regenerate with `python benches/results_table.py`.\n\n" + table(rows)
     )

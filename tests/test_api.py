@@ -23,7 +23,8 @@ S_VAL = np.array(
 def test_public_names():
     assert sorted(qtvpr.__all__) == sorted(
         ["Calibration", "Online", "OnlineDecision", "OnlineDecisions", "TransferResult", "__version__", "ablation",
-         "best_threshold", "counts", "evaluate", "quantile_transfer", "ranked_correlation", "schubert_threshold"]
+         "best_threshold", "counts", "evaluate", "margins", "quantile_transfer", "ranked_correlation",
+         "schubert_threshold"]
         # extensions
         + ["Descriptors", "cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "image_paths",
            "sequence_match", "utm_positions"]

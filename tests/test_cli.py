@@ -67,7 +67,7 @@ def test_threshold_equals_reference(cli, shared_data, tmp_path, dataset, techniq
                 assert out["method"] == "quantile-transfer"
                 assert out["params"] == {
                     "k": 10, "precision": precision, "matching": matching,
-                    "segment_size": segment_size or s_val.shape[1],
+                    "segment_size": segment_size or s_val.shape[1], "gate": "none",
                 }
                 ref = reference.quantile_transfer(
                     s_cal, gt_cal, s_val, matching=matching, precision=precision,

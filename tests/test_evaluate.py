@@ -83,7 +83,9 @@ def assert_same_run(got: dict, want: dict) -> None:
             assert same_figure(g[key], w[key]), (name, key, g[key], w[key])
         assert len(g["segments"]) == len(w["segments"]), name
         for gs, ws in zip(g["segments"], w["segments"], strict=True):
-            assert list(gs) == SEGMENT_KEYS, name
+            # The gated methods' segments also have their gate (semantics §13).
+            keys = SEGMENT_KEYS[:4] + ["gate"] + SEGMENT_KEYS[4:] if name in ref.GATED else SEGMENT_KEYS
+            assert list(gs) == keys, name
             for key in ("start", "end", "tp", "fp", "positives", "meets"):
                 assert gs[key] == ws[key], (name, key, gs, ws)
             for key in ("threshold", "oracle_threshold", "precision", "recall"):
@@ -189,7 +191,8 @@ def test_schubert_threshold(shared_data):
 
 def from_json(out: dict) -> dict:
     """The CLI's JSON (an evaluation, an ablation or one run of it) in Python's form:
-    null thresholds are reject-all, inf. Every key is kept."""
+    null thresholds are reject-all, inf, except the margin method's, which is always
+    -inf (semantics §13), and null gates are reject-all too. Every key is kept."""
     if "ablation" in out:
         return {**out, "ablation": [from_json(run) for run in out["ablation"]]}
     methods = {}
@@ -197,9 +200,9 @@ def from_json(out: dict) -> dict:
         segments = []
         for seg in m["segments"]:
             seg = dict(seg)
-            for key in ("threshold", "oracle_threshold"):
-                if seg[key] is None:
-                    seg[key] = math.inf
+            for key in ("threshold", "oracle_threshold", "gate"):
+                if key in seg and seg[key] is None:
+                    seg[key] = -math.inf if (name, key) == ("margin", "threshold") else math.inf
             segments.append(seg)
         methods[name] = {**m, "segments": segments}
     return {**out, "methods": methods}
@@ -216,9 +219,10 @@ def from_json(out: dict) -> dict:
 )
 def test_cli_json_equals_reference(cli, shared_data, dataset, technique, matching, precision):
     d = shared_data / dataset
-    # Every method the reference knows (the CLI's `all` may know more).
+    # Every method the reference knows that applies (the CLI's `all` may know more).
+    methods = [m for m in ref.METHODS if matching == "single" or m not in ref.GATED]
     res = run_cli(cli, "evaluate", "--similarity", d / f"S_{technique}.npy", "--gt", d / "GT.npy",
-                  "--matching", matching, "--precision", precision, "--method", ",".join(ref.METHODS))
+                  "--matching", matching, "--precision", precision, "--method", ",".join(methods))
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     n_q = load(shared_data, dataset, technique)[0].shape[1]
@@ -395,6 +399,17 @@ def evaluate_cases(draw):
 @given(evaluate_cases())
 def test_random_matrices_equal_reference(case):
     s, gt, kwargs = case
+    single = kwargs["matching"] == "single"
+    gated = set(ref.GATED) & set(kwargs["methods"] or (ref.GATED if single else []))
+    n_db = s.shape[1] if kwargs.get("query_major") else s.shape[0]
+    if gated and (not single or n_db < 2):
+        # The margin gate needs single matching and a second-best score: both refuse it,
+        # with one message (all methods in multi matching leave the gate out).
+        why = "needs single matching" if not single else "needs at least 2 database images"
+        for evaluate in (ref.evaluate, qtvpr.evaluate):
+            with pytest.raises(ValueError, match=why):
+                evaluate(s, gt, **kwargs)
+        return
     want = ref.evaluate(s, gt, **kwargs)
     assert_same_evaluation(qtvpr.evaluate(s, gt, **kwargs), want)
 

@@ -355,10 +355,10 @@ def test_reference_save_load_round_trip(tmp_path):
             meta = json.loads(str(z["meta"]))
         assert {k: meta[k] for k in ("format", "version", "matching", "params")} == {
             "format": "qtvpr-calibration", "version": 1, "matching": "multi",
-            "params": {"k": 3, "precision": 0.9, "window": 2},
+            "params": {"k": 3, "precision": 0.9, "window": 2, "gate": "none"},
         }
         loaded = ref.Calibration.load(path)
-        assert loaded.defaults == {"k": 3, "precision": 0.9, "window": 2}
+        assert loaded.defaults == {"k": 3, "precision": 0.9, "window": 2, "gate": "none"}
         assert loaded.matching == "multi" and len(loaded) == 2
         a = ref.Online(cal, k=3, precision=0.9, window=2).push_many(DEP_S)
         b = ref.Online(loaded).push_many(DEP_S)  # the file's params
@@ -368,8 +368,9 @@ def test_reference_save_load_round_trip(tmp_path):
     ref.Calibration(CAL_S, CAL_GT).save(tmp_path / "plain.npz")
     with np.load(tmp_path / "plain.npz", allow_pickle=False) as z:
         assert sorted(z.files) == ["gt", "meta", "s"]
-        assert json.loads(str(z["meta"]))["params"] == {"k": 10, "precision": 1.0, "window": None}
-    assert ref.Calibration.load(tmp_path / "plain.npz").defaults == {"k": 10, "precision": 1.0, "window": None}
+        assert json.loads(str(z["meta"]))["params"] == {"k": 10, "precision": 1.0, "window": None, "gate": "none"}
+    plain = {"k": 10, "precision": 1.0, "window": None, "gate": "none"}
+    assert ref.Calibration.load(tmp_path / "plain.npz").defaults == plain
 
 
 def write_npz(path: Path, meta_json=None, **arrays) -> Path:
@@ -687,12 +688,13 @@ def test_wheel_api_shape():
     assert parameters(qtvpr.Calibration.save) == parameters(ref.Calibration.save)
     assert qtvpr.Online.__doc__ and qtvpr.Calibration.save.__doc__ and qtvpr.Calibration.load.__doc__
     cal = qtvpr.Calibration(CAL_S, CAL_GT)
-    assert cal.defaults == {"k": 10, "precision": 1.0, "window": None} == ref.Calibration(CAL_S, CAL_GT).defaults
+    assert cal.defaults == {"k": 10, "precision": 1.0, "window": None, "gate": "none"}
+    assert cal.defaults == ref.Calibration(CAL_S, CAL_GT).defaults
     assert cal.db_size == 3
     o = qtvpr.Online(cal, window=2, min_window=2, precision=0.9)
-    assert (o.k, o.precision, o.window, o.min_window) == (10, 0.9, 2, 2)
+    assert (o.k, o.precision, o.window, o.min_window, o.gate) == (10, 0.9, 2, 2, "none")
     assert o.calibration is cal
-    assert repr(o) == "Online(k=10, precision=0.9, window=2, min_window=2, matching='single', pushed=0)"
+    assert repr(o) == "Online(k=10, precision=0.9, window=2, min_window=2, gate='none', matching='single', pushed=0)"
     # A |DB| x 1 matrix is a column; f32 and f64; any stride.
     a = qtvpr.Online(cal, window=2).push(DEP_S[:, :1])
     c = qtvpr.Online(cal, window=2).push(np.asfortranarray(DEP_S)[::-1, 0][::-1])
@@ -775,7 +777,7 @@ def test_save_load_is_bit_identical(shared_data, tmp_path, technique, matching):
     path = tmp_path / "cal.npz"
     cal.save(path, k=7, precision=0.9, window=6)
     loaded = qtvpr.Calibration.load(path)
-    assert loaded.defaults == {"k": 7, "precision": 0.9, "window": 6}
+    assert loaded.defaults == {"k": 7, "precision": 0.9, "window": 6, "gate": "none"}
     assert (loaded.matching, len(loaded), loaded.db_size) == (matching, len(cal), cal.db_size)
     a = qtvpr.Online(cal, k=7, precision=0.9, window=6).push_many(s_val)
     b = qtvpr.Online(loaded).push_many(s_val)  # the file's params
@@ -795,7 +797,7 @@ def test_save_load_is_bit_identical(shared_data, tmp_path, technique, matching):
         meta = json.loads(str(z["meta"][()]))
     assert meta["format"] == "qtvpr-calibration" and meta["version"] == 1
     assert meta["matching"] == matching
-    assert meta["params"] == {"k": 7, "precision": 0.9, "window": 6}
+    assert meta["params"] == {"k": 7, "precision": 0.9, "window": 6, "gate": "none"}
     assert meta["qtvpr"] == qtvpr.__version__
     # The reference reads the wheel's file, and the wheel the reference's, alike.
     r = ref.Calibration.load(path)
@@ -814,7 +816,7 @@ def test_save_details(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain"]
     with np.load(tmp_path / "plain", allow_pickle=False) as z:
         assert sorted(z.files) == ["gt", "meta", "s"]
-        assert json.loads(str(z["meta"][()]))["params"] == {"k": 10, "precision": 1.0, "window": None}
+        assert json.loads(str(z["meta"][()]))["params"] == {"k": 10, "precision": 1.0, "window": None, "gate": "none"}
     loaded = qtvpr.Calibration.load(str(tmp_path / "plain"))
     assert loaded.defaults["window"] is None
     with pytest.raises(ValueError, match="window is not given and the calibration sets none"):
@@ -859,7 +861,7 @@ def test_calibration_goes_to_a_worker_process(shared_data):
 def test_pickle_keeps_loaded_defaults(tmp_path):
     qtvpr.Calibration(CAL_S, CAL_GT, matching="multi").save(tmp_path / "c.npz", k=3, precision=0.75, window=4)
     back = pickle.loads(pickle.dumps(qtvpr.Calibration.load(tmp_path / "c.npz")))
-    assert back.defaults == {"k": 3, "precision": 0.75, "window": 4}
+    assert back.defaults == {"k": 3, "precision": 0.75, "window": 4, "gate": "none"}
     assert qtvpr.Online(back).window == 4
 
 
@@ -1021,7 +1023,8 @@ def test_cli_stream_equals_reference(stream_cli, shared_data, tmp_path, dataset,
     assert [line["accepted"] for line in lines] == want.accepted.tolist()
     assert [line["accept"] for line in lines] == want.accept.tolist() == (want.accepted > 0).tolist()
     # The CLI's file is the wheel's and the reference's too.
-    assert ref.Calibration.load(cal_file).defaults == {"k": 10, "precision": precision, "window": window}
+    assert ref.Calibration.load(cal_file).defaults == {"k": 10, "precision": precision, "window": window,
+                                                       "gate": "none"}
     got = qtvpr.Online(qtvpr.Calibration.load(cal_file), min_window=min_window).push_many(s_val)
     np.testing.assert_array_equal(got.thresholds, [line["threshold"] for line in lines])
 

@@ -17,6 +17,7 @@ from hypothesis.extra import numpy as hnp
 
 from qtvpr import reference as ref
 from qtvpr.reference import (
+    GATED,
     best_threshold,
     counts,
     evaluate,
@@ -656,15 +657,18 @@ def test_corridor_evaluate_smoke(corridor):
     res = evaluate(mats["AMOSNet"], gt)["methods"]  # 11 calibrate; 50 segments of 2
     oracle = res["oracle"]
     assert oracle["pct_segs"] == 100.0  # the oracle always meets its target
-    for m in res.values():
+    for name, m in res.items():
+        # The oracle bounds every score threshold; a gated method is not one (its
+        # margin gate can keep a segment clean where no score threshold does).
+        bounded = name not in GATED
         assert len(m["segments"]) == 50
         assert m["segments_counted"] + m["segments_skipped"] == 50
         assert m["segments_counted"] > 0
         assert 0.0 <= m["pct_segs"] <= 100.0
-        assert 0.0 <= m["avg_recall"] <= oracle["avg_recall"]
+        assert 0.0 <= m["avg_recall"] <= (oracle["avg_recall"] if bounded else 1.0)
         assert m["threshold_mse"] is None or m["threshold_mse"] >= 0
         for r, o in zip(m["segments"], oracle["segments"], strict=True):
             assert r["oracle_threshold"] == o["threshold"]
-            if r["meets"] and r["positives"] > 0:
+            if r["meets"] and r["positives"] > 0 and bounded:
                 assert r["recall"] <= o["recall"]
     assert all(math.isfinite(r["threshold"]) for r in res["quantile-transfer"]["segments"])

@@ -65,6 +65,7 @@ from qtvpr._native import (
     ground_truth_positions,
     ground_truth_tolerance,
     image_paths,
+    margins,
     quantile_transfer,
     ranked_correlation,
     schubert_threshold,
@@ -85,6 +86,7 @@ __all__ = [
     "best_threshold",
     "counts",
     "evaluate",
+    "margins",
     "quantile_transfer",
     "ranked_correlation",
     # Extensions

@@ -6,7 +6,7 @@ Checked against the compiled module by ``python -m mypy.stubtest qtvpr._native``
 
 import os
 from collections.abc import Iterable, Sequence
-from typing import Literal, TypedDict, TypeVar, final, overload
+from typing import Literal, NotRequired, TypedDict, TypeVar, final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -17,6 +17,7 @@ __all__ = [
     "best_threshold",
     "counts",
     "ranked_correlation",
+    "margins",
     "cosine_similarity",
     "sequence_match",
     "ground_truth_tolerance",
@@ -38,9 +39,12 @@ __all__ = [
 __version__: str
 
 _Matching = Literal["single", "multi"]
+_Gate = Literal["none", "margin"]
 _Method = Literal[
     "quantile-transfer",
     "quantile-transfer-online",
+    "quantile-transfer-margin",
+    "margin",
     "schubert",
     "schubert-calibrated",
     "calibration-threshold",
@@ -63,6 +67,7 @@ class _Segment(TypedDict):
     end: int
     threshold: float
     oracle_threshold: float
+    gate: NotRequired[float]
     tp: int
     fp: int
     positives: int
@@ -131,6 +136,10 @@ class TransferResult:
     def query_weights(self) -> NDArray[np.float64]: ...
     @property
     def neighbours(self) -> NDArray[np.int64]: ...
+    @property
+    def gate(self) -> float | None: ...
+    @property
+    def query_margins(self) -> NDArray[np.float64] | None: ...
     @staticmethod
     def _from_parts(
         thresholds: NDArray[np.float64],
@@ -140,6 +149,8 @@ class TransferResult:
         query_thresholds: NDArray[np.float64],
         query_weights: NDArray[np.float64],
         neighbours: NDArray[np.int64],
+        gate: float | None = None,
+        query_margins: NDArray[np.float64] | None = None,
     ) -> TransferResult: ...
 
 @final
@@ -178,9 +189,11 @@ class Calibration:
         k: int | None = None,
         precision: float | None = None,
         segment_size: int | None = None,
+        gate: _Gate | None = None,
         query_major: bool = False,
     ) -> TransferResult: ...
     def threshold(self, precision: float | None = None) -> float: ...
+    def gate(self, precision: float | None = None) -> float: ...
     def save(
         self,
         path: str | os.PathLike[str],
@@ -188,6 +201,7 @@ class Calibration:
         k: int | None = None,
         precision: float | None = None,
         window: int | None = None,
+        gate: _Gate | None = None,
     ) -> None: ...
     @staticmethod
     def load(path: str | os.PathLike[str]) -> Calibration: ...
@@ -206,6 +220,7 @@ class _Defaults(TypedDict):
     k: int
     precision: float
     window: int | None
+    gate: _Gate
 
 # A deployment query's scores: a 1-D array of |DB| scores, or a |DB| x 1 matrix.
 _Column = ArrayLike
@@ -231,6 +246,10 @@ class OnlineDecision:
     @property
     def accept(self) -> bool: ...
     @property
+    def margin(self) -> float | None: ...
+    @property
+    def gate(self) -> float | None: ...
+    @property
     def accepted_indices(self) -> NDArray[np.int64]: ...
 
 @final
@@ -253,6 +272,10 @@ class OnlineDecisions:
     def accepted(self) -> NDArray[np.int64]: ...
     @property
     def accept(self) -> NDArray[np.bool_]: ...
+    @property
+    def margins(self) -> NDArray[np.float64] | None: ...
+    @property
+    def gates(self) -> NDArray[np.float64] | None: ...
     @staticmethod
     def _from_parts(
         queries: NDArray[np.int64],
@@ -264,6 +287,8 @@ class OnlineDecisions:
         score: NDArray[np.float64],
         accepted: NDArray[np.int64],
         accept: NDArray[np.bool_],
+        margins: NDArray[np.float64] | None = None,
+        gates: NDArray[np.float64] | None = None,
     ) -> OnlineDecisions: ...
     def __len__(self) -> int: ...
 
@@ -277,6 +302,7 @@ class Online:
         precision: float | None = None,
         window: int | None = None,
         min_window: int = 1,
+        gate: _Gate | None = None,
     ) -> Online: ...
     def push(self, column: _Column) -> OnlineDecision: ...
     def push_many(self, s_val: _Matrix, *, query_major: bool = False) -> OnlineDecisions: ...
@@ -293,6 +319,8 @@ class Online:
     @property
     def min_window(self) -> int: ...
     @property
+    def gate(self) -> _Gate: ...
+    @property
     def calibration(self) -> Calibration: ...
 
 def quantile_transfer(
@@ -305,8 +333,10 @@ def quantile_transfer(
     precision: float = 1.0,
     matching: _Matching = "single",
     segment_size: int | None = None,
+    gate: _Gate = "none",
     query_major: bool = False,
 ) -> TransferResult: ...
+def margins(s: _Matrix, *, query_major: bool = False) -> NDArray[np.float64]: ...
 def best_threshold(
     s: _Matrix,
     gt: _Matrix,

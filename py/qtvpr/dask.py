@@ -60,6 +60,7 @@ def transfer(
     k: int | None = None,
     precision: float | None = None,
     segment_size: int | None = None,
+    gate: str | None = None,
     query_major: bool = False,
 ) -> TransferResult:
     """:meth:`qtvpr.Calibration.transfer` of a Dask array, block-parallel.
@@ -71,8 +72,9 @@ def transfer(
     one task that runs the compiled transfer on it, and the results are assembled into
     the :class:`qtvpr.TransferResult` of ``calibration.transfer(s_val.compute(), ...)``,
     identical to it. Without a segment size the whole deployment set is one segment,
-    hence one task. ``k`` and ``precision`` left as ``None`` are the calibration's
-    (:attr:`qtvpr.Calibration.defaults`), as in :meth:`qtvpr.Calibration.transfer`.
+    hence one task. ``k``, ``precision`` and ``gate`` left as ``None`` are the
+    calibration's (:attr:`qtvpr.Calibration.defaults`), as in
+    :meth:`qtvpr.Calibration.transfer`.
 
     Raises what :meth:`qtvpr.Calibration.transfer` raises on the whole matrix, with the
     same messages (positions in the whole matrix), and ``TypeError`` when ``s_val`` is
@@ -80,7 +82,7 @@ def transfer(
     """
     s_val = _check_array(s_val)
     n_db, n = _oriented_shape(s_val, query_major)
-    args: dict[str, Any] = {"k": k, "precision": precision, "query_major": query_major}
+    args: dict[str, Any] = {"k": k, "precision": precision, "gate": gate, "query_major": query_major}
     if n_db == 0 or n == 0 or not _fits(segment_size, n):
         # Errors found before any score is read (the segment size is checked against
         # the number of queries, not a block's): the compiled call raises them on a
@@ -108,6 +110,9 @@ def transfer(
         np.concatenate([p["query_thresholds"] for p in parts]),
         np.concatenate([p["query_weights"] for p in parts]),
         np.concatenate([p["neighbours"] for p in parts]),
+        # Every block has the calibration's m* (or none), and its queries' margins.
+        parts[0]["gate"],
+        None if parts[0]["gate"] is None else np.concatenate([p["query_margins"] for p in parts]),
     )
 
 
@@ -119,12 +124,13 @@ def online(
     precision: float | None = None,
     window: int | None = None,
     min_window: int = 1,
+    gate: str | None = None,
     query_major: bool = False,
 ) -> OnlineDecisions:
     """:meth:`qtvpr.Online.push_many` of a Dask array on a fresh state, block-parallel.
 
-    ``s_val`` is as in :func:`transfer`. ``k``, ``precision``, ``window`` and
-    ``min_window`` are those of :class:`qtvpr.Online` (``None``: the calibration's
+    ``s_val`` is as in :func:`transfer`. ``k``, ``precision``, ``window``,
+    ``min_window`` and ``gate`` are those of :class:`qtvpr.Online` (``None``: the calibration's
     :attr:`qtvpr.Calibration.defaults`). Each chunk of the query axis is one task: a
     fresh :class:`qtvpr.Online` is pushed the ``window - 1`` queries before the chunk
     (fewer at the start of the stream; none for the first chunk, so that the warm-up of
@@ -140,7 +146,7 @@ def online(
     s_val = _check_array(s_val)
     # Built here for its errors and resolved parameters (the window may come from the
     # calibration's defaults); each block builds its own.
-    state = Online(calibration, k=k, precision=precision, window=window, min_window=min_window)
+    state = Online(calibration, k=k, precision=precision, window=window, min_window=min_window, gate=gate)
     n_db, n = _oriented_shape(s_val, query_major)
     if n_db == 0 or n == 0:
         return state.push_many(np.zeros(s_val.shape, s_val.dtype), query_major=query_major)
@@ -149,6 +155,7 @@ def online(
         "precision": state.precision,
         "window": state.window,
         "min_window": state.min_window,
+        "gate": state.gate,
     }
     chunks = s_val.chunks[0 if query_major else 1]
     starts = np.cumsum([0, *chunks[:-1]]).tolist()
@@ -161,8 +168,10 @@ def online(
         tasks.append(dask.delayed(_online_block)(cal, block, first, start, params, query_major))
     parts = _computed(tasks)
     fields = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accepted",
-              "accept")
-    return OnlineDecisions._from_parts(*(np.concatenate([p[name] for p in parts]) for name in fields))
+              "accept", "margins", "gates")
+    return OnlineDecisions._from_parts(
+        *(None if parts[0][name] is None else np.concatenate([p[name] for p in parts]) for name in fields)
+    )
 
 
 def _check_array(s_val: object) -> da.Array:
@@ -280,6 +289,8 @@ def _transfer_block(
             "query_thresholds": r.query_thresholds,
             "query_weights": r.query_weights,
             "neighbours": r.neighbours,
+            "gate": r.gate,
+            "query_margins": r.query_margins,
         }
 
     return _caught(block, start, args["query_major"], run)
@@ -309,6 +320,8 @@ def _online_block(
             "score": d.score,
             "accepted": d.accepted,
             "accept": d.accept,
+            "margins": d.margins,
+            "gates": d.gates,
         }
 
     # An error in the warm-up is the previous block's, reported by it first.

@@ -47,6 +47,7 @@ __all__ = [
     "best_threshold",
     "counts",
     "evaluate",
+    "margins",
     "precision_lower95",
     "quantile_transfer",
     "schubert_threshold",
@@ -61,10 +62,18 @@ SCHUBERT_Z = 4.753424308817087
 #: Grid on which correlations are compared when choosing neighbours (refinement of 4.3).
 CORRELATION_GRID = 2.0**40
 
-#: Every method of the evaluation protocol, in report order (semantics §7 and §8).
+#: The methods that gate decisions on their margin (semantics §13): single matching only.
+GATED = ("quantile-transfer-margin", "margin")
+
+#: The gates a decision can have (semantics §13).
+GATES = ("none", "margin")
+
+#: Every method of the evaluation protocol, in report order (semantics §7, §8 and §13).
 METHODS = (
     "quantile-transfer",
     "quantile-transfer-online",
+    "quantile-transfer-margin",
+    "margin",
     "schubert",
     "schubert-calibrated",
     "calibration-threshold",
@@ -487,7 +496,8 @@ class TransferResult:
     deployment columns, end exclusive). Per deployment query: ``query_quantiles`` (q_j),
     ``query_thresholds`` (the subset threshold t_j, inf for reject-all),
     ``query_weights`` (w_j) and ``neighbours`` (the chosen calibration columns, by
-    decreasing correlation).
+    decreasing correlation). With the margin gate (semantics §13): ``gate`` (m*) and
+    ``query_margins``; None without it.
     """
 
     thresholds: np.ndarray
@@ -497,6 +507,8 @@ class TransferResult:
     query_thresholds: np.ndarray
     query_weights: np.ndarray
     neighbours: np.ndarray
+    gate: float | None = None
+    query_margins: np.ndarray | None = None
 
 
 def quantile_transfer(
@@ -509,6 +521,7 @@ def quantile_transfer(
     precision=1.0,
     matching="single",
     segment_size=None,
+    gate="none",
     query_major=False,
 ) -> TransferResult:
     """Quantile transfer from calibration to deployment queries (semantics §4-§6).
@@ -520,11 +533,13 @@ def quantile_transfer(
     quantile at q of the segment's raw scores (section 6).
 
     ``gt_soft`` is the calibration soft ground truth. ``segment_size=None`` means one
-    batch of all deployment queries.
+    batch of all deployment queries. ``gate="margin"`` (section 13) also gives m* and
+    every deployment query's margin.
     """
     k = _check_positive_int("k", k)
     tau = _check_precision(precision)
     matching = _check_matching(matching)
+    gate = _check_gate(gate)
     s_cal64, gt, ignored = _inputs("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, query_major)
     s_val64 = _scores("s_val", s_val, query_major)
     if s_val64.shape[0] != s_cal64.shape[0]:
@@ -552,6 +567,9 @@ def quantile_transfer(
             s_val64[:, start:end], q_query[start:end], weights[start:end]
         )
 
+    gated = gate == "margin"
+    if gated:
+        _check_gated(matching, s_cal64.shape[0])
     return TransferResult(
         thresholds=thresholds,
         quantiles=quantiles,
@@ -560,7 +578,63 @@ def quantile_transfer(
         query_thresholds=t_query,
         query_weights=weights,
         neighbours=neighbours,
+        gate=_gate(s_cal64, gt, ignored, tau) if gated else None,
+        query_margins=_margins(s_val64) if gated else None,
     )
+
+
+# ---------------------------------------------------------------------------------------
+# Section 13: the margin gate
+# ---------------------------------------------------------------------------------------
+
+
+def _check_gate(gate) -> str:
+    if gate not in GATES:
+        raise ValueError(f"gate must be one of {', '.join(GATES)}, got {gate!r}")
+    return gate
+
+
+def _check_gated(matching: str, n_db: int) -> None:
+    """The gate decides a best match: single matching, and at least 2 database images."""
+    if matching != "single":
+        raise ValueError(
+            "gate margin needs single matching: it gates each query's best match, and multi "
+            "matching accepts every database entry at or above the threshold"
+        )
+    if n_db < 2:
+        raise ValueError(
+            f"gate margin needs at least 2 database images (a best and a second-best score), got {n_db}"
+        )
+
+
+def _margins(s: np.ndarray) -> np.ndarray:
+    """(s1 - s2) / sigma of every column of a validated float64 matrix: its largest
+    and second-largest score (equal when the largest occurs twice) over the population
+    standard deviation of the column; 0 for a constant column."""
+    top2 = np.sort(s, axis=0)[-2:]
+    sigma = s.std(axis=0)  # population: the mean of squared deviations
+    out = np.zeros(s.shape[1])
+    spread = sigma > 0
+    out[spread] = (top2[1, spread] - top2[0, spread]) / sigma[spread]
+    return out
+
+
+def margins(s, *, query_major=False) -> np.ndarray:
+    """The margin of every query column of ``s`` (semantics §13)."""
+    s64 = _scores("s", s, query_major)
+    _check_gated("single", s64.shape[0])
+    return _margins(s64)
+
+
+def _gate(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray, tau: float) -> float:
+    """m*: section 3 on the calibration's single-match decisions, each with its margin
+    in place of its score (soft-only best matches left out; the positives are the
+    queries with a hard match)."""
+    best = np.argmax(s, axis=0)  # the first maximum
+    cols = np.arange(s.shape[1])
+    kept = ~ignored[best, cols]
+    positives = int(gt.any(axis=0).sum())
+    return _sweep(_margins(s)[kept], gt[best, cols][kept], positives, tau)
 
 
 # ---------------------------------------------------------------------------------------
@@ -692,6 +766,11 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
 
     thresholds = {}
     per_query = {}  # methods that decide each query at its own threshold: theta_j
+    gated = [name for name in methods if name in GATED]
+    if gated:
+        _check_gated(matching, s.shape[0])
+        m_star = _gate(s_cal, gt_cal, ign_cal, tau)
+        passes = _margins(s_dep) >= m_star  # per deployment query: the gate's verdict
     for name in methods:
         if name == "quantile-transfer-online":
             # Section 11: the window (m = segment size) runs over the deployment queries
@@ -705,7 +784,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
             theta = online.push_many(s_dep[:, : segments[-1][1]]).thresholds
             per_query[name] = theta
             thresholds[name] = [float(theta[b - 1]) for _, b in segments]  # its last query's
-        elif name == "quantile-transfer":
+        elif name in ("quantile-transfer", "quantile-transfer-margin"):
             transfer = quantile_transfer(
                 s_cal,
                 gt_cal,
@@ -717,6 +796,8 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
                 segment_size=size,
             )
             thresholds[name] = [float(t) for t in transfer.thresholds]
+        elif name == "margin":
+            thresholds[name] = [-math.inf] * len(segments)
         elif name == "schubert":
             thresholds[name] = [_schubert(s_dep[:, a:b]) for a, b in segments]
         elif name == "schubert-calibrated":
@@ -731,28 +812,28 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
     for name in methods:
         rows = []
         for (a, b), cand, t, t_oracle in zip(segments, candidates, thresholds[name], oracle, strict=True):
-            if name in per_query:
-                # The segment's counts are the sums of its queries' counts.
+            if name in per_query or name in GATED:
+                # The segment's counts are the sums of its queries' counts: each at its
+                # own threshold, or at the segment's when its margin passes the gate
+                # (a query that fails the gate accepts nothing).
                 tp = fp = positives = 0
                 for j in range(a, b):
+                    if name in GATED:
+                        t_j = t if passes[j] else math.inf
+                    else:
+                        t_j = float(per_query[name][j])
                     cj = _count_at(
                         *_candidates(s_dep[:, j : j + 1], gt_dep[:, j : j + 1], ign_dep[:, j : j + 1], matching),
-                        float(per_query[name][j]),
+                        t_j,
                     )
                     tp, fp, positives = tp + cj["tp"], fp + cj["fp"], positives + cj["positives"]
                 c = _counts_of(tp, fp, positives)
             else:
                 c = _count_at(*cand, t)
-            rows.append(
-                {
-                    "start": a,
-                    "end": b,
-                    "threshold": t,
-                    "oracle_threshold": t_oracle,
-                    **_counts_with_bound(c),
-                    "meets": c["precision"] >= tau - EPS,
-                }
-            )
+            row = {"start": a, "end": b, "threshold": t, "oracle_threshold": t_oracle}
+            if name in GATED:
+                row["gate"] = m_star
+            rows.append({**row, **_counts_with_bound(c), "meets": c["precision"] >= tau - EPS})
         counted = [r for r in rows if r["positives"] > 0]
         if counted:
             pct_segs = 100.0 * sum(r["meets"] for r in counted) / len(counted)
@@ -797,8 +878,12 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
     }
 
 
-def _check_methods(methods) -> list:
-    methods = list(METHODS) if methods is None else list(methods)
+def _check_methods(methods, matching: str) -> list:
+    """The methods asked for, once each; None is every method that applies to
+    ``matching`` (the gated ones need single matching)."""
+    if methods is None:
+        methods = [m for m in METHODS if matching == "single" or m not in GATED]
+    methods = list(methods)
     for name in methods:
         if name not in METHODS:
             raise ValueError(f"unknown method {name!r}; expected one of {', '.join(METHODS)}")
@@ -848,10 +933,10 @@ def evaluate(
     no segment is counted; ``threshold_mse`` is None when no counted segment has both
     thresholds finite. The pooled counts are summed over every full segment.
     """
-    methods = _check_methods(methods)
     k = _check_positive_int("k", k)
     tau = _check_precision(precision)
     matching = _check_matching(matching)
+    methods = _check_methods(methods, matching)
     s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
     layout = _layout(*s.shape, cal_fraction, cal_queries, deploy_fraction, segment_fraction, segment_size)
     return {"dataset": None, **_run(s, gt, ignored, methods, k, tau, matching, layout)}
@@ -892,7 +977,7 @@ def ablation(
     "ablation": [run, ...]}``, each run with the ``params``, ``recall_at_1`` and
     ``methods`` of :func:`evaluate`.
     """
-    methods = _check_methods(methods)
+    methods = _check_methods(methods, _check_matching(matching))
     ks = [_check_positive_int("k", v) for v in _values(k)]
     if cal_queries is None:
         settings = [(f, None) for f in _values(cal_fraction)]
@@ -931,7 +1016,9 @@ class OnlineDecision:
     ``score`` its score; ``accepted`` is the number of accepted entries (single: 1 when
     ``score >= threshold``, else 0; multi: the scores ``>= threshold``) and ``accept``
     is ``accepted > 0``. ``accepted_indices`` are the accepted database indices,
-    ascending.
+    ascending. With the margin gate (section 13) ``margin`` is the column's margin and
+    ``gate`` m*, and single matching accepts only when ``margin >= gate`` too; both are
+    None without it.
     """
 
     query: int
@@ -944,6 +1031,8 @@ class OnlineDecision:
     accepted: int
     accept: bool
     accepted_indices: np.ndarray
+    margin: float | None = None
+    gate: float | None = None
 
 
 @dataclass
@@ -951,7 +1040,8 @@ class OnlineDecisions:
     """The decisions of :meth:`Online.push_many`, one entry per pushed query: the
     fields of :class:`OnlineDecision` as arrays (``queries``, ``query_quantiles``,
     ``weights``, ``quantiles``, ``thresholds``, ``best``, ``score``, ``accepted``,
-    ``accept``), in both matching modes."""
+    ``accept``, and with the margin gate ``margins`` and ``gates``), in both matching
+    modes."""
 
     queries: np.ndarray
     query_quantiles: np.ndarray
@@ -962,6 +1052,8 @@ class OnlineDecisions:
     score: np.ndarray
     accepted: np.ndarray
     accept: np.ndarray
+    margins: np.ndarray | None = None
+    gates: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.queries)
@@ -997,7 +1089,7 @@ class Online:
     the calibration; the window keeps its raw columns and their q, w.
     """
 
-    def __init__(self, calibration, *, k=None, precision=None, window=None, min_window=1):
+    def __init__(self, calibration, *, k=None, precision=None, window=None, min_window=1, gate=None):
         if not isinstance(calibration, Calibration):
             raise TypeError(
                 f"calibration must be a qtvpr.reference.Calibration, got {type(calibration).__name__}"
@@ -1016,6 +1108,11 @@ class Online:
             raise ValueError(
                 f"min_window must be between 1 and the window ({self.window}), got {self.min_window}"
             )
+        self.gate = _check_gate(defaults["gate"] if gate is None else gate)
+        self._m_star = None
+        if self.gate == "margin":
+            _check_gated(calibration.matching, calibration.db_size)
+            self._m_star = _gate(calibration._s64, calibration._gt, calibration._ignored, self.precision)
         self._columns: list[np.ndarray] = []  # the window's raw columns (float64)
         self._q: list[float] = []
         self._w: list[float] = []
@@ -1043,14 +1140,16 @@ class Online:
         self.pushed += 1
         self.threshold = threshold
         b = int(np.argmax(column))  # first maximum on ties: the matcher's choice, both modes
+        margin = None if self._m_star is None else float(_margins(column[:, None])[0])
         if cal.matching == "single":
-            indices = np.array([b] if column[b] >= threshold else [], dtype=np.int64)
+            passes = margin is None or margin >= self._m_star
+            indices = np.array([b] if column[b] >= threshold and passes else [], dtype=np.int64)
         else:
             indices = np.flatnonzero(column >= threshold).astype(np.int64)
         return OnlineDecision(
             query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
             threshold=threshold, best=b, score=float(column[b]), accepted=len(indices),
-            accept=len(indices) > 0, accepted_indices=indices,
+            accept=len(indices) > 0, accepted_indices=indices, margin=margin, gate=self._m_star,
         )
 
     def push(self, column) -> OnlineDecision:
@@ -1101,6 +1200,8 @@ class Online:
             score=field("score", np.float64),
             accepted=field("accepted", np.int64),
             accept=field("accept", bool),
+            margins=field("margin", np.float64) if self._m_star is not None else None,
+            gates=field("gate", np.float64) if self._m_star is not None else None,
         )
 
 
@@ -1128,12 +1229,13 @@ class Calibration:
     validates its input as :func:`quantile_transfer` does and keeps the raw scores in
     their own dtype, |DB| x |Qcal|, with the hard and the optional soft ground truth.
     ``defaults`` are the parameters a calibration file stores for its users
-    (``{"k": 10, "precision": 1.0, "window": None}`` for one built here).
+    (``{"k": 10, "precision": 1.0, "window": None, "gate": "none"}`` for one built
+    here).
     """
 
     def __init__(self, s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False):
         self._init("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, matching, query_major)
-        self.defaults = {"k": 10, "precision": 1.0, "window": None}
+        self.defaults = {"k": 10, "precision": 1.0, "window": None, "gate": "none"}
 
     def _init(self, s_name, s, gt_name, gt, soft_name, gt_soft, matching, query_major):
         self.matching = _check_matching(matching)
@@ -1154,18 +1256,19 @@ class Calibration:
         """|DB| of the calibration."""
         return self._s.shape[0]
 
-    def transfer(self, s_val, *, k=None, precision=None, segment_size=None, query_major=False):
-        """:func:`quantile_transfer` from this calibration; ``k`` and ``precision`` left as
-        ``None`` are the calibration's :attr:`defaults` (semantics §12)."""
+    def transfer(self, s_val, *, k=None, precision=None, segment_size=None, gate=None, query_major=False):
+        """:func:`quantile_transfer` from this calibration; ``k``, ``precision`` and
+        ``gate`` left as ``None`` are the calibration's :attr:`defaults` (semantics §12)."""
         k = self.defaults["k"] if k is None else k
         precision = self.defaults["precision"] if precision is None else precision
+        gate = self.defaults["gate"] if gate is None else gate
 
         def oriented(a):
             return None if a is None else (a.T if query_major else a)
 
         return quantile_transfer(
             oriented(self._s), oriented(self._gt), s_val, gt_soft=oriented(self._soft), k=k,
-            precision=precision, matching=self.matching, segment_size=segment_size,
+            precision=precision, matching=self.matching, segment_size=segment_size, gate=gate,
             query_major=query_major,
         )
 
@@ -1175,11 +1278,17 @@ class Calibration:
         precision = self.defaults["precision"] if precision is None else precision
         return _best_threshold(self._s64, self._gt, self._ignored, _check_precision(precision), self.matching)
 
-    def save(self, path, *, k=None, precision=None, window=None) -> None:
+    def gate(self, precision=None) -> float:
+        """m*, the margin gate of section 13 (``precision=None``: the calibration's)."""
+        precision = self.defaults["precision"] if precision is None else precision
+        _check_gated(self.matching, self.db_size)
+        return _gate(self._s64, self._gt, self._ignored, _check_precision(precision))
+
+    def save(self, path, *, k=None, precision=None, window=None, gate=None) -> None:
         """Write the semantics §12 ``.npz`` to ``path`` (the name is used as given):
         ``s``, ``gt``, ``gt_soft`` when there is one, and ``meta``, a 0-d string array of
-        JSON whose ``params`` are ``k``, ``precision`` and ``window`` (each ``None``: the
-        calibration's own :attr:`defaults`)."""
+        JSON whose ``params`` are ``k``, ``precision``, ``window`` and ``gate`` (each
+        ``None``: the calibration's own :attr:`defaults`)."""
         k = self.defaults["k"] if k is None else k
         precision = self.defaults["precision"] if precision is None else precision
         window = self.defaults["window"] if window is None else window
@@ -1187,7 +1296,10 @@ class Calibration:
             "k": _check_positive_int("k", k),
             "precision": _check_precision(precision),
             "window": None if window is None else _check_positive_int("window", window),
+            "gate": _check_gate(self.defaults["gate"] if gate is None else gate),
         }
+        if params["gate"] == "margin":
+            _check_gated(self.matching, self.db_size)
         meta = {
             "format": CALIBRATION_FORMAT,
             "version": CALIBRATION_VERSION,
@@ -1257,7 +1369,7 @@ class Calibration:
         for key in ("k", "precision"):
             if key not in params:
                 raise bad(f"meta params has no {key}")
-        defaults = {"window": None, **params}
+        defaults = {"window": None, "gate": "none", **params}
         try:
             for key in ("k", "window"):
                 v = defaults[key]
@@ -1269,6 +1381,7 @@ class Calibration:
             defaults["precision"] = _check_precision(defaults["precision"])
             if defaults["window"] is not None:
                 defaults["window"] = _check_positive_int("window", defaults["window"])
+            _check_gate(defaults["gate"])
         except (TypeError, ValueError) as e:
             raise bad(f"meta params: {e}") from None
         for key in ("gt", "gt_soft"):
@@ -1280,5 +1393,10 @@ class Calibration:
                       meta.get("matching"), False)
         except (TypeError, ValueError) as e:  # a dtype stays a TypeError
             raise type(e)(f"{name}: {e}") from None
-        cal.defaults = {key: defaults[key] for key in ("k", "precision", "window")}
+        cal.defaults = {key: defaults[key] for key in ("k", "precision", "window", "gate")}
+        if cal.defaults["gate"] == "margin":
+            try:
+                _check_gated(cal.matching, cal.db_size)
+            except ValueError as e:
+                raise bad(f"meta params: {e}") from None
         return cal

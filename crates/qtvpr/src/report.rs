@@ -48,9 +48,11 @@
 //!   - `segments`: every full segment in order ([`SegmentResult`]): `start`, `end`
 //!     (deployment-query indices, end exclusive: deployment query i is column
 //!     `deployment_start + i`), `threshold` (the method's; reject-all is `null` /
-//!     `inf`), `oracle_threshold`, `tp`, `fp`, `positives`, `precision` (1 when
-//!     nothing is accepted), `recall` (0 without positives), `precision_lower95` and
-//!     `meets` (precision >= tau - 1e-12).
+//!     `inf`; the `margin` method's is always `-inf`, also `null` in JSON: it accepts
+//!     every score and its gate decides), `oracle_threshold`, `gate` (the gated
+//!     methods only, semantics §13: `m*`; reject-all is `null` / `inf`), `tp`, `fp`,
+//!     `positives`, `precision` (1 when nothing is accepted), `recall` (0 without
+//!     positives), `precision_lower95` and `meets` (precision >= tau - 1e-12).
 //!
 //! `precision_lower95` is the one-sided 95% Clopper-Pearson lower bound on the
 //! precision, the 0.05 quantile of Beta(TP, FP + 1) ([`Counts::precision_lower95`]): 0
