@@ -111,6 +111,20 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
             assert_eq!(bits(&got), bits(&want));
         }
     }
+    // With the margin gate (single matching): the same m* and margins, bit for bit.
+    let cal = Calibration::new(s.slice(s![.., ..n_cal]), &gt, Matching::Single).unwrap();
+    let fused = Calibration::from_descriptors(d, 0..n_cal, &gt, Matching::Single).unwrap();
+    let p = Params {
+        segment_size: Some(10),
+        gate: Gate::Margin,
+        ..Params::default()
+    };
+    let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
+    let got = fused.transfer_descriptors(d, n_cal..n_q, &p).unwrap();
+    assert_eq!(got, want);
+    assert!(want.gate.is_some());
+    let margins = qtvpr::margins(s.slice(s![.., n_cal..])).unwrap();
+    assert_eq!(got.query_margins, Some(margins));
 }
 
 #[test]
