@@ -371,7 +371,13 @@ fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> {
     // rejects all somewhere, in its colour, and one for the oracle. Inside the plotting
     // area, so that no marker reaches the title, and one lane each, so that none hides
     // another.
-    let methods: Vec<&MethodResult> = eval.methods.iter().filter(|m| m.method != Method::Oracle).collect();
+    // A method without a score threshold (the margin gate alone: -inf everywhere) has
+    // nothing to draw here.
+    let methods: Vec<&MethodResult> = eval
+        .methods
+        .iter()
+        .filter(|m| m.method != Method::Oracle && m.segments.iter().any(|g| g.threshold > f64::NEG_INFINITY))
+        .collect();
     let mut lanes: Vec<(Shape, RGBColor, Vec<f64>)> = vec![];
     let centres = |inf: &dyn Fn(&qtvpr::evaluate::SegmentResult) -> bool, m: &MethodResult| -> Vec<f64> {
         m.segments
@@ -381,7 +387,7 @@ fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result<()> {
             .collect()
     };
     for m in &methods {
-        let xs = centres(&|g| g.threshold.is_infinite(), m);
+        let xs = centres(&|g| g.threshold == f64::INFINITY, m);
         if !xs.is_empty() {
             lanes.push((Shape::Triangle, colour(m.method), xs));
         }

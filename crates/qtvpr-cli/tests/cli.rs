@@ -73,7 +73,7 @@ fn hand_computed_thresholds() {
     assert_eq!(json["method"], "quantile-transfer");
     assert_eq!(
         json["params"],
-        serde_json::json!({"k": 1, "precision": 1.0, "matching": "multi", "segment_size": 1})
+        serde_json::json!({"k": 1, "precision": 1.0, "matching": "multi", "segment_size": 1, "gate": "none"})
     );
     let segs = json["segments"].as_array().unwrap();
     assert_eq!(segs.len(), 2);

@@ -136,7 +136,7 @@ fn hand_computed_json() {
     assert_eq!(out["recall_at_1"], 0.5);
     assert_eq!(out["dataset"], case.path("S.npy").display().to_string());
     let methods = out["methods"].as_object().unwrap();
-    assert_eq!(methods.len(), 6);
+    assert_eq!(methods.len(), 8);
     for m in methods.values() {
         // Segment (2, 4) = d2, d3 has no hard match: skipped. Its oracle is reject-all (null).
         assert_eq!(
@@ -381,9 +381,11 @@ fn embedded_demo_data_prints_a_table() {
         .lines()
         .filter(|l| l.starts_with("| ") && !l.starts_with("| method"))
         .collect();
-    assert_eq!(rows.len(), 6, "{text}");
+    // Every method, the margin gate's two included (single matching).
+    assert_eq!(rows.len(), 8, "{text}");
     assert!(rows[1].starts_with("| quantile-transfer-online | "), "{text}");
-    assert!(rows[5].starts_with("| oracle | 100.0 |"), "{text}");
+    assert!(rows[3].starts_with("| margin | "), "{text}");
+    assert!(rows[7].starts_with("| oracle | 100.0 |"), "{text}");
 }
 
 #[test]
