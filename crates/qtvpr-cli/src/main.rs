@@ -21,6 +21,7 @@ mod plot;
 mod progress;
 mod similarity;
 mod stream;
+mod summary;
 mod threshold;
 
 /// Choose the operating point of a visual place recognition system by quantile

@@ -30,8 +30,8 @@ use qtvpr::Method;
 use qtvpr::evaluate::MethodResult;
 
 use crate::embedded;
-use crate::evaluate::{Run, RunContext, ablation_setting, fmt_num};
 use crate::output::emit;
+use crate::summary::{Run, RunContext, ablation_setting, fmt_num};
 
 const FONT: &str = "sans-serif";
 
