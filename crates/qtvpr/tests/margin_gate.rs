@@ -4,7 +4,7 @@
 //! keeps its gate; multi matching is refused everywhere.
 #![cfg(feature = "npy")]
 
-use std::path::{Path, PathBuf};
+mod data;
 use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};
@@ -14,15 +14,6 @@ use qtvpr::{
     Calibration, Defaults, Gate, GroundTruth, Matching, Method, Online, OnlineParams, Params, Protocol, Score,
     ScoresView, Split, Truth, evaluate, margins,
 };
-
-fn data(rel: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if !dir.is_dir() {
-        eprintln!("skipped: ../shared/data is absent");
-        return None;
-    }
-    Some(dir.join(rel))
-}
 
 /// Semantics §3 by brute force: of the thresholds `t` among `values` whose accepted set
 /// `{value >= t}` has precision >= tau, the highest of those of maximum TP (> 0);
@@ -171,8 +162,8 @@ fn check_evaluate<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth) {
 /// Every check on one matrix; the number of decisions its gate rejected.
 fn run(dir: &str, technique: &str, n_cal: usize) -> usize {
     let (Some(scores), Some(gt)) = (
-        data(&format!("{dir}/S_{technique}.npy")),
-        data(&format!("{dir}/GT.npy")),
+        data::shared(&format!("{dir}/S_{technique}.npy")),
+        data::shared(&format!("{dir}/GT.npy")),
     ) else {
         return 0;
     };
@@ -196,18 +187,18 @@ fn corridor_and_spedtest() {
         + run("vprbench-corridor", "CoHOG", 11)
         + run("vprbench-spedtest", "CALC", 60)
         + run("vprbench-spedtest", "AMOSNet", 60);
-    if data("").is_some() {
+    if data::shared("").is_some() {
         assert!(rejected > 0, "the gate rejected no decision on four real matrices");
     }
 }
 
 #[test]
 fn multi_matching_has_no_gate() {
-    let Some(path) = data("vprbench-corridor/S_HOG.npy") else {
+    let Some(path) = data::shared("vprbench-corridor/S_HOG.npy") else {
         return;
     };
     let scores = read_scores(&path).unwrap();
-    let gt = read_ground_truth(&data("vprbench-corridor/GT.npy").unwrap(), None).unwrap();
+    let gt = read_ground_truth(&data::shared("vprbench-corridor/GT.npy").unwrap(), None).unwrap();
     match scores.view() {
         ScoresView::F32(s) => refused_in_multi_matching(s, &gt),
         ScoresView::F64(s) => refused_in_multi_matching(s, &gt),

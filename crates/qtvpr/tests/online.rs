@@ -4,19 +4,13 @@
 //! loaded gives the same decisions.
 #![cfg(feature = "npy")]
 
-use std::path::{Path, PathBuf};
+mod data;
 use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};
 use qtvpr::ScoresView;
 use qtvpr::npy::{read_ground_truth, read_scores};
 use qtvpr::{Calibration, Defaults, Gate, GroundTruth, Matching, Online, OnlineParams, Params, Score};
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(rel)
-}
 
 /// Calibrate on the first `n_cal` queries, stream the rest through `Online`, and check
 /// every decision against `transfer` on the window's columns.
@@ -53,8 +47,14 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize, matchin
 }
 
 fn run(dir: &str, technique: &str, n_cal: usize) {
-    let scores = read_scores(&data(&format!("{dir}/S_{technique}.npy"))).unwrap();
-    let gt = read_ground_truth(&data(&format!("{dir}/GT.npy")), None).unwrap();
+    let (Some(scores), Some(gt)) = (
+        data::shared(&format!("{dir}/S_{technique}.npy")),
+        data::shared(&format!("{dir}/GT.npy")),
+    ) else {
+        return;
+    };
+    let scores = read_scores(&scores).unwrap();
+    let gt = read_ground_truth(&gt, None).unwrap();
     for matching in [Matching::Single, Matching::Multi] {
         for (window, min_window, precision) in [(1, 1, 1.0), (11, 1, 1.0), (7, 4, 0.9), (1000, 1, 1.0)] {
             let p = OnlineParams {
