@@ -51,11 +51,17 @@
 //! let gt = GroundTruth::new(array![[true, false], [false, true], [false, false]].view())?;
 //! let cal = Calibration::new(s_cal.view(), &gt, Matching::Single)?;
 //!
-//! // 3 deployment queries, thresholded as one batch.
+//! // 3 deployment queries, thresholded as one batch. With k = 2 each samples both
+//! // calibration queries: their best matches 0.9 and 0.8 are correct, so the threshold
+//! // of 100% precision and most recall is 0.8, the 5th of their 6 scores, quantile
+//! // (5 - 1) / (6 - 1) = 0.8. Read off the 9 deployment scores (0.1 0.1 0.2 0.2 0.3 0.3
+//! // 0.5 0.6 0.7), quantile 0.8 falls 0.4 of the way from 0.5 to 0.6: 0.54.
 //! let s_val = array![[0.7, 0.1, 0.2], [0.2, 0.6, 0.3], [0.1, 0.3, 0.5]];
-//! let out = cal.transfer(s_val.view(), &Params { k: 1, ..Params::default() })?;
+//! let out = cal.transfer(s_val.view(), &Params { k: 2, ..Params::default() })?;
 //! assert_eq!(out.segments.len(), 1);
-//! assert!(out.segments[0].threshold.is_finite());
+//! assert!((out.segments[0].quantile - 0.8).abs() < 1e-12);
+//! assert!((out.segments[0].threshold - 0.54).abs() < 1e-12);
+//! // So queries 0 and 1 keep their best matches (0.7, 0.6), query 2 (0.5) does not.
 //! # Ok::<(), qtvpr::Error>(())
 //! ```
 
