@@ -51,6 +51,7 @@ __all__ = [
     "precision_lower95",
     "quantile_transfer",
     "schubert_threshold",
+    "vprbench_recall_at_100p",
 ]
 
 #: Tolerance used in every precision comparison (semantics §3, §6 and §8).
@@ -997,6 +998,33 @@ def ablation(
     ]
     runs = [_run(s, gt, ignored, methods, kk, tau, matching, layout) for layout in layouts for kk in ks]
     return {"dataset": None, "ablation": runs}
+
+
+# ---------------------------------------------------------------------------------------
+# For comparison: VPR-Bench's recall at 100% precision (not a section of the semantics)
+# ---------------------------------------------------------------------------------------
+
+
+def vprbench_recall_at_100p(s: np.ndarray, gt: np.ndarray) -> float:
+    """VPR-Bench's recall at 100% precision of ``s`` (|DB| x |Q|) under ``gt``.
+
+    ``matches[j]`` is whether query j's best match (``argmax``, the first on ties) is
+    correct, ``scores[j]`` its score. Over the distinct thresholds (accept
+    ``score >= t``), precision = correct accepted / accepted and recall = correct
+    accepted / all correct matches; the result is the largest recall at precision 1,
+    or 0 if no threshold has precision 1.
+    """
+    columns = np.arange(s.shape[1])
+    best = np.argmax(s, axis=0)
+    scores, matches = s[best, columns].astype(np.float64), gt[best, columns].astype(bool)
+    if not matches.any():
+        return float("nan")  # VPR-Bench divides by zero
+    order = np.argsort(-scores, kind="stable")
+    scores, matches = scores[order], matches[order]
+    tp, fp = np.cumsum(matches), np.cumsum(~matches)
+    last = np.append(scores[1:] != scores[:-1], True)  # equal scores are accepted together
+    exact = last & (fp == 0)
+    return float(tp[exact].max() / matches.sum()) if exact.any() else 0.0
 
 
 # ---------------------------------------------------------------------------------------
