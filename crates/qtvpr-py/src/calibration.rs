@@ -57,11 +57,23 @@ impl PyCalibration {
     pub(crate) fn inner(&self) -> &Arc<qtvpr::Calibration> {
         &self.inner
     }
+
+    /// `precision`, or the calibration's default when `None`, checked by the core.
+    fn precision(&self, precision: Option<f64>) -> PyResult<f64> {
+        let defaults = self.inner.defaults().resolve(None, precision, None, None);
+        Ok(defaults.map_err(|e| CAL_ARGS.error(e))?.precision)
+    }
 }
 
 /// How calibration-file calls name their arguments (no matrix is transposed).
 const FILE_ARGS: Args = Args {
     gt: "gt",
+    query_major: false,
+};
+
+/// How a calibration's own methods name their arguments.
+const CAL_ARGS: Args = Args {
+    gt: "gt_cal",
     query_major: false,
 };
 
@@ -272,17 +284,8 @@ impl PyCalibration {
     /// ``precision=None`` is the calibration's default (:attr:`defaults`).
     #[pyo3(signature = (precision = None))]
     fn threshold(&self, py: Python<'_>, precision: Option<f64>) -> PyResult<f64> {
-        let args = Args {
-            gt: "gt_cal",
-            query_major: false,
-        };
-        let precision = self
-            .inner
-            .defaults()
-            .resolve(None, precision, None, None)
-            .map_err(|e| args.error(e))?
-            .precision;
-        py.detach(|| self.inner.threshold(precision)).map_err(|e| args.error(e))
+        let precision = self.precision(precision)?;
+        py.detach(|| self.inner.threshold(precision)).map_err(|e| CAL_ARGS.error(e))
     }
 
     /// The margin gate m* at precision target ``precision`` (``None``: the
@@ -292,17 +295,8 @@ impl PyCalibration {
     /// calibration, which has no gate.
     #[pyo3(signature = (precision = None))]
     fn gate(&self, precision: Option<f64>) -> PyResult<f64> {
-        let args = Args {
-            gt: "gt_cal",
-            query_major: false,
-        };
-        let precision = self
-            .inner
-            .defaults()
-            .resolve(None, precision, None, None)
-            .map_err(|e| args.error(e))?
-            .precision;
-        self.inner.gate(precision).map_err(|e| args.error(e))
+        let precision = self.precision(precision)?;
+        self.inner.gate(precision).map_err(|e| CAL_ARGS.error(e))
     }
 
     /// The number of calibration queries.
