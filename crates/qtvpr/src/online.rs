@@ -19,8 +19,8 @@
 //! sorted once when it arrives, with their `q` and `w`. Memory is `8 m |DB|` bytes (the
 //! columns are kept as `f64`, whatever the type pushed, so that one state takes `f32`
 //! and `f64` columns alike; widening is exact, so thresholds are those of the input's
-//! own type). A push sorts its column, correlates it with the calibration profiles (one
-//! matrix-vector product in `f32`, re-scored in `f64` where it leaves doubt), and finds
+//! own type). A push sorts its column, finds its neighbours among the calibration
+//! profiles (bounds from block summaries, `f64` correlations where they leave doubt), and finds
 //! the window's threshold by bisection over the sorted columns, so no column is ever
 //! sorted twice and no score copied again.
 
@@ -175,15 +175,15 @@ impl Online {
             self.check_length(column.len())?;
             let mut ranked = Ranked::default();
             let block = column.insert_axis(Axis(1));
-            let screen = self.calibration.rank(&mut ranked, block, self.pushed)?;
-            let mut r = self.per_query(&ranked, &screen);
+            self.calibration.rank(&mut ranked, block, self.pushed)?;
+            let mut r = self.per_query(&ranked);
             self.reserve()?;
             Ok(self.commit(ranked.column(0), column, r.swap_remove(0)))
         })
     }
 
     /// Decide several queries, the columns of `s` (|DB| x n) in arrival order. Their
-    /// `q` and `w` are found for blocks of columns at once (one matrix product each),
+    /// `q` and `w` are found for blocks of columns at once (sorted in parallel),
     /// with the same results as pushing them one by one.
     ///
     /// # Errors
@@ -202,15 +202,15 @@ impl Online {
             for start in (0..n).step_by(chunk) {
                 let end = (start + chunk).min(n);
                 let block = s.slice(s![.., start..end]);
-                let Ok(screen) = self.calibration.rank(&mut ranked, block, self.pushed) else {
+                if self.calibration.rank(&mut ranked, block, self.pushed).is_err() {
                     // A bad score in the block: push its columns one by one, which keeps
                     // those before the bad one and reports it.
                     for j in start..end {
                         decisions.push(self.push(s.column(j))?);
                     }
                     continue;
-                };
-                for (j, r) in self.per_query(&ranked, &screen).into_iter().enumerate() {
+                }
+                for (j, r) in self.per_query(&ranked).into_iter().enumerate() {
                     self.reserve()?;
                     decisions.push(self.commit(ranked.column(j), s.column(start + j), r));
                 }
@@ -256,9 +256,9 @@ impl Online {
         Ok(())
     }
 
-    fn per_query<T: Score>(&self, ranked: &Ranked<T>, screen: &[f64]) -> Vec<QueryTransfer> {
+    fn per_query<T: Score>(&self, ranked: &Ranked<T>) -> Vec<QueryTransfer> {
         let p = &self.params;
-        self.calibration.queries(ranked, screen, p.k, p.precision)
+        self.calibration.queries(ranked, p.k, p.precision)
     }
 
     /// Make room for one more query while the window fills: doubling, up to the full
