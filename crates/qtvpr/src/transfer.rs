@@ -210,23 +210,31 @@ impl Calibration {
         threads::install(|| {
             (0..ranked.ncols())
                 .into_par_iter()
-                .map_init(
-                    || vec![0.0; self.n_db],
-                    |u, j| {
-                        ranked.profile(j, u);
-                        let (neighbours, weight) = self.screen.top_k(u, k, |i| self.profiles.correlation(i, u));
-                        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
-                        let quantile = self.profiles.quantile(&neighbours, threshold);
-                        QueryTransfer {
-                            neighbours,
-                            weight,
-                            threshold,
-                            quantile,
-                        }
-                    },
-                )
+                .map_init(|| vec![0.0; self.n_db], |u, j| self.query(ranked, j, k, precision, u))
                 .collect()
         })
+    }
+
+    /// [`Calibration::queries`] for column `j` alone, with `u` (|DB| long) to hold its
+    /// standardised profile.
+    pub(crate) fn query<T: Score>(
+        &self,
+        ranked: &Ranked<T>,
+        j: usize,
+        k: usize,
+        precision: f64,
+        u: &mut [f64],
+    ) -> QueryTransfer {
+        ranked.profile(j, u);
+        let (neighbours, weight) = self.screen.top_k(u, k, |i| self.profiles.correlation(i, u));
+        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
+        let quantile = self.profiles.quantile(&neighbours, threshold);
+        QueryTransfer {
+            neighbours,
+            weight,
+            threshold,
+            quantile,
+        }
     }
 
     /// Number of calibration queries.
