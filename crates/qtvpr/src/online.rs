@@ -28,7 +28,7 @@
 use std::any::Any;
 use std::sync::Arc;
 
-use ndarray::{ArrayView1, ArrayView2, Axis, ShapeBuilder, s};
+use ndarray::{ArrayView1, ArrayView2, ArrayViewMut1, Axis, ShapeBuilder, s};
 
 use crate::decisions::{Matching, best_match};
 use crate::deployment::{sorted_columns_threshold, weighted_median};
@@ -208,8 +208,10 @@ impl Online {
         let column = if column.is_standard_layout() {
             column
         } else {
-            copy.clear();
-            copy.extend(column.iter().copied());
+            // One tight loop (ndarray's `assign`), so that many of those misses are in
+            // flight at once.
+            copy.resize(column.len(), T::default());
+            ArrayViewMut1::from(&mut copy[..]).assign(&column);
             ArrayView1::from(&copy[..])
         };
         self.calibration
