@@ -14,11 +14,11 @@
 //! # An exact screen that reads about `k` profiles
 //!
 //! A deployment query needs the `f64` correlations of its `k` neighbours (their mean is
-//! its weight) and of no other calibration query. [`Screen`] finds them reading about
+//! its weight) and of no other calibration query. `Screen` finds them reading about
 //! `k` calibration profiles in full, with the same neighbours and weight, bit for bit,
 //! as computing every correlation in `f64` and ranking them all ([`top_k`]):
 //!
-//! 1. **Blocks.** The rank axis `0..|DB|` is cut into at most [`BLOCKS`] blocks, with
+//! 1. **Blocks.** The rank axis `0..|DB|` is cut into at most 64 blocks (`BLOCKS`), with
 //!    edges fixed from the calibration alone (*Edges* below). A standardised profile `x`
 //!    is summarised on each block `b` of `n` ranks (`x_b`, its values there) by four
 //!    numbers, with `1_b` the block's unit constant vector and `r_b` its unit centred
@@ -85,7 +85,7 @@
 //!
 //! So `mu = 1.05 (3 (2 tau + tau^2) + 16 u + 4 gamma(B) + gamma(|DB|))` bounds the
 //! distance from each computed bound to the exact one plus that of the computed
-//! correlation to the exact dot product ([`margin`]): about `2e-10` at |DB| = 27,592,
+//! correlation to the exact dot product (`margin`): about `1.6e-10` at |DB| = 27,592,
 //! far below the gaps the screen relies on and above none of the grid's ties (near
 //! ties are computed exactly, as every candidate within the margin is).
 //!
@@ -93,12 +93,12 @@
 //!
 //! Equal-count blocks are loose: the tails of sorted profiles hold most of the
 //! within-block variance. The edges are chosen greedily on the calibration: starting
-//! from one block, split the block (at the best of up to [`EDGE_TRIALS`] evenly spaced
+//! from one block, split the block (at the best of up to 512 (`EDGE_TRIALS`) evenly spaced
 //! ranks) whose split most reduces the summed squared residual `e^2` of a sample of
-//! calibration profiles, until there are [`BLOCKS`] blocks or no split helps. The edges
+//! calibration profiles, until there are 64 blocks or no split helps. The edges
 //! then run down to a rank or two at the extremes (a block of two ranks is fitted
 //! exactly by its mean and ramp). They only decide how tight the bounds
-//! are, never what is chosen. Below |DB| = [`DIRECT_BELOW`], summaries would save
+//! are, never what is chosen. Below |DB| = 256 (`DIRECT_BELOW`), summaries would save
 //! little: every correlation is computed, as [`top_k`] asks.
 
 use ndarray::{Array2, ArrayView2, ShapeBuilder, s};
@@ -119,9 +119,9 @@ const BLOCKS: usize = 64;
 /// Below this |DB|, a [`Screen`] computes every correlation.
 const DIRECT_BELOW: usize = 4 * BLOCKS;
 /// The most calibration profiles (evenly spaced) the edges are fitted to ...
-const EDGE_PROFILES: usize = 32;
+const EDGE_PROFILES: usize = 16;
 /// ... and the most scores of them (the edge fit's working memory is 16 bytes a score).
-const EDGE_SCORES: usize = 1 << 22;
+const EDGE_SCORES: usize = 1 << 20;
 /// The most split points tried per block when fitting edges (evenly spaced).
 const EDGE_TRIALS: usize = 512;
 
