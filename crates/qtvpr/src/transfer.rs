@@ -72,7 +72,7 @@ pub struct Transfer {
 /// (`Calibration::save`, feature `npy`) and loaded with bit-identical results. That
 /// costs one more copy of the calibration matrix (|DB| x |Qcal| scores of 4 or 8
 /// bytes) and one byte per entry for the ground truth, beside the ranked profiles
-/// (the same size again) and their screen (a few hundred bytes a profile; see
+/// (the same size again) and their screen (2 KiB a profile; see
 /// `docs/performance.md`).
 pub struct Calibration {
     matching: Matching,
