@@ -285,7 +285,8 @@ impl PyCalibration {
     #[pyo3(signature = (precision = None))]
     fn threshold(&self, py: Python<'_>, precision: Option<f64>) -> PyResult<f64> {
         let precision = self.precision(precision)?;
-        py.detach(|| self.inner.threshold(precision)).map_err(|e| CAL_ARGS.error(e))
+        py.detach(|| self.inner.threshold(precision))
+            .map_err(|e| CAL_ARGS.error(e))
     }
 
     /// The margin gate m* at precision target ``precision`` (``None``: the

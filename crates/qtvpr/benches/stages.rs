@@ -4,11 +4,11 @@
 //! The scores are synthetic (a fixed LCG with a diagonal match) so that the bench needs no
 //! files; `benches/compare.py` at the repository root measures the real data end to end.
 //! Stages are timed through the public API:
-//! - `rank/…`: ranking profiles alone: gather, check, sort, standardise and screen
+//! - `rank/…`: ranking profiles alone: gather, check, sort and standardise
 //!   ([`ranked_correlation`] against a single calibration column, so the correlations
 //!   are negligible);
 //! - `ranked_correlation/…`: ranking plus every correlation exactly in `f64` (what the
-//!   transfer avoids: its `f32` screening product re-scores only about `k` per query);
+//!   transfer avoids: its block-bound screen computes only about `k` per query);
 //! - `calibrate`: [`Calibration::new`] (ranked calibration profiles and candidates);
 //! - `transfer/…`: the whole transfer (neighbours, subset thresholds, segment quantiles);
 //! - `segment_quantile`: one segment's deployment threshold ([`deployment_threshold`]);

@@ -39,7 +39,7 @@
 //!
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and every value
-//! the results depend on is computed in `f64` (an `f32` product only screens out
+//! the results depend on is computed in `f64` (bounds from block summaries only rule out
 //! neighbours that provably cannot be chosen; see [`ranked_correlation`](mod@ranked_correlation)).
 //!
 //! ```

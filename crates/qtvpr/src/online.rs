@@ -16,17 +16,19 @@
 //! on fewer than `w` queries.
 //!
 //! [`Online`] keeps only what the window needs: a ring of the last `m` columns, each
-//! sorted once when it arrives, with their `q` and `w`. Memory is `8 m |DB|` bytes (the
+//! sorted once when it arrives, with their `q` and `w`, and one column's buffers, reused
+//! from push to push. Memory is `8 m |DB|` bytes, and `16 |DB|` more for those (the
 //! columns are kept as `f64`, whatever the type pushed, so that one state takes `f32`
 //! and `f64` columns alike; widening is exact, so thresholds are those of the input's
-//! own type). A push sorts its column, correlates it with the calibration profiles (one
-//! matrix-vector product in `f32`, re-scored in `f64` where it leaves doubt), and finds
+//! own type). A push sorts its column, finds its neighbours among the calibration
+//! profiles (bounds from block summaries, `f64` correlations where they leave doubt), and finds
 //! the window's threshold by bisection over the sorted columns, so no column is ever
 //! sorted twice and no score copied again.
 
+use std::any::Any;
 use std::sync::Arc;
 
-use ndarray::{ArrayView1, ArrayView2, Axis, ShapeBuilder, s};
+use ndarray::{ArrayView1, ArrayView2, ArrayViewMut1, Axis, ShapeBuilder, s};
 
 use crate::decisions::{Matching, best_match};
 use crate::deployment::{sorted_columns_threshold, weighted_median};
@@ -167,6 +169,18 @@ pub struct Online {
     threshold: Option<f64>,
     /// `m*` with the margin gate.
     gate: Option<f64>,
+    /// Buffers a push reuses (a fresh |DB|-long buffer per push would cost the kernel
+    /// zeroing its pages every time): a [`Scratch`] of the type last pushed, and the
+    /// standardised profile.
+    scratch: Option<Box<dyn Any + Send + Sync>>,
+    profile: Vec<f64>,
+}
+
+/// A pushed column, contiguous, and its ranked copy.
+#[derive(Default)]
+struct Scratch<T> {
+    column: Vec<T>,
+    ranked: Ranked<T>,
 }
 
 impl Online {
@@ -212,6 +226,8 @@ impl Online {
             accepted: Vec::new(),
             threshold: None,
             gate,
+            scratch: None,
+            profile: Vec::new(),
         })
     }
 
@@ -224,17 +240,42 @@ impl Online {
     pub fn push<T: Score>(&mut self, column: ArrayView1<'_, T>) -> Result<Decision> {
         threads::install(|| {
             self.check_length(column.len())?;
-            let mut ranked = Ranked::default();
-            let block = column.insert_axis(Axis(1));
-            let screen = self.calibration.rank(&mut ranked, block, self.pushed)?;
-            let mut r = self.per_query(&ranked, &screen);
-            self.reserve()?;
-            Ok(self.commit(ranked.column(0), column, r.swap_remove(0)))
+            let mut scratch: Box<Scratch<T>> = match self.scratch.take().map(|s| s.downcast()) {
+                Some(Ok(s)) => s,
+                _ => Box::default(),
+            };
+            let decision = self.push_with(column, &mut scratch);
+            self.scratch = Some(scratch);
+            decision
         })
     }
 
+    /// [`Online::push`] with its buffers.
+    fn push_with<T: Score>(&mut self, column: ArrayView1<'_, T>, scratch: &mut Scratch<T>) -> Result<Decision> {
+        let Scratch { column: copy, ranked } = scratch;
+        // A strided column (a column of a C-order matrix) is read once, into a
+        // contiguous copy that the sort and the decision then share: each strided read
+        // costs about a cache miss a score.
+        let column = if column.is_standard_layout() {
+            column
+        } else {
+            // One tight loop (ndarray's `assign`), so that many of those misses are in
+            // flight at once.
+            copy.resize(column.len(), T::default());
+            ArrayViewMut1::from(&mut copy[..]).assign(&column);
+            ArrayView1::from(&copy[..])
+        };
+        self.calibration
+            .rank(ranked, column.insert_axis(Axis(1)), self.pushed)?;
+        self.profile.resize(self.n_db, 0.0);
+        let p = &self.params;
+        let r = (self.calibration).query(ranked, 0, p.k, p.precision, p.gate, &mut self.profile);
+        self.reserve()?;
+        Ok(self.commit(ranked.column(0), column, r))
+    }
+
     /// Decide several queries, the columns of `s` (|DB| x n) in arrival order. Their
-    /// `q` and `w` are found for blocks of columns at once (one matrix product each),
+    /// `q` and `w` are found for blocks of columns at once (sorted in parallel),
     /// with the same results as pushing them one by one.
     ///
     /// # Errors
@@ -253,15 +294,15 @@ impl Online {
             for start in (0..n).step_by(chunk) {
                 let end = (start + chunk).min(n);
                 let block = s.slice(s![.., start..end]);
-                let Ok(screen) = self.calibration.rank(&mut ranked, block, self.pushed) else {
+                if self.calibration.rank(&mut ranked, block, self.pushed).is_err() {
                     // A bad score in the block: push its columns one by one, which keeps
                     // those before the bad one and reports it.
                     for j in start..end {
                         decisions.push(self.push(s.column(j))?);
                     }
                     continue;
-                };
-                for (j, r) in self.per_query(&ranked, &screen).into_iter().enumerate() {
+                }
+                for (j, r) in self.per_query(&ranked).into_iter().enumerate() {
                     self.reserve()?;
                     decisions.push(self.commit(ranked.column(j), s.column(start + j), r));
                 }
@@ -307,9 +348,9 @@ impl Online {
         Ok(())
     }
 
-    fn per_query<T: Score>(&self, ranked: &Ranked<T>, screen: &[f64]) -> Vec<QueryTransfer> {
+    fn per_query<T: Score>(&self, ranked: &Ranked<T>) -> Vec<QueryTransfer> {
         let p = &self.params;
-        self.calibration.queries(ranked, screen, p.k, p.precision, p.gate)
+        self.calibration.queries(ranked, p.k, p.precision, p.gate)
     }
 
     /// Make room for one more query while the window fills: doubling, up to the full
@@ -455,6 +496,42 @@ mod tests {
             })
             .collect();
         (decisions, accepted)
+    }
+
+    #[test]
+    fn pushes_of_either_type_and_stride_share_buffers() {
+        // |DB| = 400 (past the screen's direct path), 30 calibration columns from a fixed
+        // LCG. The same deployment columns pushed alternately as strided f32 views (a
+        // column of a C-order matrix) and contiguous f64, into one state whose buffers
+        // change type from push to push, decide exactly as pushing them all as f64
+        // (widening f32 is exact).
+        let mut x = 3u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (x >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let s_cal = Array2::from_shape_fn((400, 30), |_| next());
+        let gt = GroundTruth::new(Array2::from_shape_fn((400, 30), |(i, j)| i == j).view()).unwrap();
+        let cal = Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Single).unwrap());
+        let s_val = Array2::from_shape_fn((400, 12), |(i, j)| next() + if i == 7 * j { 0.5 } else { 0.0 });
+        let p = OnlineParams {
+            k: 5,
+            precision: 1.0,
+            window: 4,
+            min_window: 1,
+            gate: Gate::None,
+        };
+        let (mut mixed, mut wide) = (Online::new(Arc::clone(&cal), p).unwrap(), Online::new(cal, p).unwrap());
+        for (j, c) in s_val.columns().into_iter().enumerate() {
+            let c64 = c.mapv(f64::from);
+            let a = if j % 2 == 0 {
+                mixed.push(c).unwrap()
+            } else {
+                mixed.push(c64.view()).unwrap()
+            };
+            assert_eq!(a, wide.push(c64.view()).unwrap(), "query {j}");
+            assert!(a.weight > 0.0);
+        }
     }
 
     #[test]

@@ -2,12 +2,12 @@
 //! transfer-many API.
 //!
 //! [`Calibration::new`] does all the work that depends only on the calibration traverse:
-//! ranked profiles, their standardised form and screen, and the per-column candidates.
-//! Each [`Calibration::transfer`] then streams the deployment queries through in column
-//! chunks: gather, check, sort and screen a chunk (in parallel), screen its correlations
-//! with the calibration profiles (one faer `f32` product), and for each query pick its
-//! neighbours (re-scoring in `f64` those the screen leaves in doubt), their subset
-//! threshold and its quantile (in parallel). When segments are small, each
+//! ranked profiles, their standardisation and screen (block summaries), and the
+//! per-column candidates. Each [`Calibration::transfer`] then streams the deployment
+//! queries through in column chunks: gather, check, sort and standardise a chunk (in
+//! parallel), and for each query pick its neighbours (bounding every correlation from
+//! the screen's summaries and computing in `f64` only those the bounds leave in doubt),
+//! their subset threshold and its quantile (in parallel). When segments are small, each
 //! chunk holds whole segments and their thresholds are read off the chunk's sorted
 //! copy, so the deployment scores are read once; a larger batch is read again where it
 //! lies. Memory beyond the inputs is the calibration profiles plus one chunk.
@@ -32,7 +32,7 @@ use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check
 use crate::margin::{self, CalibrationMargins, Gate};
 use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
 use crate::params::{Defaults, Params};
-use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
+use crate::ranked_correlation::{Ranked, Screen};
 use crate::similarity::{DescriptorColumns, Descriptors};
 use crate::subset_quantile::subset_quantile;
 use crate::threads;
@@ -78,16 +78,15 @@ pub struct Transfer {
 /// (`Calibration::save`, feature `npy`) and loaded with bit-identical results. That
 /// costs one more copy of the calibration matrix (|DB| x |Qcal| scores of 4 or 8
 /// bytes) and one byte per entry for the ground truth, beside the ranked profiles
-/// (the same size again, plus 4 bytes a score for their screen).
+/// (the same size again) and their screen (2 KiB a profile; see
+/// `docs/performance.md`).
 pub struct Calibration {
     matching: Matching,
-    /// The ranked profiles, ascending, in the input's own type, with their standardised
-    /// form (for correlations) and screen.
+    /// The ranked profiles, ascending, in the input's own type, with their
+    /// standardisation (for correlations).
     profiles: Box<dyn Profiles>,
-    /// The mean calibration profile, which screens are taken against.
-    reference: Reference,
-    /// The largest spread of a calibration profile from the reference (for screen bounds).
-    cal_spread: f64,
+    /// The profiles' block summaries, which bound every correlation.
+    screen: Screen,
     candidates: Candidates,
     n_db: usize,
     /// The input, kept to be saved.
@@ -121,8 +120,6 @@ trait Profiles: Send + Sync {
     fn quantile(&self, columns: &[usize], t: f64) -> f64;
     /// The `f64` correlation of calibration query `i` with a standardised profile.
     fn correlation(&self, i: usize, u: &[f64]) -> f64;
-    /// The screen of all calibration profiles.
-    fn screen(&self) -> &Screen;
 }
 
 impl<T: Score> Profiles for Ranked<T> {
@@ -131,9 +128,6 @@ impl<T: Score> Profiles for Ranked<T> {
     }
     fn correlation(&self, i: usize, u: &[f64]) -> f64 {
         Ranked::correlation(self, i, u)
-    }
-    fn screen(&self) -> &Screen {
-        Ranked::screen(self)
     }
 }
 
@@ -144,7 +138,7 @@ impl Calibration {
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         threads::install(|| {
-            let ranked = Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?;
+            let ranked = Ranked::new(CAL_SIMILARITY, s, 0)?;
             check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
             Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
         })
@@ -157,18 +151,16 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         Ok(Self::from_ranked(
-            Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?,
+            Ranked::new(CAL_SIMILARITY, s, 0)?,
             T::to_matrix(s),
             GroundTruth::from_truth(gt.to_owned()),
             matching,
         ))
     }
 
-    /// Screen `ranked` (screened against zero) against its own mean profile; `scores`
-    /// is the calibration similarity it was ranked from, kept to be saved.
-    fn from_ranked<T: Score>(mut ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
-        let reference = Reference::mean_of(&ranked);
-        ranked.rescreen(&reference);
+    /// The calibration of profiles `ranked` with their screen; `scores` is the
+    /// calibration similarity they were ranked from, kept to be saved.
+    fn from_ranked<T: Score>(ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
         let n_db = scores.dim().0;
         let candidates = crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching));
         let margins = if margin::check(matching, n_db).is_ok() {
@@ -184,9 +176,8 @@ impl Calibration {
         };
         Self {
             matching,
-            cal_spread: ranked.screen().max_spread(),
+            screen: Screen::new(&ranked),
             profiles: Box::new(ranked),
-            reference,
             candidates,
             n_db,
             scores,
@@ -250,56 +241,58 @@ impl Calibration {
         &self.gt
     }
 
-    /// Gather, check, sort and screen the deployment columns `s` into `ranked`, and screen
-    /// their correlations with the calibration profiles: a column-major |Qcal| x n
-    /// matrix. `first_col` is the deployment index of `s`'s first column, for errors.
-    pub(crate) fn rank<T: Score>(
-        &self,
-        ranked: &mut Ranked<T>,
-        s: ArrayView2<'_, T>,
-        first_col: usize,
-    ) -> Result<Vec<f64>> {
-        ranked.refill(DEPLOYMENT_SIMILARITY, s, first_col, &self.reference)?;
-        Ok(ranked.screen().correlations(self.profiles.screen(), &self.reference))
+    /// Gather, check, sort and standardise the deployment columns `s` into `ranked`.
+    /// `first_col` is the deployment index of `s`'s first column, for errors.
+    pub(crate) fn rank<T: Score>(&self, ranked: &mut Ranked<T>, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
+        ranked.refill(DEPLOYMENT_SIMILARITY, s, first_col)
     }
 
     /// semantics §4 and §5 for every column of a block ranked by
-    /// [`Calibration::rank`] (`screen` is what it returned): each query's `k`
-    /// neighbours (re-scored in `f64` where the screen leaves doubt) and weight, their
+    /// [`Calibration::rank`]: each query's `k` neighbours (their correlations computed
+    /// in `f64` where the screen's bounds leave doubt) and weight, their
     /// subset threshold at `precision`, and its quantile. The one place a deployment
     /// query's `q_j` and `w_j` are computed, for the batch transfer and for
     /// [`crate::Online`] alike; in parallel over the block.
     pub(crate) fn queries<T: Score>(
         &self,
         ranked: &Ranked<T>,
-        screen: &[f64],
         k: usize,
         precision: f64,
         gate: Gate,
     ) -> Vec<QueryTransfer> {
         threads::install(|| {
-            screen
-                .par_chunks(self.len())
-                .enumerate()
+            (0..ranked.ncols())
+                .into_par_iter()
                 .map_init(
                     || vec![0.0; self.n_db],
-                    |u, (j, row)| {
-                        ranked.profile(j, u);
-                        let error = ranked.screen().error(j, self.cal_spread);
-                        let (neighbours, weight) = screened_top_k(row, k, error, |i| self.profiles.correlation(i, u));
-                        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
-                        let quantile = self.profiles.quantile(&neighbours, threshold);
-                        QueryTransfer {
-                            neighbours,
-                            weight,
-                            threshold,
-                            quantile,
-                            margin: gate.is_on().then(|| margin::of_sorted(ranked.column(j))),
-                        }
-                    },
+                    |u, j| self.query(ranked, j, k, precision, gate, u),
                 )
                 .collect()
         })
+    }
+
+    /// [`Calibration::queries`] for column `j` alone, with `u` (|DB| long) to hold its
+    /// standardised profile.
+    pub(crate) fn query<T: Score>(
+        &self,
+        ranked: &Ranked<T>,
+        j: usize,
+        k: usize,
+        precision: f64,
+        gate: Gate,
+        u: &mut [f64],
+    ) -> QueryTransfer {
+        ranked.profile(j, u);
+        let (neighbours, weight) = self.screen.top_k(u, k, |i| self.profiles.correlation(i, u));
+        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
+        let quantile = self.profiles.quantile(&neighbours, threshold);
+        QueryTransfer {
+            neighbours,
+            weight,
+            threshold,
+            quantile,
+            margin: gate.is_on().then(|| margin::of_sorted(ranked.column(j))),
+        }
     }
 
     /// Number of calibration queries.
@@ -400,7 +393,7 @@ impl Calibration {
         check_gt_shape(gt, CAL_SIMILARITY, (d.shape().0, queries.len()))?;
         // The computed matrix becomes the calibration's own copy: no second one.
         let s = d.similarity(queries)?;
-        let ranked = Ranked::new(CAL_SIMILARITY, s.view(), 0, &Reference::zero(s.nrows()))?;
+        let ranked = Ranked::new(CAL_SIMILARITY, s.view(), 0)?;
         Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
     }
 
@@ -503,8 +496,8 @@ impl Calibration {
         let mut ranked = Ranked::default();
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            let screen = self.rank(&mut ranked, source.columns(start..end), start)?;
-            for (j, r) in (start..end).zip(self.queries(&ranked, &screen, k, params.precision, params.gate)) {
+            self.rank(&mut ranked, source.columns(start..end), start)?;
+            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, params.gate)) {
                 neighbours
                     .row_mut(j)
                     .iter_mut()

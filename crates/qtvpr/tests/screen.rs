@@ -1,0 +1,76 @@
+//! The screen of semantics §4 on real data (`../shared/data`): the neighbours and weights
+//! the transfer chooses through its block bounds are exactly [`top_k`] of every `f64`
+//! ranked correlation, bit for bit, for several `k`, on Nordland HOG (cosine of the
+//! real descriptors, float32) and on every VPR-Bench SPEDTest and Corridor matrix
+//! (float32 and float64; Corridor's 111 database rows are below the screen, so every
+//! correlation is computed there).
+#![cfg(feature = "npy")]
+
+mod data;
+
+use ndarray::{Array2, ArrayView2, s};
+use qtvpr::npy::read_scores;
+use qtvpr::ranked_correlation::top_k;
+use qtvpr::{Calibration, GroundTruth, Matching, Params, Score, ScoresView, cosine_similarity, ranked_correlation};
+
+/// Calibrate on the first `n_cal` columns; the transfer's neighbours and weights of the
+/// rest against `top_k` of their full rows of correlations.
+fn check<T: Score>(s: ArrayView2<'_, T>, n_cal: usize) {
+    let gt = GroundTruth::new(Array2::from_shape_fn((s.nrows(), n_cal), |(i, j)| i == j).view()).unwrap();
+    let (s_cal, s_val) = (s.slice(s![.., ..n_cal]), s.slice(s![.., n_cal..]));
+    let cal = Calibration::new(s_cal, &gt, Matching::Single).unwrap();
+    let r = ranked_correlation(s_val, s_cal).unwrap();
+    for k in [1, 3, 10, 40] {
+        let p = Params {
+            k,
+            precision: 1.0,
+            segment_size: None,
+            gate: qtvpr::Gate::None,
+        };
+        let out = cal.transfer(s_val, &p).unwrap();
+        for (j, row) in r.rows().into_iter().enumerate() {
+            let (neighbours, weight) = top_k(row.as_slice().unwrap(), k);
+            assert_eq!(out.neighbours.row(j).to_vec(), neighbours, "query {j}, k = {k}");
+            assert_eq!(out.query_weights[j].to_bits(), weight.to_bits(), "query {j}, k = {k}");
+        }
+    }
+}
+
+#[test]
+fn nordland_hog() {
+    // 357 calibration and 643 deployment queries.
+    let Some((db, q)) = data::nordland(1000) else {
+        return;
+    };
+    let s = cosine_similarity(db.view(), q.view()).unwrap();
+    check(s.view(), 357);
+}
+
+#[test]
+fn vprbench() {
+    if data::shared("").is_none() {
+        return;
+    }
+    for (dir, n_cal) in [("vprbench-spedtest", 60), ("vprbench-corridor", 11)] {
+        let techniques = [
+            "AMOSNet",
+            "AlexNet_VPR",
+            "CALC",
+            "CoHOG",
+            "HOG",
+            "HybridNet",
+            "NetVLAD",
+            "RegionVLAD",
+            "ap-gem-r101",
+            "denseVLAD",
+        ];
+        for technique in techniques {
+            let path = data::shared(&format!("{dir}/S_{technique}.npy")).expect("checked above");
+            let scores = read_scores(&path).unwrap();
+            match scores.view() {
+                ScoresView::F32(v) => check(v, n_cal),
+                ScoresView::F64(v) => check(v, n_cal),
+            }
+        }
+    }
+}
