@@ -23,9 +23,9 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
+use qtvpr::Input;
 use qtvpr::ground_truth::{GtSpec, HardSoft, check_radius};
 use qtvpr::image_names::image_paths;
-use qtvpr::names::{DB_POSITIONS, QUERY_POSITIONS};
 use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
 use qtvpr::{GroundTruth, ScoresView};
 
@@ -444,7 +444,7 @@ fn within<'a>(
         soft_radius,
     };
     let [db_flag, q_flag] = flags;
-    let sources = [(DB_POSITIONS, db_flag), (QUERY_POSITIONS, q_flag)];
+    let sources = [(Input::DbPositions, db_flag), (Input::QueryPositions, q_flag)];
     spec.matrices(shape).map_err(|e| blame(e, &sources))
 }
 

@@ -232,8 +232,8 @@ pub fn counts<T: Score>(
     matching: Matching,
     t: f64,
 ) -> crate::Result<Counts> {
-    crate::input::validate_scores(crate::names::SIMILARITY, s)?;
-    crate::input::check_gt_shape(gt, crate::names::SIMILARITY, s.dim())?;
+    crate::input::validate_scores(crate::names::Input::Similarity, s)?;
+    crate::input::check_gt_shape(gt, crate::names::Input::Similarity, s.dim())?;
     let cands = Candidates::new(s, gt.view(), matching);
     Ok(cands.counts(0..cands.ncols(), t))
 }

@@ -33,7 +33,7 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
-use crate::names::SIMILARITY;
+use crate::names::Input;
 use crate::online::Online;
 use crate::params::{DEFAULT_K, OnlineParams, Params};
 use crate::threads;
@@ -466,8 +466,8 @@ pub fn evaluate_with_progress<T: Score>(
     progress: impl Fn(usize, usize),
 ) -> Result<Evaluation> {
     protocol.validate()?;
-    validate_scores(SIMILARITY, s)?;
-    check_gt_shape(gt, SIMILARITY, s.dim())?;
+    validate_scores(Input::Similarity, s)?;
+    check_gt_shape(gt, Input::Similarity, s.dim())?;
     let layout = protocol.layout(s.nrows(), s.ncols())?;
     let mut unique: Vec<Method> = Vec::with_capacity(methods.len());
     for &m in methods {

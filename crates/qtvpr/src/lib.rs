@@ -30,7 +30,7 @@
 //! | extension: positions from image names (`@utm_east@utm_north@...@.jpg`) | [`image_names`] |
 //! | the thread pool, rebuilt in a forked child (§10) | [`threads`] |
 //! | file input and output (feature `npy`) | `npy` |
-//! | the names of the matrices errors are about | [`names`] |
+//! | the matrices errors are about ([`Input`]) | [`names`] |
 //!
 //! The extensions are beyond the paper and are not sections of the semantics: they make the
 //! similarity and ground-truth matrices the method takes from what users have
@@ -88,6 +88,7 @@ pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
 pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
+pub use names::Input;
 pub use online::{Decision, Online};
 pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Params};
 pub use ranked_correlation::ranked_correlation;

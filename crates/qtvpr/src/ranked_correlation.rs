@@ -27,7 +27,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, check_nonempty};
-use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
+use crate::names::Input;
 use crate::threads;
 
 /// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
@@ -104,12 +104,7 @@ impl<T: Score> Ranked<T> {
     /// # Errors
     /// [`Error::Empty`]; [`Error::NotFinite`] naming the first offending score in
     /// column-major order.
-    pub(crate) fn new(
-        what: &'static str,
-        s: ArrayView2<'_, T>,
-        first_col: usize,
-        reference: &Reference,
-    ) -> Result<Self> {
+    pub(crate) fn new(what: Input, s: ArrayView2<'_, T>, first_col: usize, reference: &Reference) -> Result<Self> {
         let mut ranked = Self::default();
         ranked.refill(what, s, first_col, reference)?;
         Ok(ranked)
@@ -122,7 +117,7 @@ impl<T: Score> Ranked<T> {
     /// As [`Ranked::new`]; `self` is then left in an unspecified but valid state.
     pub(crate) fn refill(
         &mut self,
-        what: &'static str,
+        what: Input,
         s: ArrayView2<'_, T>,
         first_col: usize,
         reference: &Reference,
@@ -501,8 +496,8 @@ pub(crate) fn screened_top_k(screen: &[f64], k: usize, error: f64, exact: impl F
 pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
     threads::install(|| {
         let zero = Reference::zero(cal.nrows());
-        let cal = Ranked::new(CAL_SIMILARITY, cal, 0, &zero)?;
-        let val = Ranked::new(DEPLOYMENT_SIMILARITY, val, 0, &zero)?;
+        let cal = Ranked::new(Input::CalSimilarity, cal, 0, &zero)?;
+        let val = Ranked::new(Input::DeploymentSimilarity, val, 0, &zero)?;
         if val.n_db != cal.n_db {
             return Err(Error::DatabaseMismatch {
                 calibration: cal.n_db,
@@ -617,7 +612,7 @@ mod tests {
         let cal = Array2::from_shape_fn((n_db, 7), |(i, j)| 100.0 + base[i] + 0.01 * j as f64 * rand());
         let block = Array2::from_shape_fn((n_db, 5), |(i, _)| (100.0 + base[i] + 0.02 * rand()) as f32);
         let zero = Reference::zero(n_db);
-        let mut cal = Ranked::new("c", cal.view(), 0, &zero).unwrap();
+        let mut cal = Ranked::new(Input::CalSimilarity, cal.view(), 0, &zero).unwrap();
         for (mean, val) in [false, true]
             .into_iter()
             .flat_map(|m| [(m, block.view()), (m, block.slice(s![.., 2..3]))])
@@ -628,7 +623,7 @@ mod tests {
                 Reference::zero(n_db)
             };
             cal.rescreen(&reference);
-            let val = Ranked::new("v", val, 0, &reference).unwrap();
+            let val = Ranked::new(Input::DeploymentSimilarity, val, 0, &reference).unwrap();
             let screen = val.screen().correlations(cal.screen(), &reference);
             let mut u = vec![0.0; n_db];
             for j in 0..val.ncols() {

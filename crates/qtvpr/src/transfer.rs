@@ -29,7 +29,7 @@ use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
-use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
+use crate::names::Input;
 use crate::params::{Defaults, Params};
 use crate::ranked_correlation::{Ranked, Reference, Screen, screened_top_k};
 use crate::similarity::{DescriptorColumns, Descriptors};
@@ -133,8 +133,8 @@ impl Calibration {
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         threads::install(|| {
-            let ranked = Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?;
-            check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
+            let ranked = Ranked::new(Input::CalSimilarity, s, 0, &Reference::zero(s.nrows()))?;
+            check_gt_shape(gt, Input::CalSimilarity, s.dim())?;
             Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
         })
     }
@@ -146,7 +146,7 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         Ok(Self::from_ranked(
-            Ranked::new(CAL_SIMILARITY, s, 0, &Reference::zero(s.nrows()))?,
+            Ranked::new(Input::CalSimilarity, s, 0, &Reference::zero(s.nrows()))?,
             T::to_matrix(s),
             GroundTruth::from_truth(gt.to_owned()),
             matching,
@@ -212,7 +212,7 @@ impl Calibration {
         s: ArrayView2<'_, T>,
         first_col: usize,
     ) -> Result<Vec<f64>> {
-        ranked.refill(DEPLOYMENT_SIMILARITY, s, first_col, &self.reference)?;
+        ranked.refill(Input::DeploymentSimilarity, s, first_col, &self.reference)?;
         Ok(ranked.screen().correlations(self.profiles.screen(), &self.reference))
     }
 
@@ -311,7 +311,7 @@ impl Calibration {
         chunk_scores: usize,
     ) -> Result<Transfer> {
         params.validate()?;
-        check_nonempty(DEPLOYMENT_SIMILARITY, s.dim())?;
+        check_nonempty(Input::DeploymentSimilarity, s.dim())?;
         self.transfer_from(s, params, progress, chunk_scores)
     }
 
@@ -330,10 +330,10 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         d.check_range(&queries)?;
-        check_gt_shape(gt, CAL_SIMILARITY, (d.shape().0, queries.len()))?;
+        check_gt_shape(gt, Input::CalSimilarity, (d.shape().0, queries.len()))?;
         // The computed matrix becomes the calibration's own copy: no second one.
         let s = d.similarity(queries)?;
-        let ranked = Ranked::new(CAL_SIMILARITY, s.view(), 0, &Reference::zero(s.nrows()))?;
+        let ranked = Ranked::new(Input::CalSimilarity, s.view(), 0, &Reference::zero(s.nrows()))?;
         Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
     }
 
