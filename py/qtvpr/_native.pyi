@@ -170,6 +170,8 @@ class Calibration:
         gt_soft: _Matrix | None = None,
         matching: _Matching = "single",
         query_major: bool = False,
+        cal_queries: int | None = None,
+        cal_fraction: float | None = None,
     ) -> Calibration: ...
     def transfer(
         self,
@@ -296,9 +298,9 @@ class Online:
     def calibration(self) -> Calibration: ...
 
 def quantile_transfer(
-    s_cal: _Matrix,
+    s_cal: _Matrix | Descriptors,
     gt_cal: _Matrix,
-    s_val: _Matrix,
+    s_val: _Matrix | Descriptors | None = None,
     *,
     gt_soft: _Matrix | None = None,
     k: int = 10,
@@ -306,6 +308,8 @@ def quantile_transfer(
     matching: _Matching = "single",
     segment_size: int | None = None,
     query_major: bool = False,
+    cal_queries: int | None = None,
+    cal_fraction: float | None = None,
 ) -> TransferResult: ...
 def best_threshold(
     s: _Matrix,

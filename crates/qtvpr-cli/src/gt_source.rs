@@ -27,7 +27,7 @@ use qtvpr::Input;
 use qtvpr::ground_truth::{GtSpec, HardSoft, check_radius};
 use qtvpr::image_names::image_paths;
 use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
-use qtvpr::{GroundTruth, ScoresView};
+use qtvpr::{GroundTruth, QuerySplit, ScoresView};
 
 use crate::inputs::blame;
 
@@ -329,6 +329,21 @@ impl GtSource<'_> {
             }
             _ => Ok(self.matrices(Some(shape))?.into_ground_truth()?),
         }
+    }
+
+    /// The ground truth of the calibration queries of `split`: the source labels every
+    /// query split (a tolerance makes just the calibration columns), and the core
+    /// checks its shape and keeps the calibration columns. `input` names the similarity
+    /// (its options and files) in errors.
+    pub fn load_split(&self, split: &QuerySplit, query_major: bool, input: &str) -> Result<GroundTruth> {
+        if let Kind::Tolerance { .. } = self.kind {
+            return self.load(split.calibration_shape(), query_major);
+        }
+        let gt = self.load(split.shape(), query_major)?;
+        split
+            .calibration_truth(&gt)
+            .map_err(|e| e.oriented(query_major))
+            .with_context(|| format!("{input} / {}", self.describe()))
     }
 
     /// Hard and soft ground truth of a tolerance or positions source, of shape `shape`

@@ -56,6 +56,20 @@ impl Args {
     /// The exception for an error of the core's computation on the oriented views:
     /// positions and shapes in the caller's orientation, prefixed by the argument.
     pub(crate) fn error(self, err: Error) -> PyErr {
+        self.error_naming(err, |input| self.argument(input))
+    }
+
+    /// [`Args::error`] for the transfer of the queries after a split of `s_cal`
+    /// (`cal_queries=`, `cal_fraction=`): the deployment similarity is `s_cal` too.
+    pub(crate) fn split_error(self, err: Error) -> PyErr {
+        self.error_naming(err, |input| match input {
+            Input::DeploymentSimilarity => self.argument(Input::CalSimilarity),
+            input => self.argument(input),
+        })
+    }
+
+    /// [`Args::error`], naming inputs by `argument`.
+    fn error_naming(self, err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
         let err = err.oriented(self.query_major);
         match &err {
             // The core names parameters as a user spells them; Python spells them with
@@ -67,7 +81,7 @@ impl Args {
                 "s_val: {err}; if the arrays are query-major (|Q| x |DB|, as VPR-Bench stores them), \
                  pass query_major=True"
             )),
-            _ => self.named(err),
+            _ => named(err, argument),
         }
     }
 
@@ -75,11 +89,17 @@ impl Args {
     /// ([`Args::argument`]). Errors about no matrix (a parameter, which the core names
     /// itself) are not prefixed.
     pub(crate) fn named(self, err: Error) -> PyErr {
-        let names = err.inputs(|input| Some(self.argument(input)));
-        match names.as_slice() {
-            [] => exception(&err, err.to_string()),
-            names => exception(&err, format!("{}: {err}", names.join(", "))),
-        }
+        named(err, |input| self.argument(input))
+    }
+}
+
+/// The exception for a core error as it is, prefixed by the arguments it is about, as
+/// `argument` names them.
+fn named(err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
+    let names = err.inputs(|input| Some(argument(input)));
+    match names.as_slice() {
+        [] => exception(&err, err.to_string()),
+        names => exception(&err, format!("{}: {err}", names.join(", "))),
     }
 }
 

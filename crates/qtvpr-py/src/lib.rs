@@ -43,46 +43,70 @@ use qtvpr::with_scores;
 /// it. With ``query_major=True`` every matrix is given transposed (|Q| x |DB|, as
 /// VPR-Bench stores them). Returns a :class:`TransferResult`; raises as
 /// :class:`Calibration` and :meth:`Calibration.transfer` do.
+///
+/// One matrix of every query may be split instead, as ``qtvpr-cli threshold
+/// --similarity S --cal-queries N`` does: with ``cal_queries=n`` (the first ``n``
+/// queries) or ``cal_fraction=f`` (the first ``floor(f * |Q|)``) and no ``s_val``, the
+/// first queries of ``s_cal`` (a matrix, a path or :class:`Descriptors`) calibrate and
+/// the rest are thresholded; ``gt_cal`` then labels every query of ``s_cal``, and
+/// segments count from the first thresholded query. Errors name ``s_cal`` and give
+/// positions in the whole matrix.
 #[pyfunction]
 #[pyo3(signature = (
-    s_cal, gt_cal, s_val, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
-    segment_size = None, query_major = false,
+    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
+    segment_size = None, query_major = false, cal_queries = None, cal_fraction = None,
 ))]
 #[allow(clippy::too_many_arguments)] // the Python signature
 fn quantile_transfer(
     py: Python<'_>,
     s_cal: &Bound<'_, PyAny>,
     gt_cal: &Bound<'_, PyAny>,
-    s_val: &Bound<'_, PyAny>,
+    s_val: Option<&Bound<'_, PyAny>>,
     gt_soft: Option<&Bound<'_, PyAny>>,
     k: i64,
     precision: f64,
     matching: &str,
     segment_size: Option<i64>,
     query_major: bool,
+    cal_queries: Option<i64>,
+    cal_fraction: Option<f64>,
 ) -> PyResult<TransferResult> {
-    // Check the cheap parameters before the calibration does any work.
-    qtvpr::Params::resolve(
-        &qtvpr::Defaults::default(),
-        Some(convert::count("k", k)?),
-        Some(precision),
-        segment_size.map(|m| convert::count("segment_size", m)).transpose()?,
-    )
-    .map_err(|e| {
-        Args {
-            gt: "gt_cal",
-            query_major,
+    let (k, precision) = (Some(convert::count("k", k)?), Some(precision));
+    let segment_size = segment_size.map(|m| convert::count("segment_size", m)).transpose()?;
+    let split = calibration::split_arg(cal_queries, cal_fraction)?;
+    match (s_val, split) {
+        (Some(s_val), None) => {
+            // Check the cheap parameters before the calibration does any work.
+            qtvpr::Params::resolve(&qtvpr::Defaults::default(), k, precision, segment_size).map_err(|e| {
+                Args {
+                    gt: "gt_cal",
+                    query_major,
+                }
+                .error(e)
+            })?;
+            let (cal, _) = PyCalibration::build(py, s_cal, gt_cal, gt_soft, matching, query_major, None, None)?;
+            cal.transfer(
+                py,
+                s_val,
+                k.map(|k| k as i64),
+                precision,
+                segment_size.map(|m| m as i64),
+                query_major,
+            )
         }
-        .error(e)
-    })?;
-    PyCalibration::new(py, s_cal, gt_cal, gt_soft, matching, query_major)?.transfer(
-        py,
-        s_val,
-        Some(k),
-        Some(precision),
-        segment_size,
-        query_major,
-    )
+        (None, Some(split)) => {
+            let params = Some((k, precision, segment_size));
+            let (_, out) =
+                PyCalibration::build(py, s_cal, gt_cal, gt_soft, matching, query_major, Some(split), params)?;
+            Ok(out.expect("a split with parameters transfers"))
+        }
+        (Some(_), Some(_)) => Err(pyo3::exceptions::PyValueError::new_err(
+            "s_val and cal_queries/cal_fraction exclude each other: give s_val, or split s_cal",
+        )),
+        (None, None) => Err(pyo3::exceptions::PyValueError::new_err(
+            "no deployment queries: give s_val, or cal_queries or cal_fraction to split s_cal",
+        )),
+    }
 }
 
 /// The best threshold of a similarity matrix under a precision target.

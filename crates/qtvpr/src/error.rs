@@ -156,6 +156,21 @@ pub enum Error {
         /// The name as given.
         name: String,
     },
+    /// Ground truth of one set of queries split into calibration and deployment
+    /// queries ([`QuerySplit`](crate::QuerySplit)) does not label every query.
+    #[error(
+        "ground truth shape {}x{} does not match similarity shape {}x{}; the ground truth of a split \
+         labels every query, of which the first {calibration} calibrate",
+        shape.0, shape.1, similarity_shape.0, similarity_shape.1
+    )]
+    SplitTruthShape {
+        /// The ground truth's shape.
+        shape: (usize, usize),
+        /// The shape of the similarity split, |DB| x |Q|.
+        similarity_shape: (usize, usize),
+        /// The number of calibration queries.
+        calibration: usize,
+    },
     /// The evaluation protocol cannot split the queries as asked: no calibration query,
     /// calibration and deployment sets that overlap, or no full segment.
     #[error("{0}")]
@@ -270,6 +285,15 @@ impl Error {
                 path,
                 error: Box::new(error.transposed()),
             },
+            Error::SplitTruthShape {
+                shape,
+                similarity_shape,
+                calibration,
+            } => Error::SplitTruthShape {
+                shape: (shape.1, shape.0),
+                similarity_shape: (similarity_shape.1, similarity_shape.0),
+                calibration,
+            },
             Error::PositionCount { db, queries, shape } => Error::PositionCount {
                 db,
                 queries,
@@ -303,6 +327,7 @@ impl Error {
             | Error::PositionColumns { what, .. } => vec![*what],
             Error::ColumnMismatch { what, other, .. } => vec![*what, *other],
             Error::DatabaseMismatch { .. } => vec![Input::DeploymentSimilarity],
+            Error::SplitTruthShape { .. } => vec![Input::GroundTruth],
             Error::PositionCount { .. } => vec![Input::DbPositions, Input::QueryPositions],
             _ => vec![],
         }

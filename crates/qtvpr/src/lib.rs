@@ -21,6 +21,7 @@
 //! | 4-6 together | [`transfer`] |
 //! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
 //! | 8 evaluation protocol (%Segs, AvgR@tauP), ablations | [`evaluate`](mod@evaluate) |
+//! | 8.1's calibration rule for one matrix: the first queries calibrate | [`split`] |
 //! | 9 machine-readable output (feature `serde`) | [`report`] |
 //! | 11 online thresholds over a causal window | [`online`] |
 //! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
@@ -78,6 +79,7 @@ pub mod ranked_correlation;
 pub mod report;
 pub mod sequence;
 pub mod similarity;
+pub mod split;
 pub mod subset_quantile;
 pub mod threads;
 pub mod transfer;
@@ -94,6 +96,7 @@ pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Params};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};
+pub use split::QuerySplit;
 pub use threads::set_threads;
 pub use transfer::{Calibration, Segment, Transfer};
 
