@@ -57,6 +57,7 @@ class _Counts(TypedDict):
     positives: int
     precision: float
     recall: float
+    precision_lower95: float | None
 
 class _Segment(TypedDict):
     start: int

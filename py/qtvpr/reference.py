@@ -260,15 +260,18 @@ def precision_lower95(tp: int, fp: int) -> float | None:
 def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
     """Counts of one matrix's decisions at ``threshold`` (semantics §2).
 
-    Returns ``dict(tp=, fp=, positives=, precision=, recall=)``. Precision is 1 when
-    nothing is accepted; recall is 0 when there are no positives. ``threshold`` may be
-    ``inf`` (accepts nothing) but not NaN.
+    Returns ``dict(tp=, fp=, positives=, precision=, recall=, precision_lower95=)``, the
+    keys of a segment of ``evaluate``. Precision is 1 when nothing is accepted; recall is
+    0 when there are no positives. ``threshold`` may be ``inf`` (accepts nothing) but
+    not NaN.
     """
     matching = _check_matching(matching)
     if not isinstance(threshold, numbers.Real) or math.isnan(threshold):
         raise ValueError(f"threshold must be a real number other than NaN, got {threshold!r}")
     s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
-    return _count_at(*_candidates(s, gt, ignored, matching), float(threshold))
+    out = _count_at(*_candidates(s, gt, ignored, matching), float(threshold))
+    out["precision_lower95"] = precision_lower95(out["tp"], out["fp"])
+    return out
 
 
 # ---------------------------------------------------------------------------------------

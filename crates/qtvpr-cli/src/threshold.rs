@@ -18,8 +18,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Descriptors, Matching, Params, QuerySplit, ScoresView, Segment};
-use serde::Serialize;
+use qtvpr::report::ThresholdReport;
+use qtvpr::{Calibration, Defaults, Descriptors, Matching, Params, QuerySplit, ScoresView};
 
 use crate::gt_source::OptionalCalGtSource;
 use crate::inputs::{DescriptorFiles, SplitArgs};
@@ -117,26 +117,6 @@ impl From<MatchingArg> for Matching {
             MatchingArg::Multi => Matching::Multi,
         }
     }
-}
-
-/// The JSON document of `threshold` (keys: `qtvpr::report`): the core's parameters and
-/// segments, with the sizes of the inputs.
-#[derive(Serialize)]
-struct Report<'a> {
-    method: &'static str,
-    params: ReportParams,
-    segments: &'a [Segment],
-    calibration_queries: usize,
-    deployment_queries: usize,
-    database_size: usize,
-}
-
-/// The transfer's [`Params`] (the segment size resolved) and the matching mode.
-#[derive(Serialize)]
-struct ReportParams {
-    #[serde(flatten)]
-    params: Params,
-    matching: Matching,
 }
 
 /// Where the scores come from.
@@ -282,7 +262,6 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
             (cal, 0..n_q, None)
         }
     };
-    let matching = cal.matching();
     let params = params(cal.defaults())?;
     let n_val = queries.len();
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
@@ -306,20 +285,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     .with_context(|| source.describe())?;
     bar.finish_and_clear();
 
-    let report = Report {
-        method: "quantile-transfer",
-        params: ReportParams {
-            params: Params {
-                segment_size: Some(params.segment_size.unwrap_or(n_val)),
-                ..params
-            },
-            matching,
-        },
-        segments: &transfer.segments,
-        calibration_queries: cal.len(),
-        deployment_queries: n_val,
-        database_size: n_db,
-    };
+    let report = ThresholdReport::new(&cal, &params, &transfer);
     let text = match args.format {
         Format::Json => serde_json::to_string_pretty(&report)? + "\n",
         Format::Csv => {

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::PyBytes;
 use qtvpr::{Defaults, Matching, Params, QuerySplit, Split};
 
 use crate::convert::{GroundTruthArgs, Scores, count};
@@ -274,13 +274,8 @@ impl PyCalibration {
     /// "window"}`` (``{"k": 10, "precision": 1.0, "window": None}`` for a calibration
     /// built from arrays). :class:`Online` takes each one it is not given from here.
     #[getter]
-    fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = self.inner.defaults();
-        let out = PyDict::new(py);
-        out.set_item("k", d.k)?;
-        out.set_item("precision", d.precision)?;
-        out.set_item("window", d.window)?;
-        Ok(out)
+    fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pythonize::pythonize(py, self.inner.defaults())?)
     }
 
     /// |DB|, the number of database images (rows) of the calibration.

@@ -21,7 +21,6 @@ mod online;
 mod similarity;
 
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 use qtvpr::Matching;
 
 use crate::calibration::{PyCalibration, TransferResult};
@@ -148,9 +147,11 @@ fn best_threshold(
 ///
 /// A candidate (per ``matching``, as in :func:`best_threshold`) is accepted when its
 /// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
-/// "recall"}``: precision is 1 when nothing is accepted, recall 0 when there are no
-/// positives (queries with a hard match in ``"single"`` mode, hard matches in
-/// ``"multi"``). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
+/// "recall", "precision_lower95"}``, the keys of a segment of :func:`evaluate`:
+/// precision is 1 when nothing is accepted, recall 0 when there are no positives
+/// (queries with a hard match in ``"single"`` mode, hard matches in ``"multi"``), and
+/// ``precision_lower95`` the one-sided 95% Clopper-Pearson lower bound on the precision
+/// (``None`` when nothing is accepted). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
 /// may be arrays or paths, and errors are raised, as in :func:`best_threshold`.
 #[pyfunction]
 #[pyo3(signature = (s, gt, threshold, *, gt_soft = None, matching = "single", query_major = false))]
@@ -162,15 +163,9 @@ fn counts<'py>(
     gt_soft: Option<&Bound<'py, PyAny>>,
     matching: &str,
     query_major: bool,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<Bound<'py, PyAny>> {
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-    if threshold.is_nan() {
-        // The core would accept nothing at NaN; the reference refuses it.
-        return Err(pyo3::exceptions::PyValueError::new_err(
-            "threshold must be a real number other than NaN, got nan",
-        ));
-    }
     let s = Scores::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
@@ -178,13 +173,7 @@ fn counts<'py>(
     let c = py
         .detach(|| with_scores!(s, |s| qtvpr::counts(s, &gt, matching, threshold)))
         .map_err(|e| args.error(e))?;
-    let out = PyDict::new(py);
-    out.set_item("tp", c.tp)?;
-    out.set_item("fp", c.fp)?;
-    out.set_item("positives", c.positives)?;
-    out.set_item("precision", c.precision())?;
-    out.set_item("recall", c.recall())?;
-    Ok(out)
+    Ok(pythonize::pythonize(py, &c)?)
 }
 
 /// The ranked-correlation matrix of deployment and calibration queries.
