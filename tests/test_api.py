@@ -49,7 +49,7 @@ def test_docstrings_and_signatures_for_help():
     assert "k=None, precision=None" in qtvpr.Calibration.transfer.__text_signature__  # the file's, else 10 and 1.0
     assert qtvpr.Calibration.__doc__
     params = inspect.signature(qtvpr.Calibration).parameters
-    assert list(params) == ["s_cal", "gt_cal", "gt_soft", "matching", "query_major"]
+    assert list(params) == ["s_cal", "gt_cal", "gt_soft", "matching", "query_major", "cal_queries", "cal_fraction"]
 
 
 def test_transfer_result():
@@ -123,9 +123,17 @@ def test_calibration_object():
 
 def test_counts_types():
     c = qtvpr.counts(S_CAL, GT_CAL, 0.5)
-    assert c == ref.counts(S_CAL, GT_CAL, 0.5)
+    want = ref.counts(S_CAL, GT_CAL, 0.5)
+    # The keys of an evaluate segment, in its order (qtvpr::report).
+    assert list(c) == list(want) == ["tp", "fp", "positives", "precision", "recall", "precision_lower95"]
+    # The best matches 0.9, 0.8, 0.7 are all correct and >= 0.5: TP 3 of 3 positives, and
+    # the lower bound of 3 correct of 3 is 0.05 ** (1 / 3).
+    assert [c[k] for k in ("tp", "fp", "positives", "precision", "recall")] == [3, 0, 3, 1.0, 1.0]
     assert [type(c[k]) for k in ("tp", "fp", "positives", "precision", "recall")] == [int, int, int, float, float]
-    assert qtvpr.counts(S_CAL, GT_CAL, np.inf)["tp"] == 0
+    assert c["precision_lower95"] == pytest.approx(0.05 ** (1 / 3), abs=1e-12)
+    assert want["precision_lower95"] == pytest.approx(0.05 ** (1 / 3), abs=1e-12)
+    nothing = qtvpr.counts(S_CAL, GT_CAL, np.inf)
+    assert (nothing["tp"], nothing["precision"], nothing["precision_lower95"]) == (0, 1.0, None)
 
 
 def test_read_only_shared_and_byte_swapped_inputs():

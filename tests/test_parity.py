@@ -203,6 +203,10 @@ def test_counts(case):
     for key in ("tp", "fp", "positives"):
         assert got[key] == want[key], key
     assert_same([got["precision"], got["recall"]], [want["precision"], want["recall"]])
+    if want["precision_lower95"] is None:
+        assert got["precision_lower95"] is None
+    else:
+        assert_same(got["precision_lower95"], want["precision_lower95"])
 
 
 @SETTINGS

@@ -77,7 +77,9 @@ def test_reject_all():
 def test_single_first_argmax_on_ties():
     # column [0.5, 0.5], GT [F, T]: b = row 0 (first maximum), which is wrong
     s, gt = col(0.5, 0.5), gcol(F, T)
-    assert counts(s, gt, 0.5) == {"tp": 0, "fp": 1, "positives": 1, "precision": 0.0, "recall": 0.0}
+    assert counts(s, gt, 0.5) == {
+        "tp": 0, "fp": 1, "positives": 1, "precision": 0.0, "recall": 0.0, "precision_lower95": 0.0
+    }
     assert best_threshold(s, gt) == math.inf
 
 
@@ -94,7 +96,11 @@ def test_single_soft_only_best_match_makes_no_decision():
     assert best_threshold(SINGLE_S, SINGLE_GT, gt_soft=SINGLE_SOFT) == 0.8
     # at 0.8: TP 1, FP 0, precision 1, recall 1/3
     c = counts(SINGLE_S, SINGLE_GT, 0.8, gt_soft=SINGLE_SOFT)
-    assert c == {"tp": 1, "fp": 0, "positives": 3, "precision": 1.0, "recall": 1 / 3}
+    # Beta(1, 1) is uniform: its 0.05 quantile is 0.05.
+    assert c == {
+        "tp": 1, "fp": 0, "positives": 3, "precision": 1.0, "recall": 1 / 3,
+        "precision_lower95": pytest.approx(0.05, abs=1e-12),
+    }
     # at 0.5: 0.8 T and 0.7 F accepted -> precision 1/2
     c = counts(SINGLE_S, SINGLE_GT, 0.5, gt_soft=SINGLE_SOFT)
     assert (c["tp"], c["fp"], c["precision"]) == (1, 1, 0.5)
@@ -102,7 +108,7 @@ def test_single_soft_only_best_match_makes_no_decision():
     assert best_threshold(SINGLE_S, SINGLE_GT) == math.inf
     # nothing accepted: precision 1 by convention, recall 0
     c = counts(SINGLE_S, SINGLE_GT, math.inf, gt_soft=SINGLE_SOFT)
-    assert c == {"tp": 0, "fp": 0, "positives": 3, "precision": 1.0, "recall": 0.0}
+    assert c == {"tp": 0, "fp": 0, "positives": 3, "precision": 1.0, "recall": 0.0, "precision_lower95": None}
 
 
 def test_multi_with_ignored_entries():
@@ -116,7 +122,11 @@ def test_multi_with_ignored_entries():
     # tau = 2/3: 0.6 -> 2 >= 2 valid -> TP* = 2 -> 0.6
     assert best_threshold(s, gt, gt_soft=soft, matching="multi", precision=2 / 3) == 0.6
     c = counts(s, gt, 0.6, gt_soft=soft, matching="multi")
-    assert c == {"tp": 2, "fp": 1, "positives": 2, "precision": 2 / 3, "recall": 1.0}
+    # Beta(2, 2): its CDF is 3x^2 - 2x^3, which is 0.05 at x = 0.13535036...
+    assert c == {
+        "tp": 2, "fp": 1, "positives": 2, "precision": 2 / 3, "recall": 1.0,
+        "precision_lower95": pytest.approx(0.1353503621715837, abs=1e-12),
+    }
     # without soft GT, 0.9 F heads the sweep: 0.9 (0,1), 0.8 (1,1), ... never valid at tau 1
     assert best_threshold(s, gt, matching="multi") == math.inf
     # integer GT is accepted like bool

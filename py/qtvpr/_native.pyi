@@ -61,6 +61,7 @@ class _Counts(TypedDict):
     positives: int
     precision: float
     recall: float
+    precision_lower95: float | None
 
 class _Segment(TypedDict):
     start: int
@@ -181,6 +182,8 @@ class Calibration:
         gt_soft: _Matrix | None = None,
         matching: _Matching = "single",
         query_major: bool = False,
+        cal_queries: int | None = None,
+        cal_fraction: float | None = None,
     ) -> Calibration: ...
     def transfer(
         self,
@@ -324,9 +327,9 @@ class Online:
     def calibration(self) -> Calibration: ...
 
 def quantile_transfer(
-    s_cal: _Matrix,
+    s_cal: _Matrix | Descriptors,
     gt_cal: _Matrix,
-    s_val: _Matrix,
+    s_val: _Matrix | Descriptors | None = None,
     *,
     gt_soft: _Matrix | None = None,
     k: int = 10,
@@ -335,6 +338,8 @@ def quantile_transfer(
     segment_size: int | None = None,
     gate: _Gate = "none",
     query_major: bool = False,
+    cal_queries: int | None = None,
+    cal_fraction: float | None = None,
 ) -> TransferResult: ...
 def margins(s: _Matrix, *, query_major: bool = False) -> NDArray[np.float64]: ...
 def best_threshold(

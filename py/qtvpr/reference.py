@@ -270,15 +270,18 @@ def precision_lower95(tp: int, fp: int) -> float | None:
 def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
     """Counts of one matrix's decisions at ``threshold`` (semantics §2).
 
-    Returns ``dict(tp=, fp=, positives=, precision=, recall=)``. Precision is 1 when
-    nothing is accepted; recall is 0 when there are no positives. ``threshold`` may be
-    ``inf`` (accepts nothing) but not NaN.
+    Returns ``dict(tp=, fp=, positives=, precision=, recall=, precision_lower95=)``, the
+    keys of a segment of ``evaluate``. Precision is 1 when nothing is accepted; recall is
+    0 when there are no positives. ``threshold`` may be ``inf`` (accepts nothing) but
+    not NaN.
     """
     matching = _check_matching(matching)
     if not isinstance(threshold, numbers.Real) or math.isnan(threshold):
         raise ValueError(f"threshold must be a real number other than NaN, got {threshold!r}")
     s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
-    return _count_at(*_candidates(s, gt, ignored, matching), float(threshold))
+    out = _count_at(*_candidates(s, gt, ignored, matching), float(threshold))
+    out["precision_lower95"] = precision_lower95(out["tp"], out["fp"])
+    return out
 
 
 # ---------------------------------------------------------------------------------------
@@ -515,7 +518,7 @@ class TransferResult:
 def quantile_transfer(
     s_cal,
     gt_cal,
-    s_val,
+    s_val=None,
     *,
     gt_soft=None,
     k=10,
@@ -524,6 +527,8 @@ def quantile_transfer(
     segment_size=None,
     gate="none",
     query_major=False,
+    cal_queries=None,
+    cal_fraction=None,
 ) -> TransferResult:
     """Quantile transfer from calibration to deployment queries (semantics §4-§6).
 
@@ -536,7 +541,15 @@ def quantile_transfer(
     ``gt_soft`` is the calibration soft ground truth. ``segment_size=None`` means one
     batch of all deployment queries. ``gate="margin"`` (section 13) also gives m* and
     every deployment query's margin.
+
+    With ``cal_queries`` or ``cal_fraction`` and no ``s_val``, ``s_cal`` and its ground
+    truth hold every query: the first ``cal_queries`` (or ``floor(cal_fraction * |Q|)``)
+    calibrate and the rest are thresholded (semantics §8.1's calibration rule).
     """
+    if cal_queries is not None or cal_fraction is not None:
+        s_cal, gt_cal, gt_soft, s_val = _split(s_cal, gt_cal, gt_soft, s_val, cal_queries, cal_fraction, query_major)
+    elif s_val is None:
+        raise ValueError("no deployment queries: give s_val, or cal_queries or cal_fraction to split s_cal")
     k = _check_positive_int("k", k)
     tau = _check_precision(precision)
     matching = _check_matching(matching)
@@ -673,6 +686,44 @@ def schubert_threshold(s) -> float:
 # ---------------------------------------------------------------------------------------
 # Section 8: evaluation protocol
 # ---------------------------------------------------------------------------------------
+
+
+def _calibration_size(n_q, cal_fraction, cal_queries) -> int:
+    """The first queries that calibrate (semantics §8.1): ``floor(cal_fraction * n_q)``
+    or ``cal_queries``, between 1 and ``n_q - 1``."""
+    if cal_queries is None:
+        n_cal = math.floor(_check_fraction("cal_fraction", cal_fraction) * n_q)
+    else:
+        n_cal = _check_positive_int("cal_queries", cal_queries)
+    if not (1 <= n_cal < n_q):
+        raise ValueError(
+            f"the calibration set must have between 1 and {n_q - 1} of the {n_q} queries, "
+            f"got {n_cal}"
+        )
+    return n_cal
+
+
+def _split(s, gt, gt_soft, s_val, cal_queries, cal_fraction, query_major):
+    """One matrix of every query split: ``(s_cal, gt_cal, gt_soft_cal, s_val)`` in the
+    caller's orientation."""
+    if cal_queries is not None and cal_fraction is not None:
+        raise ValueError("give cal_queries or cal_fraction, not both")
+    if s_val is not None:
+        raise ValueError("s_val and cal_queries/cal_fraction exclude each other: give s_val, or split s_cal")
+    s = np.asarray(s)
+    axis = 0 if query_major else 1
+    n_cal = _calibration_size(s.shape[axis], cal_fraction, cal_queries)
+    labels = [np.asarray(gt), None if gt_soft is None else np.asarray(gt_soft)]
+    for name, g in zip(("gt_cal", "gt_soft"), labels, strict=True):
+        if g is not None and g.shape != s.shape:
+            raise ValueError(
+                f"{name}: ground truth shape {g.shape[0]}x{g.shape[1]} does not match similarity shape "
+                f"{s.shape[0]}x{s.shape[1]}; the ground truth of a split labels every query, of which "
+                f"the first {n_cal} calibrate"
+            )
+    first = (lambda a: a[:n_cal]) if query_major else (lambda a: a[:, :n_cal])
+    rest = s[n_cal:] if query_major else s[:, n_cal:]
+    return first(s), first(labels[0]), None if labels[1] is None else first(labels[1]), rest
 
 
 def _check_fraction(name: str, value) -> float:

@@ -240,7 +240,7 @@ mod tests {
         };
         assert_eq!(Failure::from(len).code, QTVPR_ERR_SIZE);
         let nan = qtvpr::Error::NotFinite {
-            what: "deployment similarity",
+            what: qtvpr::Input::DeploymentSimilarity,
             row: 1,
             col: 0,
             value: f64::NAN,

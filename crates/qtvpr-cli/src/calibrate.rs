@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Matching, Split};
+use qtvpr::{Calibration, Defaults, Matching, QuerySplit, Split};
 
 use crate::gt_source::{CalGtSource, GtSource};
 use crate::inputs::{DescriptorFiles, SplitArgs, gate_parser};
-use crate::threshold::{MatchingArg, split_ground_truth};
+use crate::threshold::MatchingArg;
 use qtvpr::npy::read_scores;
 use qtvpr::with_scores;
 
@@ -101,18 +101,15 @@ fn from_descriptors(
 ) -> Result<Calibration> {
     let files = DescriptorFiles::read(db, q)?;
     let d = files.descriptors()?;
-    let (n_db, n_q) = d.shape();
-    let (n_cal, flag) = match split {
-        Some((split, flag)) => (
-            split
-                .calibration_size(n_q)
-                .with_context(|| format!("{flag} of {}", files.describe()))?,
-            flag,
-        ),
-        None => (n_q, "descriptors"),
+    let Some((split, flag)) = split else {
+        // Every query calibrates.
+        let gt = gt_source.load(d.shape(), false)?;
+        return Calibration::from_descriptors(&d, 0..d.shape().1, &gt, matching)
+            .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()));
     };
-    let gt = split_ground_truth(gt_source, (n_db, n_q), n_cal, false, flag, &files.describe())?;
-    Calibration::from_descriptors(&d, 0..n_cal, &gt, matching)
+    let split = QuerySplit::new(split, d.shape()).with_context(|| format!("{flag} of {}", files.describe()))?;
+    let gt = gt_source.load_split(&split, false, &files.describe())?;
+    Calibration::from_descriptors(&d, split.calibration(), &gt, matching)
         .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()))
 }
 

@@ -23,11 +23,11 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
+use qtvpr::Input;
 use qtvpr::ground_truth::{GtSpec, HardSoft, check_radius};
 use qtvpr::image_names::image_paths;
-use qtvpr::names::{DB_POSITIONS, QUERY_POSITIONS};
 use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
-use qtvpr::{GroundTruth, ScoresView};
+use qtvpr::{GroundTruth, QuerySplit, ScoresView};
 
 use crate::inputs::blame;
 
@@ -331,6 +331,21 @@ impl GtSource<'_> {
         }
     }
 
+    /// The ground truth of the calibration queries of `split`: the source labels every
+    /// query split (a tolerance makes just the calibration columns), and the core
+    /// checks its shape and keeps the calibration columns. `input` names the similarity
+    /// (its options and files) in errors.
+    pub fn load_split(&self, split: &QuerySplit, query_major: bool, input: &str) -> Result<GroundTruth> {
+        if let Kind::Tolerance { .. } = self.kind {
+            return self.load(split.calibration_shape(), query_major);
+        }
+        let gt = self.load(split.shape(), query_major)?;
+        split
+            .calibration_truth(&gt)
+            .map_err(|e| e.oriented(query_major))
+            .with_context(|| format!("{input} / {}", self.describe()))
+    }
+
     /// Hard and soft ground truth of a tolerance or positions source, of shape `shape`
     /// (required for a tolerance, checked for positions), by the core's
     /// [`GtSpec::matrices`]. The parameters are checked first, before any file is read,
@@ -444,7 +459,7 @@ fn within<'a>(
         soft_radius,
     };
     let [db_flag, q_flag] = flags;
-    let sources = [(DB_POSITIONS, db_flag), (QUERY_POSITIONS, q_flag)];
+    let sources = [(Input::DbPositions, db_flag), (Input::QueryPositions, q_flag)];
     spec.matrices(shape).map_err(|e| blame(e, &sources))
 }
 

@@ -5,15 +5,20 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
 use qtvpr::npy::{FloatMatrix, Scores, read_float_matrix};
-use qtvpr::{Descriptors, Sequence, Split};
+use qtvpr::{Descriptors, Input, Sequence, Split};
 
 /// Attach to a core error the options and files of the matrices it is about:
-/// `sources` maps [`qtvpr::names`] constants to `--option FILE`, looked up by
-/// [`qtvpr::Error::inputs`]. Errors about no matrix in `sources` are returned as they are.
-pub fn blame(err: qtvpr::Error, sources: &[(&'static str, String)]) -> anyhow::Error {
-    let context: Vec<&str> = err.inputs(sources).into_iter().map(String::as_str).collect();
+/// `sources` maps the [`Input`]s a command reads from files to `--option FILE`, looked
+/// up by [`qtvpr::Error::inputs`]. Errors about no matrix in `sources` are returned as
+/// they are.
+pub fn blame(err: qtvpr::Error, sources: &[(Input, String)]) -> anyhow::Error {
+    let context: Vec<&str> = err.inputs(|input| {
+        sources
+            .iter()
+            .find(|(i, _)| *i == input)
+            .map(|(_, source)| source.as_str())
+    });
     if context.is_empty() {
         err.into()
     } else {
@@ -66,7 +71,7 @@ pub struct DescriptorFiles {
     db: Scores,
     queries: Scores,
     /// `--option FILE` of each, for [`blame`].
-    sources: [(&'static str, String); 2],
+    sources: [(Input, String); 2],
 }
 
 impl DescriptorFiles {
@@ -76,8 +81,11 @@ impl DescriptorFiles {
             db: read_float_matrix(db, FloatMatrix::Descriptors).context("--db-descriptors")?,
             queries: read_float_matrix(queries, FloatMatrix::Descriptors).context("--query-descriptors")?,
             sources: [
-                (DB_DESCRIPTORS, format!("--db-descriptors {}", db.display())),
-                (QUERY_DESCRIPTORS, format!("--query-descriptors {}", queries.display())),
+                (Input::DbDescriptors, format!("--db-descriptors {}", db.display())),
+                (
+                    Input::QueryDescriptors,
+                    format!("--query-descriptors {}", queries.display()),
+                ),
             ],
         })
     }

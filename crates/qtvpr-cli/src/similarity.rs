@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use qtvpr::Input;
 use qtvpr::npy::{FloatMatrix, read_float_matrix};
 use qtvpr::with_scores;
 
@@ -46,8 +46,8 @@ pub fn run(args: &SimilarityArgs, global: &Global) -> Result<()> {
     let db = read_float_matrix(&args.db, FloatMatrix::Descriptors).context("--db")?;
     let queries = read_float_matrix(&args.queries, FloatMatrix::Descriptors).context("--queries")?;
     let sources = [
-        (DB_DESCRIPTORS, format!("--db {}", args.db.display())),
-        (QUERY_DESCRIPTORS, format!("--queries {}", args.queries.display())),
+        (Input::DbDescriptors, format!("--db {}", args.db.display())),
+        (Input::QueryDescriptors, format!("--queries {}", args.queries.display())),
     ];
     let bar = progress::bar(global.quiet, db.view().dim().0, "database rows");
     let s = with_scores!(db.view(), |d| with_scores!(queries.view(), |q| {

@@ -18,10 +18,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Descriptors, GroundTruth, Matching, Params, ScoresView, Segment};
-use serde::Serialize;
+use qtvpr::report::ThresholdReport;
+use qtvpr::{Calibration, Defaults, Descriptors, Matching, Params, QuerySplit, ScoresView};
 
-use crate::gt_source::{GtSource, Kind, OptionalCalGtSource};
+use crate::gt_source::OptionalCalGtSource;
 use crate::inputs::{DescriptorFiles, SplitArgs};
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
@@ -125,29 +125,6 @@ impl From<MatchingArg> for Matching {
     }
 }
 
-/// The JSON document of `threshold` (keys: `qtvpr::report`): the core's parameters and
-/// segments, with the sizes of the inputs.
-#[derive(Serialize)]
-struct Report<'a> {
-    method: &'static str,
-    params: ReportParams,
-    segments: &'a [Segment],
-    /// With `--gate margin`: m*, the margin a best match needs besides its score.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    gate: Option<f64>,
-    calibration_queries: usize,
-    deployment_queries: usize,
-    database_size: usize,
-}
-
-/// The transfer's [`Params`] (the segment size resolved) and the matching mode.
-#[derive(Serialize)]
-struct ReportParams {
-    #[serde(flatten)]
-    params: Params,
-    matching: Matching,
-}
-
 /// Where the scores come from.
 enum Source<'a> {
     /// A matrix, oriented |DB| x |Q|, and `--option FILE` that named it.
@@ -249,31 +226,25 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     let (n_db, n_q) = source.shape();
 
     // The calibration, and the deployment queries: all of them, or those after the split.
-    let (cal, queries) = match split {
+    let (cal, queries, split) = match split {
         Some((split, flag)) => {
-            let n_cal = split
-                .calibration_size(n_q)
-                .with_context(|| format!("{flag} of {}", source.describe()))?;
+            let split =
+                QuerySplit::new(split, (n_db, n_q)).with_context(|| format!("{flag} of {}", source.describe()))?;
             let gt_source = gt_source.expect("a split needs ground truth, checked above");
-            let gt_cal = split_ground_truth(
-                gt_source,
-                (n_db, n_q),
-                n_cal,
-                args.query_major,
-                flag,
-                &source.describe(),
-            )?;
+            let gt_cal = gt_source.load_split(&split, args.query_major, &source.describe())?;
             let cal = match &source {
-                Source::Descriptors(d, _) => Calibration::from_descriptors(d, 0..n_cal, &gt_cal, matching_arg),
+                Source::Descriptors(d, _) => {
+                    Calibration::from_descriptors(d, split.calibration(), &gt_cal, matching_arg)
+                }
                 Source::Matrix(s, _) => with_scores!(*s, |v| Calibration::new(
-                    v.slice(ndarray::s![.., ..n_cal]),
+                    v.slice(ndarray::s![.., split.calibration()]),
                     &gt_cal,
                     matching_arg
                 ))
                 .map_err(|e| e.oriented(args.query_major)),
             }
             .with_context(|| format!("{} / {}", source.describe(), gt_source.describe()))?;
-            (cal, n_cal..n_q)
+            (cal, split.deployment(), Some(split))
         }
         None => {
             let cal_path = args.cal.as_deref().expect("checked above");
@@ -294,10 +265,9 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
                 }
                 Some(gt_source) => calibrate::from_matrix(cal_path, gt_source, matching_arg, args.query_major)?,
             };
-            (cal, 0..n_q)
+            (cal, 0..n_q, None)
         }
     };
-    let matching = cal.matching();
     let params = params(cal.defaults())?;
     cal.check_gate(params.gate).context("--gate")?;
     let n_val = queries.len();
@@ -312,26 +282,17 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
             &params,
             progress
         ))
+        // A split's deployment columns are a view: errors count the matrix's columns.
+        .map_err(|e| match &split {
+            Some(split) => split.deployment_error(e),
+            None => e,
+        })
         .map_err(|e| query_major_hint(e.oriented(args.query_major), args.query_major)),
     }
     .with_context(|| source.describe())?;
     bar.finish_and_clear();
 
-    let report = Report {
-        method: "quantile-transfer",
-        params: ReportParams {
-            params: Params {
-                segment_size: Some(params.segment_size.unwrap_or(n_val)),
-                ..params
-            },
-            matching,
-        },
-        segments: &transfer.segments,
-        gate: transfer.gate,
-        calibration_queries: cal.len(),
-        deployment_queries: n_val,
-        database_size: n_db,
-    };
+    let report = ThresholdReport::new(&cal, &params, &transfer);
     let text = match args.format {
         Format::Json => serde_json::to_string_pretty(&report)? + "\n",
         Format::Csv => {
@@ -345,40 +306,6 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         }
     };
     emit(&text, args.output.as_deref())
-}
-
-/// The ground truth of the first `n_cal` of the queries of a |DB| x |Q| similarity of
-/// shape `shape`, split by `flag`: `source` labels every query (a tolerance makes just
-/// the columns needed); `input` names the similarity in errors.
-pub fn split_ground_truth(
-    source: GtSource<'_>,
-    (n_db, n_q): (usize, usize),
-    n_cal: usize,
-    query_major: bool,
-    flag: &str,
-    input: &str,
-) -> Result<GroundTruth> {
-    if let Kind::Tolerance { .. } = source.kind {
-        return source.load((n_db, n_cal), query_major);
-    }
-    let gt = source.load((n_db, n_q), query_major)?;
-    if gt.dim() != (n_db, n_q) {
-        let (r, c) = oriented_shape(gt.dim(), query_major);
-        let (sr, sc) = oriented_shape((n_db, n_q), query_major);
-        bail!(
-            "{}: ground truth shape {r}x{c} does not match the {sr}x{sc} similarity of {input}; with {flag} \
-             the calibration ground truth labels every query, and its first {n_cal} columns are used",
-            source.describe()
-        );
-    }
-    Ok(GroundTruth::from_truth(
-        gt.view().slice(ndarray::s![.., ..n_cal]).to_owned(),
-    ))
-}
-
-/// A shape as the user's files have it: transposed for `query_major`.
-fn oriented_shape((r, c): (usize, usize), query_major: bool) -> (usize, usize) {
-    if query_major { (c, r) } else { (r, c) }
 }
 
 /// A database mismatch of files not declared query-major is often a pair of query-major

@@ -508,3 +508,78 @@ fn deeply_nested_headers_fail_fast() {
     );
     assert!(start.elapsed().as_secs() < 10);
 }
+
+#[test]
+fn one_matrix_split_by_the_core() {
+    // The hand-computed case as one matrix: columns 0-1 are `cal.npy`, 2-3 `val.npy`,
+    // and the ground truth labels all four (its last two columns are not used).
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let case = Case::new();
+    let cal_val = [
+        "--k",
+        "1",
+        "--matching",
+        "multi",
+        "--segment-size",
+        "1",
+        "--format",
+        "csv",
+    ];
+    let want = case.run(&[], &cal_val);
+    assert!(want.status.success(), "{}", String::from_utf8_lossy(&want.stderr));
+    let want = std::fs::read_to_string(case.path("out.json")).unwrap();
+    npy_f64(
+        &path("S.npy"),
+        &[&[3.0, 1.0, 2.0, 2.0], &[1.0, 4.0, 6.0, 5.0], &[2.0, 1.0, 4.0, 2.0]],
+    );
+    npy_bool(&path("GT.npy"), &[&[1, 1, 0, 1], &[0, 1, 1, 0], &[1, 0, 0, 0]]);
+    npy_bool(&path("GT_cal.npy"), &[&[1, 1], &[0, 1], &[1, 0]]);
+    let threshold = |extra: &[&str]| {
+        let base = ["threshold", "--similarity", "S.npy", "--cal-gt"];
+        run_in(dir.path(), &[&base[..], extra, &cal_val[..]].concat())
+    };
+    // floor(0.5 x 4) = 2: the same split as --cal-queries 2, and as --cal / --val.
+    for split in [["--cal-queries", "2"], ["--cal-fraction", "0.5"]] {
+        let out = threshold(&[&["GT.npy"][..], &split[..]].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(String::from_utf8(out.stdout).unwrap(), want);
+    }
+    let fails = |extra: &[&str], message: &str| {
+        let out = threshold(extra);
+        assert_clean_failure(&out, dir.path(), &[], &[]);
+        assert_eq!(String::from_utf8_lossy(&out.stderr), format!("error: {message}\n"));
+    };
+    fails(
+        &["GT.npy", "--cal-queries", "0"],
+        "--cal-queries: cal queries must be >= 1, got 0",
+    );
+    fails(
+        &["GT.npy", "--cal-queries", "4"],
+        "--cal-queries of --similarity S.npy: the calibration set must have between 1 and 3 of the 4 \
+         queries, got 4",
+    );
+    fails(
+        &["GT.npy", "--cal-fraction", "1"],
+        "--cal-fraction: cal fraction must be in (0, 1), got 1",
+    );
+    fails(
+        &["GT.npy", "--cal-fraction", "0.2"],
+        "--cal-fraction of --similarity S.npy: the calibration set must have between 1 and 3 of the 4 \
+         queries, got 0",
+    );
+    fails(
+        &["GT_cal.npy", "--cal-queries", "2"],
+        "--similarity S.npy / --cal-gt GT_cal.npy: ground truth shape 3x2 does not match similarity \
+         shape 3x4; the ground truth of a split labels every query, of which the first 2 calibrate",
+    );
+    // A NaN in deployment query 1 is column 2 + 1 = 3 of the matrix.
+    npy_f64(
+        &path("S.npy"),
+        &[&[3.0, 1.0, 2.0, 2.0], &[1.0, 4.0, 6.0, f64::NAN], &[2.0, 1.0, 4.0, 2.0]],
+    );
+    fails(
+        &["GT.npy", "--cal-queries", "2"],
+        "--similarity S.npy: deployment similarity contains NaN at row 1, column 3; scores must be finite",
+    );
+}

@@ -4,9 +4,10 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
-use qtvpr::{Matching, Params};
+use pyo3::types::PyBytes;
+use qtvpr::{Matching, Params, QuerySplit, Split};
 
 use crate::convert::{self, GroundTruthArgs, Scores, count};
 use crate::descriptors::PyDescriptors;
@@ -24,6 +25,13 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// ignored). ``matching`` is ``"single"`` (one decision per query, on its best match)
 /// or ``"multi"`` (every entry is a candidate). ``query_major=True`` takes every matrix
 /// as |Qcal| x |DB| instead.
+///
+/// ``cal_queries=n`` or ``cal_fraction=f`` calibrates on the first queries of ``s_cal``
+/// only (the first ``n``, or ``floor(f * |Q|)``, between 1 and |Q| - 1), as
+/// ``qtvpr-cli calibrate --cal-queries`` does: ``gt_cal`` then labels every query of
+/// ``s_cal`` and its first columns are used (:func:`quantile_transfer` thresholds the
+/// rest). A count below 1, a fraction outside (0, 1), a split that leaves no query on
+/// either side and ground truth of another shape raise ``ValueError``.
 ///
 /// Every matrix may also be given as a path (``str`` or ``os.PathLike``) to a ``.npy``
 /// file (``gt_cal`` also a VPR_Tutorial ``.npz`` with ``GThard`` and optional
@@ -65,6 +73,98 @@ impl PyCalibration {
     }
 }
 
+impl PyCalibration {
+    /// The calibration of `s_cal`, every query or the first queries of `split` (then
+    /// `gt_cal` labels every query), and with `transfer` the transfer of the queries
+    /// after the split at those parameters (resolved by the caller against
+    /// [`qtvpr::Defaults::default`], which a calibration from arrays has).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn build(
+        py: Python<'_>,
+        s_cal: &Bound<'_, PyAny>,
+        gt_cal: &Bound<'_, PyAny>,
+        gt_soft: Option<&Bound<'_, PyAny>>,
+        matching: &str,
+        query_major: bool,
+        split: Option<Split>,
+        transfer: Option<Params>,
+    ) -> PyResult<(Self, Option<TransferResult>)> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major,
+        };
+        let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
+        let params = transfer;
+        if let Some(d) = PyDescriptors::of(s_cal, query_major)? {
+            let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
+            let gt = gt.view(false);
+            let gt = py.detach(|| gt.build())?;
+            let (inner, out) = d
+                .get()
+                .with(py, |d, queries| {
+                    let Some(split) = split else {
+                        return qtvpr::Calibration::from_descriptors(d, queries, &gt, matching).map(|c| (c, None));
+                    };
+                    let split = QuerySplit::of_range(split, d.shape().0, queries)?;
+                    let cal = qtvpr::Calibration::from_descriptors(
+                        d,
+                        split.calibration(),
+                        &split.calibration_truth(&gt)?,
+                        matching,
+                    )?;
+                    let out = params
+                        .map(|p| cal.transfer_descriptors(d, split.deployment(), &p))
+                        .transpose()?;
+                    Ok((cal, out))
+                })?
+                .map_err(|e| args.error(e))?;
+            let out = out.map(|out| TransferResult::new(py, out));
+            return Ok((Self { inner: Arc::new(inner) }, out));
+        }
+        let s = Scores::extract("s_cal", s_cal)?;
+        let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
+        let (s, gt) = (s.view(query_major), gt.view(query_major));
+        let gt = py.detach(|| gt.build())?;
+        let Some(split) = split else {
+            let inner = py
+                .detach(|| with_scores!(s, |s| qtvpr::Calibration::new(s, &gt, matching)))
+                .map_err(|e| args.error(e))?;
+            return Ok((Self { inner: Arc::new(inner) }, None));
+        };
+        let split = QuerySplit::new(split, s.dim()).map_err(|e| args.error(e))?;
+        let inner = py
+            .detach(|| {
+                let gt = split.calibration_truth(&gt)?;
+                with_scores!(s, |s| qtvpr::Calibration::new(
+                    s.slice(ndarray::s![.., split.calibration()]),
+                    &gt,
+                    matching
+                ))
+            })
+            .map_err(|e| args.error(e))?;
+        let out = params
+            .map(|p| {
+                py.detach(|| with_scores!(s, |s| inner.transfer(s.slice(ndarray::s![.., split.deployment()]), &p)))
+                    .map_err(|e| args.split_error(split.deployment_error(e)))
+            })
+            .transpose()?;
+        let out = out.map(|out| TransferResult::new(py, out));
+        Ok((Self { inner: Arc::new(inner) }, out))
+    }
+}
+
+/// ``cal_queries`` / ``cal_fraction``: how many of the first queries calibrate, as a
+/// [`Split`] (checked by the core once the number of queries is known); `None` for
+/// neither.
+pub(crate) fn split_arg(cal_queries: Option<i64>, cal_fraction: Option<f64>) -> PyResult<Option<Split>> {
+    match (cal_queries, cal_fraction) {
+        (Some(_), Some(_)) => Err(PyValueError::new_err("give cal_queries or cal_fraction, not both")),
+        (Some(n), None) => Ok(Some(Split::Count(count("cal_queries", n)?))),
+        (None, Some(f)) => Ok(Some(Split::Fraction(f))),
+        (None, None) => Ok(None),
+    }
+}
+
 /// How calibration-file calls name their arguments (no matrix is transposed).
 const FILE_ARGS: Args = Args {
     gt: "gt",
@@ -80,7 +180,11 @@ const CAL_ARGS: Args = Args {
 #[pymethods]
 impl PyCalibration {
     #[new]
-    #[pyo3(signature = (s_cal, gt_cal, *, gt_soft = None, matching = "single", query_major = false))]
+    #[pyo3(signature = (
+        s_cal, gt_cal, *, gt_soft = None, matching = "single", query_major = false, cal_queries = None,
+        cal_fraction = None,
+    ))]
+    #[allow(clippy::too_many_arguments)] // the Python signature
     pub(crate) fn new(
         py: Python<'_>,
         s_cal: &Bound<'_, PyAny>,
@@ -88,30 +192,12 @@ impl PyCalibration {
         gt_soft: Option<&Bound<'_, PyAny>>,
         matching: &str,
         query_major: bool,
+        cal_queries: Option<i64>,
+        cal_fraction: Option<f64>,
     ) -> PyResult<Self> {
-        let args = Args {
-            gt: "gt_cal",
-            query_major,
-        };
-        let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-        if let Some(d) = PyDescriptors::of(s_cal, query_major)? {
-            let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
-            let gt = gt.view(false);
-            let gt = py.detach(|| gt.build())?;
-            let inner = d
-                .get()
-                .with(py, |d, r| qtvpr::Calibration::from_descriptors(d, r, &gt, matching))?
-                .map_err(|e| args.error(e))?;
-            return Ok(Self { inner: Arc::new(inner) });
-        }
-        let s = Scores::extract("s_cal", s_cal)?;
-        let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
-        let (s, gt) = (s.view(query_major), gt.view(query_major));
-        let gt = py.detach(|| gt.build())?;
-        let inner = py
-            .detach(|| with_scores!(s, |s| qtvpr::Calibration::new(s, &gt, matching)))
-            .map_err(|e| args.error(e))?;
-        Ok(Self { inner: Arc::new(inner) })
+        let split = split_arg(cal_queries, cal_fraction)?;
+        let (cal, _) = Self::build(py, s_cal, gt_cal, gt_soft, matching, query_major, split, None)?;
+        Ok(cal)
     }
 
     /// Write this calibration to ``path`` as a calibration file, atomically.
@@ -199,14 +285,8 @@ impl PyCalibration {
     /// "none"}`` for a calibration built from arrays). :meth:`transfer` and
     /// :class:`Online` take each one they are not given from here.
     #[getter]
-    fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = self.inner.defaults();
-        let out = PyDict::new(py);
-        out.set_item("k", d.k)?;
-        out.set_item("precision", d.precision)?;
-        out.set_item("window", d.window)?;
-        out.set_item("gate", d.gate.as_str())?;
-        Ok(out)
+    fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pythonize::pythonize(py, self.inner.defaults())?)
     }
 
     /// |DB|, the number of database images (rows) of the calibration.

@@ -6,14 +6,10 @@ use std::ops::Range;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
 use qtvpr::npy::FloatMatrix;
 
 use crate::convert::Scores;
 use crate::error::named_error;
-
-/// The Python names of the descriptor matrices in errors.
-const NAMES: [(&str, &str); 2] = [(DB_DESCRIPTORS, "db"), (QUERY_DESCRIPTORS, "queries")];
 
 /// Database and query descriptors, accepted wherever a similarity matrix is:
 /// ``Calibration(Descriptors(db, q, stop=n), gt_cal)``,
@@ -50,7 +46,7 @@ impl PyDescriptors {
         start: usize,
         stop: Option<usize>,
     ) -> PyResult<Self> {
-        let (n_db, n_q) = with_arrays(py, db, queries, |d| Ok(d.shape()))?.map_err(|e| named_error(e, &NAMES))?;
+        let (n_db, n_q) = with_arrays(py, db, queries, |d| Ok(d.shape()))?.map_err(named_error)?;
         let stop = stop.unwrap_or(n_q);
         if start >= stop || stop > n_q {
             return Err(PyValueError::new_err(format!(
@@ -86,9 +82,7 @@ impl PyDescriptors {
     /// The similarity it stands for, |DB| x (stop - start) float32: exactly
     /// ``cosine_similarity(db, queries)[:, start:stop]``.
     pub(crate) fn similarity<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let s = self
-            .with(py, |d, r| d.similarity(r))?
-            .map_err(|e| named_error(e, &NAMES))?;
+        let s = self.with(py, |d, r| d.similarity(r))?.map_err(named_error)?;
         Ok(s.into_pyarray(py))
     }
 
@@ -126,8 +120,7 @@ impl PyDescriptors {
         f: impl FnOnce(&qtvpr::Descriptors<'_>, Range<usize>) -> qtvpr::Result<R> + Send,
     ) -> PyResult<qtvpr::Result<R>> {
         let range = self.range.clone();
-        with_arrays(py, self.db.bind(py), self.queries.bind(py), |d| Ok(f(d, range)))?
-            .map_err(|e| named_error(e, &NAMES))
+        with_arrays(py, self.db.bind(py), self.queries.bind(py), |d| Ok(f(d, range)))?.map_err(named_error)
     }
 }
 

@@ -5,8 +5,9 @@
 //! subclass of its kind (`FileNotFoundError`, `IsADirectoryError`, `PermissionError`), a
 //! wrong dtype is a `TypeError`, anything else a `ValueError`. The message is the
 //! core's, prefixed by the Python argument it is about: the core says which matrices
-//! an error is about ([`qtvpr::Error::inputs`]), and each call maps those names to its
-//! arguments ([`named_error`]).
+//! an error is about ([`qtvpr::Error::inputs`]), and [`Args::argument`] names each
+//! [`Input`] by its argument, in one exhaustive `match` (an input added to the core
+//! does not compile here until it has a Python name).
 //!
 //! Positions and shapes are given in the caller's orientation: the core computes on
 //! |DB| x |Q| views, so for query-major input its errors are transposed back
@@ -18,21 +19,57 @@ use pyo3::exceptions::{
     PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyTypeError, PyValueError,
 };
 use qtvpr::Error;
-use qtvpr::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY, GROUND_TRUTH, SIMILARITY, SOFT_GROUND_TRUTH};
+use qtvpr::Input;
 
 /// How a call names its arguments, and whether its matrices were transposed.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Args {
-    /// The Python name of the hard ground truth (`gt` or `gt_cal`).
+    /// The Python name of the hard ground truth (`gt` or `gt_cal`; `n_db, n_queries` for
+    /// the ground truth those make).
     pub(crate) gt: &'static str,
     /// Whether the caller's matrices are query-major.
     pub(crate) query_major: bool,
 }
 
+/// How the functions without a `gt_cal` name their arguments.
+pub(crate) const NAMED: Args = Args {
+    gt: "gt",
+    query_major: false,
+};
+
 impl Args {
+    /// The Python argument `input` comes from.
+    pub(crate) fn argument(self, input: Input) -> &'static str {
+        match input {
+            Input::Similarity => "s",
+            Input::CalSimilarity => "s_cal",
+            Input::DeploymentSimilarity => "s_val",
+            Input::GroundTruth => self.gt,
+            Input::SoftGroundTruth => "gt_soft",
+            Input::DbDescriptors => "db",
+            Input::QueryDescriptors => "queries",
+            Input::DbPositions => "db_positions",
+            Input::QueryPositions => "query_positions",
+        }
+    }
+
     /// The exception for an error of the core's computation on the oriented views:
     /// positions and shapes in the caller's orientation, prefixed by the argument.
     pub(crate) fn error(self, err: Error) -> PyErr {
+        self.error_naming(err, |input| self.argument(input))
+    }
+
+    /// [`Args::error`] for the transfer of the queries after a split of `s_cal`
+    /// (`cal_queries=`, `cal_fraction=`): the deployment similarity is `s_cal` too.
+    pub(crate) fn split_error(self, err: Error) -> PyErr {
+        self.error_naming(err, |input| match input {
+            Input::DeploymentSimilarity => self.argument(Input::CalSimilarity),
+            input => self.argument(input),
+        })
+    }
+
+    /// [`Args::error`], naming inputs by `argument`.
+    fn error_naming(self, err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
         let err = err.oriented(self.query_major);
         match &err {
             // The core names parameters as a user spells them; Python spells them with
@@ -44,29 +81,31 @@ impl Args {
                 "s_val: {err}; if the arrays are query-major (|Q| x |DB|, as VPR-Bench stores them), \
                  pass query_major=True"
             )),
-            _ => named_error(
-                err,
-                &[
-                    (CAL_SIMILARITY, "s_cal"),
-                    (DEPLOYMENT_SIMILARITY, "s_val"),
-                    (SIMILARITY, "s"),
-                    (GROUND_TRUTH, self.gt),
-                    (SOFT_GROUND_TRUTH, "gt_soft"),
-                ],
-            ),
+            _ => named(err, argument),
         }
+    }
+
+    /// The exception for a core error as it is, prefixed by the arguments it is about
+    /// ([`Args::argument`]). Errors about no matrix (a parameter, which the core names
+    /// itself) are not prefixed.
+    pub(crate) fn named(self, err: Error) -> PyErr {
+        named(err, |input| self.argument(input))
     }
 }
 
-/// The exception for a core error, prefixed by the arguments it is about: `arguments`
-/// maps [`qtvpr::names`] constants to the Python arguments they came from. Errors
-/// about no matrix (a parameter, which the core names itself) are not prefixed.
-pub(crate) fn named_error(err: Error, arguments: &[(&'static str, &str)]) -> PyErr {
-    let names: Vec<&str> = err.inputs(arguments).into_iter().copied().collect();
+/// The exception for a core error as it is, prefixed by the arguments it is about, as
+/// `argument` names them.
+fn named(err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
+    let names = err.inputs(|input| Some(argument(input)));
     match names.as_slice() {
         [] => exception(&err, err.to_string()),
         names => exception(&err, format!("{}: {err}", names.join(", "))),
     }
+}
+
+/// [`Args::named`] for the functions without a `gt_cal` ([`NAMED`]).
+pub(crate) fn named_error(err: Error) -> PyErr {
+    NAMED.named(err)
 }
 
 /// The exception for an error about argument `argument` as the caller gave it.

@@ -3,12 +3,11 @@
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use qtvpr::names::{DB_POSITIONS, GROUND_TRUTH, QUERY_POSITIONS};
 use qtvpr::npy::FloatMatrix;
 use qtvpr::with_scores;
 
 use crate::convert::Scores;
-use crate::error::named_error;
+use crate::error::{Args, named_error};
 
 /// A non-negative integer argument.
 fn non_negative(name: &str, value: i64) -> PyResult<usize> {
@@ -39,7 +38,13 @@ pub(crate) fn ground_truth_tolerance<'py>(
     let tolerance = non_negative("tolerance", tolerance)?;
     let gt = py
         .detach(|| qtvpr::ground_truth::within_tolerance(n_db, n_queries, tolerance))
-        .map_err(|e| named_error(e, &[(GROUND_TRUTH, "n_db, n_queries")]))?;
+        .map_err(|e| {
+            Args {
+                gt: "n_db, n_queries",
+                query_major: false,
+            }
+            .named(e)
+        })?;
     Ok(gt.into_pyarray(py))
 }
 
@@ -65,17 +70,16 @@ pub(crate) fn ground_truth_positions<'py>(
     query_positions: &Bound<'py, PyAny>,
     radius: f64,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
-    qtvpr::ground_truth::check_radius("radius", radius).map_err(|e| named_error(e, &[]))?;
+    qtvpr::ground_truth::check_radius("radius", radius).map_err(named_error)?;
     let db = Scores::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
     let q = Scores::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
     let (d, q) = (db.view(false), q.view(false));
-    let names = [(DB_POSITIONS, "db_positions"), (QUERY_POSITIONS, "query_positions")];
     let gt = py
         .detach(|| {
             with_scores!(d, |d| with_scores!(q, |q| qtvpr::ground_truth::within_radius(
                 d, q, radius
             )))
         })
-        .map_err(|e| named_error(e, &names))?;
+        .map_err(named_error)?;
     Ok(gt.into_pyarray(py))
 }

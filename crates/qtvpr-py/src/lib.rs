@@ -21,7 +21,6 @@ mod online;
 mod similarity;
 
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 use qtvpr::Matching;
 
 use crate::calibration::{PyCalibration, TransferResult};
@@ -43,17 +42,25 @@ use qtvpr::with_scores;
 /// it. With ``query_major=True`` every matrix is given transposed (|Q| x |DB|, as
 /// VPR-Bench stores them). Returns a :class:`TransferResult`; raises as
 /// :class:`Calibration` and :meth:`Calibration.transfer` do.
+///
+/// One matrix of every query may be split instead, as ``qtvpr-cli threshold
+/// --similarity S --cal-queries N`` does: with ``cal_queries=n`` (the first ``n``
+/// queries) or ``cal_fraction=f`` (the first ``floor(f * |Q|)``) and no ``s_val``, the
+/// first queries of ``s_cal`` (a matrix, a path or :class:`Descriptors`) calibrate and
+/// the rest are thresholded; ``gt_cal`` then labels every query of ``s_cal``, and
+/// segments count from the first thresholded query. Errors name ``s_cal`` and give
+/// positions in the whole matrix.
 #[pyfunction]
 #[pyo3(signature = (
-    s_cal, gt_cal, s_val, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
-    segment_size = None, gate = "none", query_major = false,
+    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
+    segment_size = None, gate = "none", query_major = false, cal_queries = None, cal_fraction = None,
 ))]
 #[allow(clippy::too_many_arguments)] // the Python signature
 fn quantile_transfer(
     py: Python<'_>,
     s_cal: &Bound<'_, PyAny>,
     gt_cal: &Bound<'_, PyAny>,
-    s_val: &Bound<'_, PyAny>,
+    s_val: Option<&Bound<'_, PyAny>>,
     gt_soft: Option<&Bound<'_, PyAny>>,
     k: i64,
     precision: f64,
@@ -61,38 +68,54 @@ fn quantile_transfer(
     segment_size: Option<i64>,
     gate: &str,
     query_major: bool,
+    cal_queries: Option<i64>,
+    cal_fraction: Option<f64>,
 ) -> PyResult<TransferResult> {
-    // Check the cheap parameters before the calibration does any work.
-    let (k_checked, segments) = (
-        convert::count("k", k)?,
-        segment_size.map(|m| convert::count("segment_size", m)).transpose()?,
-    );
-    convert::gate(Some(gate))
-        .and_then(|g| {
-            qtvpr::Params::resolve(
-                &qtvpr::Defaults::default(),
-                Some(k_checked),
-                Some(precision),
-                segments,
-                g,
-            )
-        })
-        .map_err(|e| {
-            Args {
-                gt: "gt_cal",
-                query_major,
-            }
-            .error(e)
-        })?;
-    PyCalibration::new(py, s_cal, gt_cal, gt_soft, matching, query_major)?.transfer(
-        py,
-        s_val,
-        Some(k),
-        Some(precision),
-        segment_size,
-        Some(gate),
+    let (k, precision) = (Some(convert::count("k", k)?), Some(precision));
+    let segment_size = segment_size.map(|m| convert::count("segment_size", m)).transpose()?;
+    let args = Args {
+        gt: "gt_cal",
         query_major,
-    )
+    };
+    let gate = convert::gate(Some(gate)).map_err(|e| args.error(e))?;
+    let split = calibration::split_arg(cal_queries, cal_fraction)?;
+    // Check the cheap parameters before the calibration does any work (a calibration
+    // from arrays has the library's defaults).
+    let params = qtvpr::Params::resolve(&qtvpr::Defaults::default(), k, precision, segment_size, gate)
+        .map_err(|e| args.error(e))?;
+    match (s_val, split) {
+        (Some(s_val), None) => {
+            let (cal, _) = PyCalibration::build(py, s_cal, gt_cal, gt_soft, matching, query_major, None, None)?;
+            cal.transfer(
+                py,
+                s_val,
+                k.map(|k| k as i64),
+                precision,
+                segment_size.map(|m| m as i64),
+                gate.map(qtvpr::Gate::as_str),
+                query_major,
+            )
+        }
+        (None, Some(split)) => {
+            let (_, out) = PyCalibration::build(
+                py,
+                s_cal,
+                gt_cal,
+                gt_soft,
+                matching,
+                query_major,
+                Some(split),
+                Some(params),
+            )?;
+            Ok(out.expect("a split with parameters transfers"))
+        }
+        (Some(_), Some(_)) => Err(pyo3::exceptions::PyValueError::new_err(
+            "s_val and cal_queries/cal_fraction exclude each other: give s_val, or split s_cal",
+        )),
+        (None, None) => Err(pyo3::exceptions::PyValueError::new_err(
+            "no deployment queries: give s_val, or cal_queries or cal_fraction to split s_cal",
+        )),
+    }
 }
 
 /// The margin of every query of a similarity matrix (semantics §13).
@@ -159,9 +182,11 @@ fn best_threshold(
 ///
 /// A candidate (per ``matching``, as in :func:`best_threshold`) is accepted when its
 /// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
-/// "recall"}``: precision is 1 when nothing is accepted, recall 0 when there are no
-/// positives (queries with a hard match in ``"single"`` mode, hard matches in
-/// ``"multi"``). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
+/// "recall", "precision_lower95"}``, the keys of a segment of :func:`evaluate`:
+/// precision is 1 when nothing is accepted, recall 0 when there are no positives
+/// (queries with a hard match in ``"single"`` mode, hard matches in ``"multi"``), and
+/// ``precision_lower95`` the one-sided 95% Clopper-Pearson lower bound on the precision
+/// (``None`` when nothing is accepted). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
 /// may be arrays or paths, and errors are raised, as in :func:`best_threshold`.
 #[pyfunction]
 #[pyo3(signature = (s, gt, threshold, *, gt_soft = None, matching = "single", query_major = false))]
@@ -173,15 +198,9 @@ fn counts<'py>(
     gt_soft: Option<&Bound<'py, PyAny>>,
     matching: &str,
     query_major: bool,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<Bound<'py, PyAny>> {
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-    if threshold.is_nan() {
-        // The core would accept nothing at NaN; the reference refuses it.
-        return Err(pyo3::exceptions::PyValueError::new_err(
-            "threshold must be a real number other than NaN, got nan",
-        ));
-    }
     let s = Scores::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
@@ -189,13 +208,7 @@ fn counts<'py>(
     let c = py
         .detach(|| with_scores!(s, |s| qtvpr::counts(s, &gt, matching, threshold)))
         .map_err(|e| args.error(e))?;
-    let out = PyDict::new(py);
-    out.set_item("tp", c.tp)?;
-    out.set_item("fp", c.fp)?;
-    out.set_item("positives", c.positives)?;
-    out.set_item("precision", c.precision())?;
-    out.set_item("recall", c.recall())?;
-    Ok(out)
+    Ok(pythonize::pythonize(py, &c)?)
 }
 
 /// The ranked-correlation matrix of deployment and calibration queries.

@@ -3,7 +3,6 @@
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use qtvpr::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS, SIMILARITY};
 use qtvpr::npy::FloatMatrix;
 use qtvpr::{Sequence, with_scores};
 
@@ -15,7 +14,7 @@ fn sequence(length: i64, causal: bool) -> PyResult<Sequence> {
     let length = usize::try_from(length)
         .map_err(|_| PyValueError::new_err(format!("sequence length must be odd and >= 1, got {length}")))?;
     let sequence = Sequence { length, causal };
-    sequence.validate().map_err(|e| named_error(e, &[]))?;
+    sequence.validate().map_err(named_error)?;
     Ok(sequence)
 }
 
@@ -52,7 +51,6 @@ pub(crate) fn cosine_similarity<'py>(
     let db = Scores::extract_as("db", db, FloatMatrix::Descriptors)?;
     let queries = Scores::extract_as("queries", queries, FloatMatrix::Descriptors)?;
     let (d, q) = (db.view(false), queries.view(false));
-    let names = [(DB_DESCRIPTORS, "db"), (QUERY_DESCRIPTORS, "queries")];
     let s = py
         .detach(|| {
             let s = with_scores!(d, |d| with_scores!(q, |q| qtvpr::cosine_similarity(d, q)))?;
@@ -61,7 +59,7 @@ pub(crate) fn cosine_similarity<'py>(
                 None => Ok(s),
             }
         })
-        .map_err(|e| named_error(e, &names))?;
+        .map_err(named_error)?;
     Ok(s.into_pyarray(py))
 }
 
@@ -89,10 +87,9 @@ pub(crate) fn sequence_match<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let window = sequence(length, causal)?;
     let s = Scores::extract("s", s)?;
-    let names = [(SIMILARITY, "s")];
     Ok(with_scores!(s.view(false), |v| py
         .detach(|| qtvpr::sequence_match(v, window))
-        .map_err(|e| named_error(e, &names))?
+        .map_err(named_error)?
         .into_pyarray(py)
         .into_any()))
 }

@@ -21,7 +21,7 @@ use ndarray::ArrayView2;
 
 use crate::error::Result;
 use crate::input::{Score, validate_scores};
-use crate::names::SIMILARITY;
+use crate::names::Input;
 
 /// The standard normal quantile at 1 - 1e-6 (semantics §7).
 pub const SCHUBERT_Z: f64 = 4.753424308817087;
@@ -37,7 +37,7 @@ pub const MAD_SCALE: f64 = 0.675;
 /// # Errors
 /// Empty or non-finite scores.
 pub fn schubert_threshold<T: Score>(s: ArrayView2<'_, T>) -> Result<f64> {
-    validate_scores(SIMILARITY, s)?;
+    validate_scores(Input::Similarity, s)?;
     Ok(schubert(s))
 }
 

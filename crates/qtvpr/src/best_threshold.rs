@@ -15,7 +15,7 @@ use ndarray::ArrayView2;
 use crate::decisions::{Candidates, Matching};
 use crate::error::Result;
 use crate::input::{GroundTruth, Score, check_gt_shape, check_precision, validate_scores};
-use crate::names::SIMILARITY;
+use crate::names::Input;
 
 /// The best threshold of a whole matrix (semantics §3), `f64::INFINITY` for reject-all.
 ///
@@ -26,8 +26,8 @@ use crate::names::SIMILARITY;
 /// outside (0, 1].
 pub fn best_threshold<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching, tau: f64) -> Result<f64> {
     check_precision(tau)?;
-    validate_scores(SIMILARITY, s)?;
-    check_gt_shape(gt, SIMILARITY, s.dim())?;
+    validate_scores(Input::Similarity, s)?;
+    check_gt_shape(gt, Input::Similarity, s.dim())?;
     let cands = Candidates::new(s, gt.view(), matching);
     let all: Vec<usize> = (0..cands.ncols()).collect();
     Ok(subset_threshold(&cands, &all, tau))

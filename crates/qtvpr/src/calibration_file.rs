@@ -44,6 +44,7 @@ mod file {
     use crate::error::{Error, Result};
     use crate::input::{GroundTruth, ScoreMatrix, Truth};
     use crate::margin::Gate;
+    use crate::names::Input;
     use crate::npy::{self, NpyArray};
     use crate::params::Defaults;
     use crate::transfer::Calibration;
@@ -204,8 +205,8 @@ mod file {
             _ => None,
         };
         let pairs = [
-            (Some(&hard), &s, "ground truth", "calibration similarity"),
-            (soft.as_ref(), &hard, "soft ground truth", "ground truth"),
+            (Some(&hard), &s, Input::GroundTruth, Input::CalSimilarity),
+            (soft.as_ref(), &hard, Input::SoftGroundTruth, Input::GroundTruth),
         ];
         for (member, other, what, other_what) in pairs {
             if let Some(member) = member

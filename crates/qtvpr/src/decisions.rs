@@ -240,18 +240,27 @@ impl Counts {
     }
 }
 
-/// Count the decisions of every query of `s` at threshold `t`.
+/// Count the decisions of every query of `s` at threshold `t`, which may be infinite
+/// (`+inf` accepts nothing) but not NaN: every comparison with NaN is false, so it
+/// would silently accept nothing.
 ///
 /// # Errors
-/// As [`crate::best_threshold()`]: empty, non-finite or mismatched input.
+/// As [`crate::best_threshold()`]: empty, non-finite or mismatched input; and
+/// [`crate::Error::InvalidParameter`] for a NaN threshold.
 pub fn counts<T: Score>(
     s: ArrayView2<'_, T>,
     gt: &crate::GroundTruth,
     matching: Matching,
     t: f64,
 ) -> crate::Result<Counts> {
-    crate::input::validate_scores(crate::names::SIMILARITY, s)?;
-    crate::input::check_gt_shape(gt, crate::names::SIMILARITY, s.dim())?;
+    if t.is_nan() {
+        return Err(crate::Error::param(
+            "threshold",
+            "must be a real number other than NaN, got nan",
+        ));
+    }
+    crate::input::validate_scores(crate::names::Input::Similarity, s)?;
+    crate::input::check_gt_shape(gt, crate::names::Input::Similarity, s.dim())?;
     let cands = Candidates::new(s, gt.view(), matching);
     Ok(cands.counts(0..cands.ncols(), t))
 }
@@ -303,6 +312,15 @@ mod tests {
         let gt = GroundTruth::new(array![[1, 0, 0], [0, 0, 0], [0, 1, 0]].view()).unwrap();
         // Single at t = 0.5: best matches q0 -> 0.9 (T, accepted), q1 -> 0.8 (F, accepted),
         // q2 -> 0.6 (F, accepted). Positives: q0 and q1 have a hard match = 2.
+        assert_eq!(
+            counts(s.view(), &gt, Matching::Single, f64::NAN)
+                .unwrap_err()
+                .to_string(),
+            "threshold must be a real number other than NaN, got nan"
+        );
+        // +inf accepts nothing: precision 1 by convention, recall 0.
+        let c = counts(s.view(), &gt, Matching::Multi, f64::INFINITY).unwrap();
+        assert_eq!((c.tp, c.fp, c.precision(), c.recall()), (0, 0, 1.0, 0.0));
         let c = counts(s.view(), &gt, Matching::Single, 0.5).unwrap();
         assert_eq!((c.tp, c.fp, c.positives), (1, 2, 2));
         assert_eq!(c.precision(), 1.0 / 3.0);

@@ -7,10 +7,18 @@
 /// Result alias used throughout the core.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+use crate::evaluate::Method;
+use crate::names::Input;
+
+/// The names of every method, in report order, for [`Error::UnknownMethod`].
+fn method_names() -> String {
+    Method::ALL.map(Method::as_str).join(", ")
+}
+
 /// Everything that can be wrong with the input of the core.
 ///
-/// `what` and `other` fields name the matrix the problem is in, always one of the
-/// constants of [`names`](crate::names); [`Error::about`] lists them.
+/// `what` and `other` fields name the matrix the problem is in, an
+/// [`Input`]; [`Error::about`] lists them.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
@@ -18,17 +26,18 @@ pub enum Error {
     #[error("{what} is empty (shape {rows}x{cols})")]
     Empty {
         /// Which matrix.
-        what: &'static str,
+        what: Input,
         /// Its number of rows.
         rows: usize,
         /// Its number of columns.
         cols: usize,
     },
-    /// A score is NaN or infinite.
-    #[error("{what} contains {value} at row {row}, column {col}; scores must be finite")]
+    /// A score (or, in the extensions' descriptor and position matrices, a value) is
+    /// NaN or infinite.
+    #[error("{what} contains {value} at row {row}, column {col}; {rule}", rule = what.finite_rule())]
     NotFinite {
         /// Which matrix.
-        what: &'static str,
+        what: Input,
         /// Row of the first offending entry.
         row: usize,
         /// Column of the first offending entry.
@@ -43,11 +52,11 @@ pub enum Error {
     )]
     ShapeMismatch {
         /// The matrix whose shape is wrong.
-        what: &'static str,
+        what: Input,
         /// Its shape.
         shape: (usize, usize),
         /// The matrix it must match.
-        other: &'static str,
+        other: Input,
         /// That matrix's shape.
         other_shape: (usize, usize),
     },
@@ -82,7 +91,7 @@ pub enum Error {
     #[error("{what} has value {value} at row {row}, column {col}; ground truth must be 0/1 or bool")]
     BadLabel {
         /// Which ground-truth matrix.
-        what: &'static str,
+        what: Input,
         /// Row of the first offending entry.
         row: usize,
         /// Column of the first offending entry.
@@ -142,13 +151,25 @@ pub enum Error {
         error: Box<Error>,
     },
     /// A method name the evaluation protocol does not know.
-    #[error(
-        "unknown method '{name}'; expected one of quantile-transfer, quantile-transfer-online, schubert, \
-         schubert-calibrated, calibration-threshold, oracle"
-    )]
+    #[error("unknown method '{name}'; expected one of {}", method_names())]
     UnknownMethod {
         /// The name as given.
         name: String,
+    },
+    /// Ground truth of one set of queries split into calibration and deployment
+    /// queries ([`QuerySplit`](crate::QuerySplit)) does not label every query.
+    #[error(
+        "ground truth shape {}x{} does not match similarity shape {}x{}; the ground truth of a split \
+         labels every query, of which the first {calibration} calibrate",
+        shape.0, shape.1, similarity_shape.0, similarity_shape.1
+    )]
+    SplitTruthShape {
+        /// The ground truth's shape.
+        shape: (usize, usize),
+        /// The shape of the similarity split, |DB| x |Q|.
+        similarity_shape: (usize, usize),
+        /// The number of calibration queries.
+        calibration: usize,
     },
     /// The evaluation protocol cannot split the queries as asked: no calibration query,
     /// calibration and deployment sets that overlap, or no full segment.
@@ -163,23 +184,11 @@ pub enum Error {
         message: String,
     },
     // Inputs of the extensions (descriptors, positions), not of the quantile-transfer pipeline.
-    /// A descriptor or position matrix holds a NaN or infinite value.
-    #[error("{what} contains {value} at row {row}, column {col}; every value must be finite")]
-    NotFiniteValue {
-        /// Which matrix, e.g. [`DB_DESCRIPTORS`](crate::names::DB_DESCRIPTORS).
-        what: &'static str,
-        /// Row of the first offending entry.
-        row: usize,
-        /// Column of the first offending entry.
-        col: usize,
-        /// The offending value.
-        value: f64,
-    },
     /// A descriptor is the zero vector, whose cosine similarity is undefined.
     #[error("{what} row {row} is all zeros; the cosine similarity of a zero vector is undefined")]
     ZeroNorm {
         /// Which descriptor matrix.
-        what: &'static str,
+        what: Input,
         /// The first all-zero row.
         row: usize,
     },
@@ -188,11 +197,11 @@ pub enum Error {
     #[error("{what} has {cols} columns but {other} has {other_cols}; both must have the same dimension")]
     ColumnMismatch {
         /// The second matrix.
-        what: &'static str,
+        what: Input,
         /// Its number of columns.
         cols: usize,
         /// The matrix it must match.
-        other: &'static str,
+        other: Input,
         /// That matrix's number of columns.
         other_cols: usize,
     },
@@ -225,7 +234,7 @@ pub enum Error {
     #[error("{what} has {cols} columns; positions must be x, y (2 columns) or x, y, z (3 columns)")]
     PositionColumns {
         /// Which position matrix.
-        what: &'static str,
+        what: Input,
         /// Its number of columns.
         cols: usize,
     },
@@ -276,6 +285,15 @@ impl Error {
                 path,
                 error: Box::new(error.transposed()),
             },
+            Error::SplitTruthShape {
+                shape,
+                similarity_shape,
+                calibration,
+            } => Error::SplitTruthShape {
+                shape: (shape.1, shape.0),
+                similarity_shape: (similarity_shape.1, similarity_shape.0),
+                calibration,
+            },
             Error::PositionCount { db, queries, shape } => Error::PositionCount {
                 db,
                 queries,
@@ -294,37 +312,35 @@ impl Error {
         if query_major { self.transposed() } else { self }
     }
 
-    /// The matrices the error is about, as [`names`](crate::names) constants. A shape
+    /// The matrices the error is about. A shape
     /// mismatch is about the matrix whose shape is wrong (ground truth must take the
     /// shape of the similarity it labels); a column mismatch about both matrices,
     /// neither of which is the reference. Empty for errors about a parameter or about
     /// a file (which name the file themselves).
-    pub fn about(&self) -> Vec<&'static str> {
-        use crate::names::{DB_POSITIONS, DEPLOYMENT_SIMILARITY, QUERY_POSITIONS};
+    pub fn about(&self) -> Vec<Input> {
         match self {
             Error::Empty { what, .. }
             | Error::NotFinite { what, .. }
             | Error::BadLabel { what, .. }
             | Error::ShapeMismatch { what, .. }
-            | Error::NotFiniteValue { what, .. }
             | Error::ZeroNorm { what, .. }
-            | Error::PositionColumns { what, .. } => vec![what],
-            Error::ColumnMismatch { what, other, .. } => vec![what, other],
-            Error::DatabaseMismatch { .. } => vec![DEPLOYMENT_SIMILARITY],
-            Error::PositionCount { .. } => vec![DB_POSITIONS, QUERY_POSITIONS],
+            | Error::PositionColumns { what, .. } => vec![*what],
+            Error::ColumnMismatch { what, other, .. } => vec![*what, *other],
+            Error::DatabaseMismatch { .. } => vec![Input::DeploymentSimilarity],
+            Error::SplitTruthShape { .. } => vec![Input::GroundTruth],
+            Error::PositionCount { .. } => vec![Input::DbPositions, Input::QueryPositions],
             _ => vec![],
         }
     }
 
-    /// The inputs the error is about: the entries of [`Error::about`] looked up in
-    /// `table`, which maps [`names`](crate::names) constants to whatever a front end
-    /// calls the input (an option and its file, a Python argument), in that order.
-    /// This is the one way a front end attaches its names to a core error.
-    pub fn inputs<'t, T>(&self, table: &'t [(&'static str, T)]) -> Vec<&'t T> {
-        self.about()
-            .into_iter()
-            .filter_map(|name| table.iter().find(|(n, _)| *n == name).map(|(_, t)| t))
-            .collect()
+    /// The inputs the error is about, as a front end calls them: `name` maps each
+    /// [`Input`] of [`Error::about`] to whatever the front end calls it (an option and
+    /// its file, a Python argument), `None` for an input it does not name; in the order
+    /// of [`Error::about`]. This is the one way a front end attaches its names to a core
+    /// error; a front end that names every input writes `name` as one exhaustive
+    /// `match`, which stops compiling when an input is added.
+    pub fn inputs<T>(&self, name: impl FnMut(Input) -> Option<T>) -> Vec<T> {
+        self.about().into_iter().filter_map(name).collect()
     }
 
     pub(crate) fn param(name: &'static str, message: impl Into<String>) -> Self {
@@ -342,7 +358,7 @@ mod tests {
     #[test]
     fn transposed_swaps_positions_and_shapes() {
         let e = Error::NotFinite {
-            what: "similarity",
+            what: Input::Similarity,
             row: 1,
             col: 2,
             value: f64::NAN,
@@ -352,9 +368,9 @@ mod tests {
             "similarity contains NaN at row 2, column 1; scores must be finite"
         );
         let e = Error::ShapeMismatch {
-            what: "ground truth",
+            what: Input::GroundTruth,
             shape: (3, 4),
-            other: "similarity",
+            other: Input::Similarity,
             other_shape: (3, 5),
         };
         assert_eq!(
@@ -363,7 +379,7 @@ mod tests {
         );
         assert_eq!(e.clone().transposed().transposed(), e);
         let e = Error::Empty {
-            what: "similarity",
+            what: Input::Similarity,
             rows: 0,
             cols: 7,
         };
@@ -371,7 +387,7 @@ mod tests {
         let e = Error::InFile {
             path: "gt.npy".into(),
             error: Box::new(Error::BadLabel {
-                what: "ground truth",
+                what: Input::GroundTruth,
                 row: 5,
                 col: 0,
                 value: -1,
@@ -392,5 +408,61 @@ mod tests {
             "deployment similarity has 2 database images but calibration similarity has 3; \
              both must be scored against the same database"
         );
+    }
+
+    #[test]
+    fn not_finite_says_what_every_value_must_be() {
+        let error = |what| Error::NotFinite {
+            what,
+            row: 2,
+            col: 0,
+            value: f64::INFINITY,
+        };
+        assert_eq!(
+            error(Input::CalSimilarity).to_string(),
+            "calibration similarity contains inf at row 2, column 0; scores must be finite"
+        );
+        assert_eq!(
+            error(Input::QueryDescriptors).to_string(),
+            "query descriptor matrix contains inf at row 2, column 0; every value must be finite"
+        );
+        assert_eq!(
+            error(Input::DbPositions).to_string(),
+            "database position matrix contains inf at row 2, column 0; every value must be finite"
+        );
+    }
+
+    #[test]
+    fn unknown_method_lists_every_method() {
+        let e = Error::UnknownMethod { name: "best".into() };
+        assert_eq!(
+            e.to_string(),
+            "unknown method 'best'; expected one of quantile-transfer, quantile-transfer-online, \
+             quantile-transfer-margin, margin, schubert, schubert-calibrated, calibration-threshold, oracle"
+        );
+    }
+
+    #[test]
+    fn inputs_are_named_by_the_front_end_in_order() {
+        let e = Error::ColumnMismatch {
+            what: Input::QueryDescriptors,
+            cols: 3,
+            other: Input::DbDescriptors,
+            other_cols: 4,
+        };
+        assert_eq!(e.about(), [Input::QueryDescriptors, Input::DbDescriptors]);
+        let name = |input| match input {
+            Input::DbDescriptors => Some("db"),
+            Input::QueryDescriptors => Some("queries"),
+            _ => None,
+        };
+        assert_eq!(e.inputs(name), ["queries", "db"]);
+        let e = Error::DatabaseMismatch {
+            calibration: 3,
+            deployment: 2,
+        };
+        assert_eq!(e.inputs(name), Vec::<&str>::new());
+        assert_eq!(e.inputs(|i| Some(i.as_str())), ["deployment similarity"]);
+        assert!(Error::param("k", "must be >= 1, got 0").about().is_empty());
     }
 }

@@ -34,7 +34,7 @@ use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
 use crate::margin::{self, Gate, margins};
-use crate::names::SIMILARITY;
+use crate::names::Input;
 use crate::online::Online;
 use crate::params::{DEFAULT_K, OnlineParams, Params};
 use crate::threads;
@@ -499,8 +499,8 @@ pub fn evaluate_with_progress<T: Score>(
     progress: impl Fn(usize, usize),
 ) -> Result<Evaluation> {
     protocol.validate()?;
-    validate_scores(SIMILARITY, s)?;
-    check_gt_shape(gt, SIMILARITY, s.dim())?;
+    validate_scores(Input::Similarity, s)?;
+    check_gt_shape(gt, Input::Similarity, s.dim())?;
     let layout = protocol.layout(s.nrows(), s.ncols())?;
     let mut unique: Vec<Method> = Vec::with_capacity(methods.len());
     for &m in methods {
@@ -1196,8 +1196,8 @@ mod tests {
         );
         assert_eq!(
             "magic".parse::<Method>().unwrap_err().to_string(),
-            "unknown method 'magic'; expected one of quantile-transfer, quantile-transfer-online, schubert, \
-             schubert-calibrated, calibration-threshold, oracle"
+            "unknown method 'magic'; expected one of quantile-transfer, quantile-transfer-online, \
+             quantile-transfer-margin, margin, schubert, schubert-calibrated, calibration-threshold, oracle"
         );
         assert_eq!(
             "schubert-calibrated".parse::<Method>().unwrap(),

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoresView, check_nonempty};
 use crate::kd_tree::KdTree;
-use crate::names::{DB_POSITIONS, GROUND_TRUTH, QUERY_POSITIONS};
+use crate::names::Input;
 use crate::threads;
 
 /// Ground truth without a matrix of it: a frame tolerance or positions, each with an
@@ -165,7 +165,7 @@ impl GtSpec<'_> {
 /// [`Error::Empty`] when either count is 0.
 pub fn within_tolerance(n_db: usize, n_queries: usize, tolerance: usize) -> Result<Array2<bool>> {
     threads::install(|| {
-        check_nonempty(GROUND_TRUTH, (n_db, n_queries))?;
+        check_nonempty(Input::GroundTruth, (n_db, n_queries))?;
         let mut gt = vec![false; n_db * n_queries];
         gt.par_chunks_mut(n_queries).enumerate().for_each(|(i, row)| {
             let first = i.saturating_sub(tolerance);
@@ -190,20 +190,20 @@ pub fn within_tolerance(n_db: usize, n_queries: usize, tolerance: usize) -> Resu
 /// - [`Error::Empty`] for a matrix without rows or columns;
 /// - [`Error::PositionColumns`] when K is not 2 or 3;
 /// - [`Error::ColumnMismatch`] when the two matrices have a different K;
-/// - [`Error::NotFiniteValue`] for a NaN or infinite coordinate.
+/// - [`Error::NotFinite`] for a NaN or infinite coordinate.
 pub fn within_radius<T: Score, U: Score>(
     db: ArrayView2<'_, T>,
     queries: ArrayView2<'_, U>,
     radius: f64,
 ) -> Result<Array2<bool>> {
     check_radius("radius", radius)?;
-    check_positions(DB_POSITIONS, db.view())?;
-    check_positions(QUERY_POSITIONS, queries.view())?;
+    check_positions(Input::DbPositions, db.view())?;
+    check_positions(Input::QueryPositions, queries.view())?;
     if queries.ncols() != db.ncols() {
         return Err(Error::ColumnMismatch {
-            what: QUERY_POSITIONS,
+            what: Input::QueryPositions,
             cols: queries.ncols(),
-            other: DB_POSITIONS,
+            other: Input::DbPositions,
             other_cols: db.ncols(),
         });
     }
@@ -228,13 +228,13 @@ pub fn check_radius(name: &'static str, radius: f64) -> Result<()> {
     Ok(())
 }
 
-fn check_positions<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<()> {
+fn check_positions<T: Score>(what: Input, m: ArrayView2<'_, T>) -> Result<()> {
     check_nonempty(what, m.dim())?;
     if !matches!(m.ncols(), 2 | 3) {
         return Err(Error::PositionColumns { what, cols: m.ncols() });
     }
     match m.indexed_iter().find(|(_, v)| !v.to_f64().is_finite()) {
-        Some(((row, col), v)) => Err(Error::NotFiniteValue {
+        Some(((row, col), v)) => Err(Error::NotFinite {
             what,
             row,
             col,
@@ -419,7 +419,7 @@ mod tests {
         assert!(matches!(
             within_radius(Array2::<f64>::zeros((0, 2)).view(), p.view(), 1.0),
             Err(Error::Empty {
-                what: crate::names::DB_POSITIONS,
+                what: crate::names::Input::DbPositions,
                 ..
             })
         ));

@@ -9,7 +9,7 @@ use ndarray::{Array2, ArrayView2, Zip};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::names::{GROUND_TRUTH, SOFT_GROUND_TRUTH};
+use crate::names::Input;
 use crate::threads;
 
 mod sealed {
@@ -195,8 +195,8 @@ impl GroundTruth {
     /// # Errors
     /// [`Error::Empty`] for an empty matrix, [`Error::BadLabel`] for a value other than 0/1.
     pub fn new<L: Label>(hard: ArrayView2<'_, L>) -> Result<Self> {
-        check_nonempty(GROUND_TRUTH, hard.dim())?;
-        let labels = labels_of(GROUND_TRUTH, hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
+        check_nonempty(Input::GroundTruth, hard.dim())?;
+        let labels = labels_of(Input::GroundTruth, hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
         Ok(Self { labels })
     }
 
@@ -207,13 +207,13 @@ impl GroundTruth {
     pub fn with_soft<L: Label>(mut self, soft: ArrayView2<'_, L>) -> Result<Self> {
         if soft.dim() != self.labels.dim() {
             return Err(Error::ShapeMismatch {
-                what: SOFT_GROUND_TRUTH,
+                what: Input::SoftGroundTruth,
                 shape: soft.dim(),
-                other: GROUND_TRUTH,
+                other: Input::GroundTruth,
                 other_shape: self.labels.dim(),
             });
         }
-        let soft = labels_of(SOFT_GROUND_TRUTH, soft)?;
+        let soft = labels_of(Input::SoftGroundTruth, soft)?;
         Zip::from(&mut self.labels).and(&soft).for_each(|t, &s| {
             if s && *t == Truth::False {
                 *t = Truth::Ignored;
@@ -252,7 +252,7 @@ impl GroundTruth {
     }
 }
 
-fn labels_of<L: Label>(what: &'static str, m: ArrayView2<'_, L>) -> Result<Array2<bool>> {
+fn labels_of<L: Label>(what: Input, m: ArrayView2<'_, L>) -> Result<Array2<bool>> {
     if let Some(((row, col), v)) = m.indexed_iter().find(|(_, v)| !matches!(v.to_i128(), 0 | 1)) {
         return Err(Error::BadLabel {
             what,
@@ -264,7 +264,7 @@ fn labels_of<L: Label>(what: &'static str, m: ArrayView2<'_, L>) -> Result<Array
     Ok(m.mapv(|v| v.to_i128() == 1))
 }
 
-pub(crate) fn check_nonempty(what: &'static str, (rows, cols): (usize, usize)) -> Result<()> {
+pub(crate) fn check_nonempty(what: Input, (rows, cols): (usize, usize)) -> Result<()> {
     if rows == 0 || cols == 0 {
         return Err(Error::Empty { what, rows, cols });
     }
@@ -276,7 +276,7 @@ pub(crate) fn check_nonempty(what: &'static str, (rows, cols): (usize, usize)) -
 /// # Errors
 /// [`Error::Empty`] or [`Error::NotFinite`] (naming the first offending entry in
 /// column-major order).
-pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Result<()> {
+pub fn validate_scores<T: Score>(what: Input, s: ArrayView2<'_, T>) -> Result<()> {
     threads::install(|| {
         check_nonempty(what, s.dim())?;
         let bad = (0..s.ncols()).into_par_iter().find_map_first(|col| {
@@ -297,10 +297,10 @@ pub fn validate_scores<T: Score>(what: &'static str, s: ArrayView2<'_, T>) -> Re
 ///
 /// # Errors
 /// [`Error::ShapeMismatch`].
-pub fn check_gt_shape(gt: &GroundTruth, similarity: &'static str, shape: (usize, usize)) -> Result<()> {
+pub fn check_gt_shape(gt: &GroundTruth, similarity: Input, shape: (usize, usize)) -> Result<()> {
     if gt.dim() != shape {
         return Err(Error::ShapeMismatch {
-            what: GROUND_TRUTH,
+            what: Input::GroundTruth,
             shape: gt.dim(),
             other: similarity,
             other_shape: shape,
@@ -331,7 +331,7 @@ mod tests {
         assert_eq!(
             err,
             Error::BadLabel {
-                what: "ground truth",
+                what: Input::GroundTruth,
                 row: 1,
                 col: 0,
                 value: 2
@@ -346,7 +346,7 @@ mod tests {
         assert_eq!(
             err,
             Error::BadLabel {
-                what: "soft ground truth",
+                what: Input::SoftGroundTruth,
                 row: 0,
                 col: 1,
                 value: -1
@@ -371,7 +371,7 @@ mod tests {
             err.to_string(),
             "soft ground truth shape 2x1 does not match ground truth shape 1x2"
         );
-        let err = check_gt_shape(&hard, "calibration similarity", (2, 1)).unwrap_err();
+        let err = check_gt_shape(&hard, Input::CalSimilarity, (2, 1)).unwrap_err();
         assert_eq!(
             err.to_string(),
             "ground truth shape 1x2 does not match calibration similarity shape 2x1"
@@ -381,21 +381,23 @@ mod tests {
     #[test]
     fn scores_must_be_finite_and_non_empty() {
         let s = array![[0.1, 0.2], [0.3, f64::NAN]];
-        let err = validate_scores("deployment similarity", s.view()).unwrap_err();
+        let err = validate_scores(Input::DeploymentSimilarity, s.view()).unwrap_err();
         assert_eq!(
             err.to_string(),
             "deployment similarity contains NaN at row 1, column 1; scores must be finite"
         );
         let s = array![[0.1f32, f32::NEG_INFINITY]];
         assert!(
-            validate_scores("similarity", s.view())
+            validate_scores(Input::Similarity, s.view())
                 .unwrap_err()
                 .to_string()
                 .contains("-inf at row 0, column 1")
         );
         let empty = ndarray::Array2::<f64>::zeros((0, 3));
         assert_eq!(
-            validate_scores("similarity", empty.view()).unwrap_err().to_string(),
+            validate_scores(Input::Similarity, empty.view())
+                .unwrap_err()
+                .to_string(),
             "similarity is empty (shape 0x3)"
         );
         assert!(GroundTruth::new(ndarray::Array2::<bool>::default((2, 0)).view()).is_err());

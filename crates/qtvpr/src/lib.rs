@@ -21,6 +21,7 @@
 //! | 4-6 together | [`transfer`] |
 //! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
 //! | 8 evaluation protocol (%Segs, AvgR@tauP), ablations | [`evaluate`](mod@evaluate) |
+//! | 8.1's calibration rule for one matrix: the first queries calibrate | [`split`] |
 //! | 9 machine-readable output (feature `serde`) | [`report`] |
 //! | 11 online thresholds over a causal window | [`online`] |
 //! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
@@ -31,7 +32,7 @@
 //! | extension: positions from image names (`@utm_east@utm_north@...@.jpg`) | [`image_names`] |
 //! | the thread pool, rebuilt in a forked child (§10) | [`threads`] |
 //! | file input and output (feature `npy`) | `npy` |
-//! | the names of the matrices errors are about | [`names`] |
+//! | the matrices errors are about ([`Input`]) | [`names`] |
 //!
 //! The extensions are beyond the paper and are not sections of the semantics: they make the
 //! similarity and ground-truth matrices the method takes from what users have
@@ -86,6 +87,7 @@ pub mod ranked_correlation;
 pub mod report;
 pub mod sequence;
 pub mod similarity;
+pub mod split;
 pub mod subset_quantile;
 pub mod threads;
 pub mod transfer;
@@ -97,11 +99,13 @@ pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
 pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
 pub use margin::{Gate, margins};
+pub use names::Input;
 pub use online::{Decision, Online};
 pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Params};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
 pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};
+pub use split::QuerySplit;
 pub use threads::set_threads;
 pub use transfer::{Calibration, Segment, Transfer};
 

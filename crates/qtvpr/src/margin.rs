@@ -27,7 +27,7 @@ use crate::best_threshold::sweep;
 use crate::decisions::{Candidates, Matching};
 use crate::error::{Error, Result};
 use crate::input::{Score, validate_scores};
-use crate::names::SIMILARITY;
+use crate::names::Input;
 use crate::threads;
 
 /// Whether decisions are gated on their margin.
@@ -143,7 +143,7 @@ fn lanes<T: Score>(xs: &[T], f: impl Fn(f64) -> f64) -> f64 {
 /// # Errors
 /// Empty or non-finite scores; fewer than 2 database images.
 pub fn margins<T: Score>(s: ArrayView2<'_, T>) -> Result<Vec<f64>> {
-    validate_scores(SIMILARITY, s)?;
+    validate_scores(Input::Similarity, s)?;
     check(Matching::Single, s.nrows())?;
     Ok(threads::install(|| {
         (0..s.ncols())

@@ -36,6 +36,7 @@ fn check_window(window: usize) -> Result<()> {
 /// Defaults stored in a calibration file's `meta` `params`; each can be overridden by
 /// its user. A calibration made from arrays has [`Defaults::default`].
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Defaults {
     /// Calibration queries sampled per deployment query.
     pub k: usize,

@@ -106,7 +106,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, check_nonempty};
-use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
+use crate::names::Input;
 use crate::threads;
 
 /// Correlations are compared on a grid of `2^-40` (about 9.1e-13) when choosing
@@ -141,7 +141,7 @@ impl<T: Score> Ranked<T> {
     /// # Errors
     /// [`Error::Empty`]; [`Error::NotFinite`] naming the first offending score in
     /// column-major order.
-    pub(crate) fn new(what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<Self> {
+    pub(crate) fn new(what: Input, s: ArrayView2<'_, T>, first_col: usize) -> Result<Self> {
         let mut ranked = Self::default();
         ranked.refill(what, s, first_col)?;
         Ok(ranked)
@@ -152,7 +152,7 @@ impl<T: Score> Ranked<T> {
     ///
     /// # Errors
     /// As [`Ranked::new`]; `self` is then left in an unspecified but valid state.
-    pub(crate) fn refill(&mut self, what: &'static str, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
+    pub(crate) fn refill(&mut self, what: Input, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
         threads::install(|| {
             check_nonempty(what, s.dim())?;
             let (n_db, n) = s.dim();
@@ -659,8 +659,8 @@ fn top_k_of(mut pairs: Vec<(usize, f64)>, k: usize) -> (Vec<usize>, f64) {
 /// Empty or non-finite scores, or a different number of database rows.
 pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: ArrayView2<'_, U>) -> Result<Array2<f64>> {
     threads::install(|| {
-        let cal = Ranked::new(CAL_SIMILARITY, cal, 0)?;
-        let val = Ranked::new(DEPLOYMENT_SIMILARITY, val, 0)?;
+        let cal = Ranked::new(Input::CalSimilarity, cal, 0)?;
+        let val = Ranked::new(Input::DeploymentSimilarity, val, 0)?;
         if val.n_db != cal.n_db {
             return Err(Error::DatabaseMismatch {
                 calibration: cal.n_db,
@@ -758,8 +758,8 @@ mod tests {
     /// bit, to [`top_k`] of all the correlations, for several `k`. Returns the screen and
     /// the number of correlations it computed at `k = 3`.
     fn check_screen(cal: ArrayView2<'_, f64>, val: ArrayView2<'_, f64>) -> (Screen, usize) {
-        let cal = Ranked::new("c", cal, 0).unwrap();
-        let val = Ranked::new("v", val, 0).unwrap();
+        let cal = Ranked::new(Input::CalSimilarity, cal, 0).unwrap();
+        let val = Ranked::new(Input::DeploymentSimilarity, val, 0).unwrap();
         let screen = Screen::new(&cal);
         let mut u = vec![0.0; cal.n_db];
         let mut computed = 0;
@@ -850,7 +850,7 @@ mod tests {
         let mut rand = lcg(5);
         let n_db = 2000;
         let cal = Array2::from_shape_fn((n_db, 20), |_| (0..4).map(|_| rand()).sum::<f64>());
-        let cal = Ranked::new("c", cal.view(), 0).unwrap();
+        let cal = Ranked::new(Input::CalSimilarity, cal.view(), 0).unwrap();
         let edges = fit_edges(&cal);
         assert_eq!(edges.len(), BLOCKS + 1);
         assert_eq!((edges[0], edges[BLOCKS]), (0, n_db));

@@ -67,10 +67,18 @@
 //!
 //! # `threshold`
 //!
-//! `method` (`"quantile-transfer"`), `params` ([`Params`] with the segment size resolved,
-//! and `matching`), `segments` ([`Segment`]: `start`, `end`, `quantile`, `threshold`;
-//! reject-all is `null`), `calibration_queries`, `deployment_queries` and
+//! One transfer ([`ThresholdReport`]): `method` (`"quantile-transfer"`), `params`
+//! ([`Params`] with the segment size resolved, and `matching`), `segments` ([`Segment`]:
+//! `start`, `end`, `quantile`, `threshold`; reject-all is `null`), with the margin gate
+//! `gate` (`m*`, semantics §13), `calibration_queries`, `deployment_queries` and
 //! `database_size`.
+//!
+//! # `qtvpr.counts` and `Calibration.defaults`
+//!
+//! [`Counts`] at one threshold: `tp`, `fp`, `positives`, `precision`, `recall` and
+//! `precision_lower95`, the keys of a segment of `evaluate`. A calibration's
+//! [`Defaults`]: `k`, `precision`, `window` (`None` when the file sets none) and `gate`,
+//! the `params` of its file.
 //!
 //! [`Evaluation`]: crate::evaluate::Evaluation
 //! [`Layout`]: crate::evaluate::Layout
@@ -81,17 +89,21 @@
 //! [`Counts::precision_lower95`]: crate::Counts::precision_lower95
 //! [`Params`]: crate::Params
 //! [`Segment`]: crate::Segment
+//! [`Counts`]: crate::Counts
+//! [`Defaults`]: crate::Defaults
 
 #[cfg(feature = "serde")]
-pub use serialize::Report;
+pub use serialize::{Report, ThresholdParams, ThresholdReport};
 
 #[cfg(feature = "serde")]
 pub(crate) mod serialize {
     use serde::Serialize;
     use serde::ser::{SerializeMap, Serializer};
 
-    use crate::decisions::Counts;
-    use crate::evaluate::MethodResult;
+    use crate::decisions::{Counts, Matching};
+    use crate::evaluate::{Method, MethodResult};
+    use crate::params::Params;
+    use crate::transfer::{Calibration, Segment, Transfer};
 
     /// A result with the name of what it was computed on: the document `qtvpr-cli
     /// evaluate` prints and the dict `qtvpr.evaluate` / `qtvpr.ablation` return.
@@ -103,6 +115,60 @@ pub(crate) mod serialize {
         /// [`Ablation`](crate::evaluate::Ablation), its keys beside `dataset`.
         #[serde(flatten)]
         pub result: &'a T,
+    }
+
+    /// The document of `qtvpr-cli threshold`: one transfer, its parameters and the
+    /// sizes of its inputs.
+    #[derive(Debug, Clone, Copy, Serialize)]
+    pub struct ThresholdReport<'a> {
+        /// `"quantile-transfer"`.
+        pub method: &'static str,
+        /// The parameters of the transfer.
+        pub params: ThresholdParams,
+        /// Its segments.
+        pub segments: &'a [Segment],
+        /// With the margin gate (semantics §13): `m*`; left out without it.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        pub gate: Option<f64>,
+        /// |Qcal|.
+        pub calibration_queries: usize,
+        /// |Qval|, the queries thresholded.
+        pub deployment_queries: usize,
+        /// |DB|.
+        pub database_size: usize,
+    }
+
+    /// The `params` of a [`ThresholdReport`]: the transfer's [`Params`], its segment
+    /// size resolved (every deployment query when it had none), and the matching mode.
+    #[derive(Debug, Clone, Copy, Serialize)]
+    pub struct ThresholdParams {
+        /// `k`, `precision`, `segment_size` and `gate`.
+        #[serde(flatten)]
+        pub params: Params,
+        /// The calibration's matching mode.
+        pub matching: Matching,
+    }
+
+    impl<'a> ThresholdReport<'a> {
+        /// The document of `transfer`, the result of `cal.transfer(..., params)`.
+        pub fn new(cal: &Calibration, params: &Params, transfer: &'a Transfer) -> Self {
+            let deployment_queries = transfer.query_quantiles.len();
+            Self {
+                method: Method::QuantileTransfer.as_str(),
+                params: ThresholdParams {
+                    params: Params {
+                        segment_size: Some(params.segment_size.unwrap_or(deployment_queries)),
+                        ..*params
+                    },
+                    matching: cal.matching(),
+                },
+                segments: &transfer.segments,
+                gate: transfer.gate,
+                calibration_queries: cal.len(),
+                deployment_queries,
+                database_size: cal.db_size(),
+            }
+        }
     }
 
     /// The keys of [`Counts`] and the figures derived from it.
@@ -143,5 +209,71 @@ pub(crate) mod serialize {
     /// Method results as an object keyed by method name, in order.
     pub(crate) fn methods<S: Serializer>(methods: &[MethodResult], serializer: S) -> Result<S::Ok, S::Error> {
         serializer.collect_map(methods.iter().map(|m| (m.method.as_str(), m)))
+    }
+}
+
+#[cfg(all(test, feature = "serde"))]
+mod tests {
+    use ndarray::array;
+    use serde_json::json;
+
+    use super::ThresholdReport;
+    use crate::{Calibration, Counts, Defaults, GroundTruth, Matching, Params};
+
+    #[test]
+    fn the_threshold_document() {
+        // The transfer.rs example: with k = 1 and segments of one query the quantiles
+        // are 0.5 and 1 and the thresholds 4 and the next f64 above 5.
+        let s_cal = array![[3.0, 1.0], [1.0, 4.0], [2.0, 1.0]];
+        let gt = GroundTruth::new(array![[1u8, 1], [0, 1], [1, 0]].view()).unwrap();
+        let cal = Calibration::new(s_cal.view(), &gt, Matching::Multi).unwrap();
+        let s_val = array![[2.0, 2.0], [6.0, 5.0], [4.0, 2.0]];
+        let params = Params {
+            k: 1,
+            segment_size: Some(1),
+            ..Params::default()
+        };
+        let transfer = cal.transfer(s_val.view(), &params).unwrap();
+        assert_eq!(
+            serde_json::to_value(ThresholdReport::new(&cal, &params, &transfer)).unwrap(),
+            json!({
+                "method": "quantile-transfer",
+                "params": {"k": 1, "precision": 1.0, "segment_size": 1, "gate": "none", "matching": "multi"},
+                "segments": [
+                    {"start": 0, "end": 1, "quantile": 0.5, "threshold": 4.0},
+                    {"start": 1, "end": 2, "quantile": 1.0, "threshold": 5f64.next_up()},
+                ],
+                "calibration_queries": 2,
+                "deployment_queries": 2,
+                "database_size": 3,
+            })
+        );
+        // No segment size: one segment of both deployment queries.
+        let params = Params {
+            k: 1,
+            ..Params::default()
+        };
+        let transfer = cal.transfer(s_val.view(), &params).unwrap();
+        let document = serde_json::to_value(ThresholdReport::new(&cal, &params, &transfer)).unwrap();
+        assert_eq!(document["params"]["segment_size"], 2);
+    }
+
+    #[test]
+    fn counts_and_defaults() {
+        // 3 of 4 accepted are correct, of 5 positives: precision 0.75, recall 0.6.
+        let c = Counts {
+            tp: 3,
+            fp: 1,
+            positives: 5,
+        };
+        let text = serde_json::to_string(&c).unwrap();
+        assert!(
+            text.starts_with(r#"{"tp":3,"fp":1,"positives":5,"precision":0.75,"recall":0.6,"precision_lower95":0."#),
+            "{text}"
+        );
+        assert_eq!(
+            serde_json::to_value(Defaults::default()).unwrap(),
+            json!({"k": 10, "precision": 1.0, "window": null, "gate": "none"})
+        );
     }
 }

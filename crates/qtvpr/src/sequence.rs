@@ -27,7 +27,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, validate_scores};
-use crate::names::SIMILARITY;
+use crate::names::Input;
 use crate::threads;
 
 /// A score type [`sequence_match`] can return: `f32` or `f64`.
@@ -112,7 +112,7 @@ impl Sequence {
 pub fn sequence_match<T: FromF64>(s: ArrayView2<'_, T>, sequence: Sequence) -> Result<Array2<T>> {
     threads::install(|| {
         sequence.validate()?;
-        validate_scores(SIMILARITY, s)?;
+        validate_scores(Input::Similarity, s)?;
         let (n, m) = s.dim();
         let (lo, hi) = sequence.offsets();
         // Rows per block: at least the window length, so that the O(L |Q|) start of each

@@ -52,7 +52,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::input::{Score, ScoresView, check_nonempty};
-use crate::names::{DB_DESCRIPTORS, QUERY_DESCRIPTORS};
+use crate::names::Input;
 use crate::threads;
 
 /// Queries per tile of the product: the width of every GEMM call.
@@ -72,7 +72,7 @@ const STEP_SCORES: usize = 1 << 22;
 /// # Errors
 /// - [`Error::Empty`] when either matrix has no rows or no columns;
 /// - [`Error::ColumnMismatch`] when the descriptor dimensions differ;
-/// - [`Error::NotFiniteValue`] for a NaN or infinite value (the first by row, then column);
+/// - [`Error::NotFinite`] for a NaN or infinite value (the first by row, then column);
 /// - [`Error::ZeroNorm`] for an all-zero row, whose cosine is undefined.
 ///
 /// Errors in `db` are reported before errors in `queries`.
@@ -144,22 +144,25 @@ fn scales<T: Score, U: Score>(
     db: ArrayView2<'_, T>,
     queries: ArrayView2<'_, U>,
 ) -> Result<(Vec<RowScale>, Vec<RowScale>)> {
-    check_nonempty(DB_DESCRIPTORS, db.dim())?;
-    check_nonempty(QUERY_DESCRIPTORS, queries.dim())?;
+    check_nonempty(Input::DbDescriptors, db.dim())?;
+    check_nonempty(Input::QueryDescriptors, queries.dim())?;
     if queries.ncols() != db.ncols() {
         return Err(Error::ColumnMismatch {
-            what: QUERY_DESCRIPTORS,
+            what: Input::QueryDescriptors,
             cols: queries.ncols(),
-            other: DB_DESCRIPTORS,
+            other: Input::DbDescriptors,
             other_cols: db.ncols(),
         });
     }
-    Ok((row_scales(DB_DESCRIPTORS, db)?, row_scales(QUERY_DESCRIPTORS, queries)?))
+    Ok((
+        row_scales(Input::DbDescriptors, db)?,
+        row_scales(Input::QueryDescriptors, queries)?,
+    ))
 }
 
 /// The scaling of every row of `m`, in parallel, or the error of its first bad row (by
 /// row order).
-fn row_scales<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<Vec<RowScale>> {
+fn row_scales<T: Score>(what: Input, m: ArrayView2<'_, T>) -> Result<Vec<RowScale>> {
     threads::install(|| {
         let mut scales = vec![RowScale::default(); m.nrows()];
         let bad = scales
@@ -171,12 +174,12 @@ fn row_scales<T: Score>(what: &'static str, m: ArrayView2<'_, T>) -> Result<Vec<
 }
 
 /// The scaling of row `x`, or why the row has no cosine.
-fn row_scale<T: Score>(what: &'static str, row: usize, x: ArrayView1<'_, T>) -> Result<RowScale> {
+fn row_scale<T: Score>(what: Input, row: usize, x: ArrayView1<'_, T>) -> Result<RowScale> {
     let mut largest = 0.0f64;
     for (col, v) in x.iter().enumerate() {
         let v = v.to_f64();
         if !v.is_finite() {
-            return Err(Error::NotFiniteValue {
+            return Err(Error::NotFinite {
                 what,
                 row,
                 col,
@@ -626,7 +629,7 @@ mod tests {
         assert_eq!(
             err,
             Error::ZeroNorm {
-                what: DB_DESCRIPTORS,
+                what: Input::DbDescriptors,
                 row: 1
             }
         );
@@ -645,7 +648,7 @@ mod tests {
         assert_eq!(
             Descriptors::new(zero.view(), nan.view()).unwrap_err(),
             Error::ZeroNorm {
-                what: DB_DESCRIPTORS,
+                what: Input::DbDescriptors,
                 row: 1
             }
         );

@@ -30,7 +30,7 @@ use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::margin::{self, CalibrationMargins, Gate};
-use crate::names::{CAL_SIMILARITY, DEPLOYMENT_SIMILARITY};
+use crate::names::Input;
 use crate::params::{Defaults, Params};
 use crate::ranked_correlation::{Ranked, Screen};
 use crate::similarity::{DescriptorColumns, Descriptors};
@@ -138,8 +138,8 @@ impl Calibration {
     /// Empty or non-finite scores, or ground truth of another shape.
     pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
         threads::install(|| {
-            let ranked = Ranked::new(CAL_SIMILARITY, s, 0)?;
-            check_gt_shape(gt, CAL_SIMILARITY, s.dim())?;
+            let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+            check_gt_shape(gt, Input::CalSimilarity, s.dim())?;
             Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
         })
     }
@@ -151,7 +151,7 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         Ok(Self::from_ranked(
-            Ranked::new(CAL_SIMILARITY, s, 0)?,
+            Ranked::new(Input::CalSimilarity, s, 0)?,
             T::to_matrix(s),
             GroundTruth::from_truth(gt.to_owned()),
             matching,
@@ -244,7 +244,7 @@ impl Calibration {
     /// Gather, check, sort and standardise the deployment columns `s` into `ranked`.
     /// `first_col` is the deployment index of `s`'s first column, for errors.
     pub(crate) fn rank<T: Score>(&self, ranked: &mut Ranked<T>, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
-        ranked.refill(DEPLOYMENT_SIMILARITY, s, first_col)
+        ranked.refill(Input::DeploymentSimilarity, s, first_col)
     }
 
     /// semantics §4 and §5 for every column of a block ranked by
@@ -371,7 +371,7 @@ impl Calibration {
         chunk_scores: usize,
     ) -> Result<Transfer> {
         params.validate()?;
-        check_nonempty(DEPLOYMENT_SIMILARITY, s.dim())?;
+        check_nonempty(Input::DeploymentSimilarity, s.dim())?;
         self.transfer_from(s, params, progress, chunk_scores)
     }
 
@@ -390,10 +390,10 @@ impl Calibration {
         matching: Matching,
     ) -> Result<Self> {
         d.check_range(&queries)?;
-        check_gt_shape(gt, CAL_SIMILARITY, (d.shape().0, queries.len()))?;
+        check_gt_shape(gt, Input::CalSimilarity, (d.shape().0, queries.len()))?;
         // The computed matrix becomes the calibration's own copy: no second one.
         let s = d.similarity(queries)?;
-        let ranked = Ranked::new(CAL_SIMILARITY, s.view(), 0)?;
+        let ranked = Ranked::new(Input::CalSimilarity, s.view(), 0)?;
         Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
     }
 
