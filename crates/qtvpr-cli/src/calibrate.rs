@@ -9,8 +9,7 @@ use clap::Args;
 use qtvpr::{Calibration, Defaults, Matching, QuerySplit, Split};
 
 use crate::gt_source::{CalGtSource, GtSource};
-use crate::inputs::{DescriptorFiles, SplitArgs, gate_parser};
-use crate::threshold::MatchingArg;
+use crate::inputs::{DescriptorFiles, MatchingArg, SplitArgs, gate_parser};
 use qtvpr::npy::read_scores;
 use qtvpr::with_scores;
 

@@ -18,11 +18,10 @@ use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
 
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
-use crate::inputs::DescriptorFiles;
+use crate::inputs::{DescriptorFiles, MatchingArg};
 use crate::output::emit;
 use crate::plot;
 use crate::summary::{Run, RunContext, ablation_setting, describe, fmt_num};
-use crate::threshold::MatchingArg;
 use qtvpr::npy::read_scores;
 
 /// Arguments of `evaluate`.

@@ -27,6 +27,24 @@ pub fn blame(err: qtvpr::Error, sources: &[(Input, String)]) -> anyhow::Error {
     }
 }
 
+/// The `--matching` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MatchingArg {
+    /// Single-best-match VPR (one decision per query).
+    Single,
+    /// Multi-match VPR (every non-ignored entry is a candidate).
+    Multi,
+}
+
+impl From<MatchingArg> for qtvpr::Matching {
+    fn from(m: MatchingArg) -> Self {
+        match m {
+            MatchingArg::Single => qtvpr::Matching::Single,
+            MatchingArg::Multi => qtvpr::Matching::Multi,
+        }
+    }
+}
+
 /// `--cal-queries` / `--cal-fraction`: the first queries of one matrix or of the query
 /// descriptors calibrate (the rule of `evaluate`, [`Split::calibration_size`]).
 #[derive(Debug, Args)]

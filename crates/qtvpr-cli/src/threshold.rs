@@ -22,7 +22,7 @@ use qtvpr::report::ThresholdReport;
 use qtvpr::{Calibration, Defaults, Descriptors, Matching, Params, QuerySplit, ScoresView};
 
 use crate::gt_source::OptionalCalGtSource;
-use crate::inputs::{DescriptorFiles, SplitArgs};
+use crate::inputs::{DescriptorFiles, MatchingArg, SplitArgs};
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
 use qtvpr::npy::read_scores;
@@ -105,24 +105,6 @@ pub struct ThresholdArgs {
     /// Write to this file (atomically) instead of stdout.
     #[arg(long, short, value_name = "FILE")]
     output: Option<PathBuf>,
-}
-
-/// The `--matching` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum MatchingArg {
-    /// Single-best-match VPR (one decision per query).
-    Single,
-    /// Multi-match VPR (every non-ignored entry is a candidate).
-    Multi,
-}
-
-impl From<MatchingArg> for Matching {
-    fn from(m: MatchingArg) -> Self {
-        match m {
-            MatchingArg::Single => Matching::Single,
-            MatchingArg::Multi => Matching::Multi,
-        }
-    }
 }
 
 /// Where the scores come from.

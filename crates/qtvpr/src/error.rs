@@ -7,13 +7,9 @@
 /// Result alias used throughout the core.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-use crate::evaluate::Method;
-use crate::names::Input;
+use std::fmt;
 
-/// The names of every method, in report order, for [`Error::UnknownMethod`].
-fn method_names() -> String {
-    Method::ALL.map(Method::as_str).join(", ")
-}
+use crate::names::Input;
 
 /// Everything that can be wrong with the input of the core.
 ///
@@ -151,10 +147,12 @@ pub enum Error {
         error: Box<Error>,
     },
     /// A method name the evaluation protocol does not know.
-    #[error("unknown method '{name}'; expected one of {}", method_names())]
+    #[error("unknown method '{name}'; expected one of {}", .expected.join(", "))]
     UnknownMethod {
         /// The name as given.
         name: String,
+        /// Every method's name, in report order (`Method::ALL`).
+        expected: Vec<&'static str>,
     },
     /// Ground truth of one set of queries split into calibration and deployment
     /// queries ([`QuerySplit`](crate::QuerySplit)) does not label every query.
@@ -224,7 +222,7 @@ pub enum Error {
     #[error("{at}: image name '{name}' {problem}; names must look like @utm_east@utm_north@...@.jpg")]
     ImageName {
         /// Where the name came from: its index, its line in a text file, or its directory.
-        at: crate::image_names::NameAt,
+        at: NameAt,
         /// The name (the path as given).
         name: String,
         /// What is wrong, phrased to follow the name: `has fewer than two '@'`, ...
@@ -351,6 +349,32 @@ impl Error {
     }
 }
 
+/// Where an image name came from, for the message of an [`Error::ImageName`] ([`image_names`](crate::image_names)).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NameAt {
+    /// Index `i` (0-based) of a list of paths given in memory: shown as `paths[i]`.
+    Index(usize),
+    /// Line `line` (1-based) of the text file `file`: shown as `FILE line N`.
+    Line {
+        /// The text file, as given.
+        file: String,
+        /// The line, 1-based.
+        line: usize,
+    },
+    /// A file found in the directory `dir`: shown as the directory.
+    Directory(String),
+}
+
+impl fmt::Display for NameAt {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NameAt::Index(i) => write!(f, "paths[{i}]"),
+            NameAt::Line { file, line } => write!(f, "{file} line {line}"),
+            NameAt::Directory(dir) => write!(f, "{dir}"),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -434,7 +458,7 @@ mod tests {
 
     #[test]
     fn unknown_method_lists_every_method() {
-        let e = Error::UnknownMethod { name: "best".into() };
+        let e: Error = "best".parse::<crate::Method>().unwrap_err();
         assert_eq!(
             e.to_string(),
             "unknown method 'best'; expected one of quantile-transfer, quantile-transfer-online, \

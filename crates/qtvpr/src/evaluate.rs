@@ -126,7 +126,10 @@ impl std::str::FromStr for Method {
         Method::ALL
             .into_iter()
             .find(|m| m.as_str() == s)
-            .ok_or_else(|| Error::UnknownMethod { name: s.to_string() })
+            .ok_or_else(|| Error::UnknownMethod {
+                name: s.to_string(),
+                expected: Method::ALL.map(Method::as_str).to_vec(),
+            })
     }
 }
 

@@ -18,43 +18,17 @@
 //!   The order of the names is the order of the rows (database images) and columns
 //!   (queries) of the similarity matrix: it must be the order of the descriptor rows.
 
-use std::fmt;
 use std::path::Path;
 
 use ndarray::Array2;
 
+pub use crate::error::NameAt;
 use crate::error::{Error, Result};
 
 /// The extensions, compared without regard to ASCII case, of the files of a directory
 /// that [`image_paths`] lists: VPR-methods-evaluation's
 /// `os.path.splitext(p)[1].lower() in [".jpg", ".jpeg", ".png"]`.
 pub const IMAGE_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
-
-/// Where an image name came from, for the message of an [`Error::ImageName`].
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum NameAt {
-    /// Index `i` (0-based) of a list of paths given in memory: shown as `paths[i]`.
-    Index(usize),
-    /// Line `line` (1-based) of the text file `file`: shown as `FILE line N`.
-    Line {
-        /// The text file, as given.
-        file: String,
-        /// The line, 1-based.
-        line: usize,
-    },
-    /// A file found in the directory `dir`: shown as the directory.
-    Directory(String),
-}
-
-impl fmt::Display for NameAt {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            NameAt::Index(i) => write!(f, "paths[{i}]"),
-            NameAt::Line { file, line } => write!(f, "{file} line {line}"),
-            NameAt::Directory(dir) => write!(f, "{dir}"),
-        }
-    }
-}
 
 /// UTM east and north, in metres, from the file name of `path`: fields 1 and 2 of the
 /// file name (the last component of the path) split on `@`, each a decimal number
