@@ -37,12 +37,12 @@ impl Matching {
 }
 
 impl std::str::FromStr for Matching {
-    type Err = crate::Error;
-    fn from_str(s: &str) -> crate::Result<Self> {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
         match s {
             "single" => Ok(Matching::Single),
             "multi" => Ok(Matching::Multi),
-            _ => Err(crate::Error::param(
+            _ => Err(crate::error::Error::param(
                 "matching",
                 format!("must be 'single' or 'multi', got '{s}'"),
             )),
@@ -246,15 +246,15 @@ impl Counts {
 ///
 /// # Errors
 /// As [`crate::best_threshold()`]: empty, non-finite or mismatched input; and
-/// [`crate::Error::InvalidParameter`] for a NaN threshold.
+/// [`crate::error::Error::InvalidParameter`] for a NaN threshold.
 pub fn counts<T: Score>(
     s: ArrayView2<'_, T>,
-    gt: &crate::GroundTruth,
+    gt: &crate::input::GroundTruth,
     matching: Matching,
     t: f64,
-) -> crate::Result<Counts> {
+) -> crate::error::Result<Counts> {
     if t.is_nan() {
-        return Err(crate::Error::param(
+        return Err(crate::error::Error::param(
             "threshold",
             "must be a real number other than NaN, got nan",
         ));
@@ -280,7 +280,7 @@ impl Candidates {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::GroundTruth;
+    use crate::input::GroundTruth;
     use ndarray::array;
 
     #[test]

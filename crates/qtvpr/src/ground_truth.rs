@@ -323,7 +323,7 @@ mod tests {
         assert_eq!(m.hard, array![[true, false, false], [false, true, false]]);
         assert_eq!(m.soft, Some(array![[true, true, false], [true, true, true]]));
         let gt = spec.ground_truth((2, 3)).unwrap();
-        use crate::Truth::{False as F, Ignored as I, True as T};
+        use crate::input::Truth::{False as F, Ignored as I, True as T};
         assert_eq!(gt.view(), array![[T, I, F], [I, T, I]]);
         // Positions on a line 10 apart, queries at the first two: radius 0 is the
         // identity, soft radius 10 adds the neighbours at distance exactly 10.

@@ -106,6 +106,29 @@ pub enum ScoresView<'a> {
     F64(ArrayView2<'a, f64>),
 }
 
+/// Call generic code on the typed view inside a [`ScoresView`] (defined here, beside it; exported at the crate root): `$body` is compiled
+/// once with `$v` an `ArrayView2<'_, f32>` and once with an `ArrayView2<'_, f64>`, the
+/// only f32/f64 dispatch a front end needs.
+///
+/// ```
+/// use ndarray::array;
+/// use qtvpr::{ScoresView, with_scores};
+///
+/// let s = array![[0.5f32, 0.25]];
+/// let view = ScoresView::from(s.view());
+/// let sum = with_scores!(view, |v| v.iter().map(|x| f64::from(*x)).sum::<f64>());
+/// assert_eq!(sum, 0.75);
+/// ```
+#[macro_export]
+macro_rules! with_scores {
+    ($view:expr, |$v:ident| $body:expr) => {
+        match $view {
+            $crate::input::ScoresView::F32($v) => $body,
+            $crate::input::ScoresView::F64($v) => $body,
+        }
+    };
+}
+
 impl<'a> ScoresView<'a> {
     /// The transpose (no copy): a query-major matrix becomes |DB| x |Q|.
     #[must_use]

@@ -108,26 +108,3 @@ pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_prog
 pub use split::QuerySplit;
 pub use threads::set_threads;
 pub use transfer::{Calibration, Segment, Transfer};
-
-/// Call generic code on the typed view inside a [`ScoresView`]: `$body` is compiled
-/// once with `$v` an `ArrayView2<'_, f32>` and once with an `ArrayView2<'_, f64>`, the
-/// only f32/f64 dispatch a front end needs.
-///
-/// ```
-/// use ndarray::array;
-/// use qtvpr::{ScoresView, with_scores};
-///
-/// let s = array![[0.5f32, 0.25]];
-/// let view = ScoresView::from(s.view());
-/// let sum = with_scores!(view, |v| v.iter().map(|x| f64::from(*x)).sum::<f64>());
-/// assert_eq!(sum, 0.75);
-/// ```
-#[macro_export]
-macro_rules! with_scores {
-    ($view:expr, |$v:ident| $body:expr) => {
-        match $view {
-            $crate::ScoresView::F32($v) => $body,
-            $crate::ScoresView::F64($v) => $body,
-        }
-    };
-}

@@ -791,7 +791,7 @@ mod tests {
         };
         let db = Array2::from_shape_fn((40, 5), |_| next());
         let q = Array2::from_shape_fn((130, 5), |_| next()).mapv(|v| v as f32);
-        let s = crate::cosine_similarity(db.view(), q.view()).unwrap();
+        let s = crate::similarity::cosine_similarity(db.view(), q.view()).unwrap();
         let d = Descriptors::new(db.view(), q.view()).unwrap();
         let gt = GroundTruth::new(Array2::from_shape_fn((40, 23), |(i, j)| i % 23 == j).view()).unwrap();
         for matching in [Matching::Single, Matching::Multi] {
