@@ -148,6 +148,19 @@ def test_read_only_shared_and_byte_swapped_inputs():
     assert np.array_equal(S_CAL, swapped)  # the input is untouched
 
 
+def test_empty_views_of_misaligned_arrays_are_errors_not_panics():
+    # A float64 matrix at an odd address, and its empty slice: NumPy calls the slice
+    # aligned, but it keeps the odd pointer (this panicked in the dev build).
+    raw = np.frombuffer(bytearray(8 * S_CAL.size + 1), np.uint8)[1:].view(np.float64).reshape(S_CAL.shape)
+    raw[...] = S_CAL
+    empty = raw[:, :0]
+    assert empty.ctypes.data % 8 != 0
+    cal = qtvpr.Calibration(raw, GT_CAL)  # misaligned and not empty: converted
+    with pytest.raises(ValueError, match=r"^s_val: deployment similarity is empty \(shape 4x0\)$"):
+        cal.transfer(empty)
+    assert len(qtvpr.Online(cal, window=2).push_many(empty)) == 0
+
+
 def test_ranked_correlation_shape():
     r = qtvpr.ranked_correlation(S_VAL, S_CAL)
     assert r.shape == (5, 3) and r.dtype == np.float64

@@ -23,6 +23,7 @@ import json
 import math
 import multiprocessing
 import pickle
+import re
 import zipfile
 from pathlib import Path
 
@@ -1049,3 +1050,36 @@ def test_a_window_no_allocation_could_hold_is_refused(tmp_path, cli):
                 "--window", str(2**64 - 1))
     assert r.returncode == 2 and r.stdout == ""
     assert "window 18446744073709551615 is too large" in r.stderr, r.stderr
+
+
+def test_a_resumed_state_decides_as_the_whole_stream():
+    """The Rust scenario of crates/qtvpr/tests/blocks.rs: a fresh state resumed at
+    query j from the min(j, window - 1) queries before it decides queries j.. as the
+    whole stream does, warm-up and numbering included; errors name the stream's
+    queries (what qtvpr.dask schedules blocks with)."""
+    rng = np.random.default_rng(3)
+    s_cal, s_val = rng.random((6, 8)), rng.random((6, 12))
+    gt = np.arange(6)[:, None] == np.arange(8)[None, :] % 6
+    for matching in ("single", "multi"):
+        cal = qtvpr.Calibration(s_cal, gt, matching=matching)
+        params = {"k": 3, "precision": 0.75, "window": 4, "min_window": 3}
+        whole = qtvpr.Online(cal, **params).push_many(s_val)
+        assert whole.quantiles[1] == 1.0 and whole.accepted[1] == 0  # the warm-up
+        for first, before in ((1, slice(0, 1)), (5, slice(2, 5)), (0, slice(0, 0))):
+            state = qtvpr.Online(cal, **params)
+            state._resume(first, s_val[:, before])
+            assert state.pushed == first
+            got = state._push_stream(s_val[:, first:])
+            for name in ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score",
+                         "accepted", "accept"):
+                np.testing.assert_array_equal(getattr(got, name), getattr(whole, name)[first:], err_msg=name)
+    state = qtvpr.Online(cal, window=4)
+    message = "resume at query 5 with a window of 4 takes the 3 queries before it, got 2"
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}$"):
+        state._resume(5, s_val[:, 0:2])
+    bad = s_val.copy()
+    bad[4, 3] = np.inf
+    message = "s_val: deployment similarity contains inf at row 4, column 3; scores must be finite"
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}$"):
+        state._resume(5, bad[:, 2:5])
+    assert state.pushed == 0

@@ -195,6 +195,27 @@ class Calibration:
         gate: _Gate | None = None,
         query_major: bool = False,
     ) -> TransferResult: ...
+    def _check_transfer(
+        self,
+        shape: tuple[int, int],
+        *,
+        k: int | None = None,
+        precision: float | None = None,
+        segment_size: int | None = None,
+        gate: _Gate | None = None,
+        query_major: bool = False,
+    ) -> None: ...
+    def _transfer_at(
+        self,
+        s_val: _Matrix,
+        first_query: int,
+        *,
+        k: int | None = None,
+        precision: float | None = None,
+        segment_size: int | None = None,
+        gate: _Gate | None = None,
+        query_major: bool = False,
+    ) -> TransferResult: ...
     def threshold(self, precision: float | None = None) -> float: ...
     def gate(self, precision: float | None = None) -> float: ...
     def save(
@@ -309,6 +330,8 @@ class Online:
     ) -> Online: ...
     def push(self, column: _Column) -> OnlineDecision: ...
     def push_many(self, s_val: _Matrix, *, query_major: bool = False) -> OnlineDecisions: ...
+    def _resume(self, first_query: int, s_before: _Matrix, *, query_major: bool = False) -> None: ...
+    def _push_stream(self, s_val: _Matrix, *, query_major: bool = False) -> OnlineDecisions: ...
     @property
     def threshold(self) -> float | None: ...
     @property

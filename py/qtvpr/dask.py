@@ -31,7 +31,6 @@ Needs the ``dask`` extra: ``pip install "qtvpr[dask]"``.
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable
 from typing import Any
 
@@ -81,13 +80,11 @@ def transfer(
     not a Dask array.
     """
     s_val = _check_array(s_val)
-    n_db, n = _oriented_shape(s_val, query_major)
+    _check_calibration(calibration)
     args: dict[str, Any] = {"k": k, "precision": precision, "gate": gate, "query_major": query_major}
-    if n_db == 0 or n == 0 or not _fits(segment_size, n):
-        # Errors found before any score is read (the segment size is checked against
-        # the number of queries, not a block's): the compiled call raises them on a
-        # stand-in of no memory, in the one-machine order.
-        calibration.transfer(_stand_in(s_val), segment_size=segment_size, **args)
+    # What the compiled transfer refuses before reading a score, refused by it here.
+    calibration._check_transfer(s_val.shape, segment_size=segment_size, **args)
+    _, n = _oriented_shape(s_val, query_major)
     if segment_size is None:
         starts = [0]
     else:
@@ -105,7 +102,7 @@ def transfer(
     return TransferResult._from_parts(
         np.concatenate([p["thresholds"] for p in parts]),
         np.concatenate([p["quantiles"] for p in parts]),
-        [(a + start, b + start) for p, (start, _) in zip(parts, bounds, strict=True) for a, b in p["segments"]],
+        [segment for p in parts for segment in p["segments"]],
         np.concatenate([p["query_quantiles"] for p in parts]),
         np.concatenate([p["query_thresholds"] for p in parts]),
         np.concatenate([p["query_weights"] for p in parts]),
@@ -149,7 +146,8 @@ def online(
     state = Online(calibration, k=k, precision=precision, window=window, min_window=min_window, gate=gate)
     n_db, n = _oriented_shape(s_val, query_major)
     if n_db == 0 or n == 0:
-        return state.push_many(np.zeros(s_val.shape, s_val.dtype), query_major=query_major)
+        # No block to schedule: the (empty) matrix itself.
+        return state.push_many(s_val.compute(), query_major=query_major)
     params: dict[str, Any] = {
         "k": state.k,
         "precision": state.precision,
@@ -197,33 +195,21 @@ def _largest_chunk(s_val: da.Array, query_major: bool) -> int:
     return max(s_val.chunks[0 if query_major else 1])
 
 
-def _fits(segment_size: object, n: int) -> bool:
-    """Whether ``segment_size`` is ``None`` or an integer in ``1..=n``."""
-    if segment_size is None:
-        return True
-    try:
-        return 1 <= operator.index(segment_size) <= n  # type: ignore[arg-type]
-    except TypeError:
-        return False
-
-
-def _stand_in(s_val: da.Array) -> np.ndarray:
-    """An array of the shape and dtype of ``s_val`` that takes no memory (every entry
-    is the same zero), for the errors the compiled call finds from the shape alone."""
-    return np.broadcast_to(np.zeros((), s_val.dtype), s_val.shape)
-
-
 def _block(s_val: da.Array, start: int, end: int, query_major: bool) -> da.Array:
     """Queries ``start..end`` with all their |DB| scores: one chunk, on one worker."""
     part = s_val[start:end] if query_major else s_val[:, start:end]
     return part.rechunk(part.shape)
 
 
+def _check_calibration(calibration: object) -> None:
+    if not isinstance(calibration, Calibration):
+        raise TypeError(f"calibration: expected a qtvpr.Calibration, got {type(calibration).__name__}")
+
+
 def _send(calibration: Calibration) -> Any:
     """The calibration as a task argument, sent to the workers once: scattered to
     every worker of the active distributed client, else one task of the graph."""
-    if not isinstance(calibration, Calibration):
-        raise TypeError(f"calibration: expected a qtvpr.Calibration, got {type(calibration).__name__}")
+    _check_calibration(calibration)
     try:
         from distributed import default_client
 
@@ -244,34 +230,13 @@ def _computed(tasks: list[Any]) -> list[_Part]:
     return parts
 
 
-def _caught(block: np.ndarray, first: int, query_major: bool, run: Callable[[], _Part]) -> _Part:
-    """``run()``, or its ``ValueError`` or ``TypeError`` as a result: with the position
-    of a NaN or infinite score moved from the block (whose first query is ``first``) to
-    the whole matrix."""
+def _caught(run: Callable[[], _Part]) -> _Part:
+    """``run()``, or its ``ValueError`` or ``TypeError`` as a result (the compiled
+    code's, whose positions are those of the whole matrix), for :func:`_computed`."""
     try:
         return run()
     except (TypeError, ValueError) as err:
-        return {"error": (type(err), _relocated(str(err), block, first, query_major))}
-
-
-def _relocated(message: str, block: np.ndarray, first: int, query_major: bool) -> str:
-    """``message`` with the block-local position of the block's first non-finite score
-    (in query order, then database order, as the compiled code looks for it) replaced
-    by its position in the whole matrix; unchanged when it names no such position."""
-    scores = block.T if query_major else block
-    if scores.dtype.kind != "f" or scores.size == 0:
-        return message
-    bad = ~np.isfinite(scores)
-    columns = np.flatnonzero(bad.any(axis=0))
-    if columns.size == 0:
-        return message
-    col = int(columns[0])
-    row = int(np.flatnonzero(bad[:, col])[0])
-    if query_major:
-        local, whole = f"at row {col}, column {row};", f"at row {first + col}, column {row};"
-    else:
-        local, whole = f"at row {row}, column {col};", f"at row {row}, column {first + col};"
-    return message.replace(local, whole, 1)
+        return {"error": (type(err), str(err))}
 
 
 def _transfer_block(
@@ -280,7 +245,7 @@ def _transfer_block(
     """The transfer of one block of whole segments whose first query is ``start``."""
 
     def run() -> _Part:
-        r = calibration.transfer(block, segment_size=segment_size, **args)
+        r = calibration._transfer_at(block, start, segment_size=segment_size, **args)
         return {
             "thresholds": r.thresholds,
             "quantiles": r.quantiles,
@@ -293,25 +258,23 @@ def _transfer_block(
             "query_margins": r.query_margins,
         }
 
-    return _caught(block, start, args["query_major"], run)
+    return _caught(run)
 
 
 def _online_block(
     calibration: Calibration, block: np.ndarray, first: int, start: int, params: dict[str, Any], query_major: bool
 ) -> _Part:
     """The decisions of queries ``start..`` of ``block`` (whose first query is
-    ``first``), after its queries ``first..start`` are pushed as the window's warm-up."""
+    ``first``), on a state resumed at ``start`` from its queries ``first..start``."""
     warm = start - first
     head, body = (block[:warm], block[warm:]) if query_major else (block[:, :warm], block[:, warm:])
 
     def run() -> _Part:
         state = Online(calibration, **params)
-        if warm:
-            state.push_many(head, query_major=query_major)
-        d = state.push_many(body, query_major=query_major)
+        state._resume(start, head, query_major=query_major)
+        d = state._push_stream(body, query_major=query_major)
         return {
-            # Numbered from `first` here: shifted to the whole stream.
-            "queries": d.queries + first,
+            "queries": d.queries,
             "query_quantiles": d.query_quantiles,
             "weights": d.weights,
             "quantiles": d.quantiles,
@@ -324,5 +287,6 @@ def _online_block(
             "gates": d.gates,
         }
 
-    # An error in the warm-up is the previous block's, reported by it first.
-    return _caught(body, start, query_major, run)
+    # An error in the resumed queries is the previous block's too, raised first by
+    # _computed (blocks in query order) with the same message.
+    return _caught(run)

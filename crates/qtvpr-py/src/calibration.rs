@@ -153,6 +153,27 @@ impl PyCalibration {
     }
 }
 
+impl PyCalibration {
+    /// The parameters of a transfer: those given, the others this calibration's
+    /// defaults.
+    fn params(
+        &self,
+        k: Option<i64>,
+        precision: Option<f64>,
+        segment_size: Option<i64>,
+        gate: Option<&str>,
+        args: Args,
+    ) -> PyResult<Params> {
+        let (k, segment_size) = (
+            k.map(|k| count("k", k)).transpose()?,
+            segment_size.map(|m| count("segment_size", m)).transpose()?,
+        );
+        convert::gate(gate)
+            .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate))
+            .map_err(|e| args.error(e))
+    }
+}
+
 /// ``cal_queries`` / ``cal_fraction``: how many of the first queries calibrate, as a
 /// [`Split`] (checked by the core once the number of queries is known); `None` for
 /// neither.
@@ -334,13 +355,7 @@ impl PyCalibration {
             gt: "gt_cal",
             query_major,
         };
-        let (k, segment_size) = (
-            k.map(|k| count("k", k)).transpose()?,
-            segment_size.map(|m| count("segment_size", m)).transpose()?,
-        );
-        let params = convert::gate(gate)
-            .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate))
-            .map_err(|e| args.error(e))?;
+        let params = self.params(k, precision, segment_size, gate, args)?;
         if let Some(d) = PyDescriptors::of(s_val, query_major)? {
             let out = d
                 .get()
@@ -352,6 +367,61 @@ impl PyCalibration {
         let s = s.view(query_major);
         let out = py
             .detach(|| with_scores!(s, |s| self.inner.transfer(s, &params)))
+            .map_err(|e| args.error(e))?;
+        Ok(TransferResult::new(py, out))
+    }
+
+    /// Check, from its shape alone, a transfer of a deployment similarity of shape
+    /// ``shape`` (as given: |Qval| x |DB| with ``query_major=True``): what
+    /// :meth:`transfer` refuses before it reads a score, with its messages. For a
+    /// scheduler that transfers blocks of the matrix (``qtvpr.dask``).
+    #[pyo3(signature = (shape, *, k = None, precision = None, segment_size = None, gate = None, query_major = false))]
+    #[allow(clippy::too_many_arguments)] // the Python signature
+    fn _check_transfer(
+        &self,
+        shape: (usize, usize),
+        k: Option<i64>,
+        precision: Option<f64>,
+        segment_size: Option<i64>,
+        gate: Option<&str>,
+        query_major: bool,
+    ) -> PyResult<()> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major,
+        };
+        let params = self.params(k, precision, segment_size, gate, args)?;
+        let shape = if query_major { (shape.1, shape.0) } else { shape };
+        self.inner.check_transfer(shape, &params).map_err(|e| args.error(e))
+    }
+
+    /// :meth:`transfer` of a block of a larger deployment set whose first query is
+    /// ``first_query`` (an array or a path): its segments and the positions in its
+    /// errors count in the larger set. For a scheduler (``qtvpr.dask``).
+    #[pyo3(signature = (
+        s_val, first_query, *, k = None, precision = None, segment_size = None, gate = None, query_major = false,
+    ))]
+    #[allow(clippy::too_many_arguments)] // the Python signature
+    fn _transfer_at(
+        &self,
+        py: Python<'_>,
+        s_val: &Bound<'_, PyAny>,
+        first_query: usize,
+        k: Option<i64>,
+        precision: Option<f64>,
+        segment_size: Option<i64>,
+        gate: Option<&str>,
+        query_major: bool,
+    ) -> PyResult<TransferResult> {
+        let args = Args {
+            gt: "gt_cal",
+            query_major,
+        };
+        let params = self.params(k, precision, segment_size, gate, args)?;
+        let s = Scores::extract("s_val", s_val)?;
+        let s = s.view(query_major);
+        let out = py
+            .detach(|| with_scores!(s, |s| self.inner.transfer_at(s, &params, first_query)))
             .map_err(|e| args.error(e))?;
         Ok(TransferResult::new(py, out))
     }

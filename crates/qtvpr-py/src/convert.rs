@@ -86,13 +86,15 @@ fn borrow<'py, T: Element>(name: &str, array: Bound<'py, PyUntypedArray>) -> PyR
 
 /// `array` borrowed read-only as an array of element type `T` and dimension `D`, which
 /// the caller has checked; converted to the native type first if it is byte-swapped or
-/// misaligned.
+/// misaligned. An empty array is converted too (it costs nothing): NumPy calls every
+/// empty array aligned, but one sliced from a misaligned array keeps its misaligned
+/// pointer, which no view may hold.
 fn borrow_as<'py, T: Element, D: Dimension>(
     name: &str,
     array: Bound<'py, PyUntypedArray>,
 ) -> PyResult<PyReadonlyArray<'py, T, D>> {
     let py = array.py();
-    let array = if array.is_aligned() && array.dtype().is_native_byteorder() != Some(false) {
+    let array = if !array.is_empty() && array.is_aligned() && array.dtype().is_native_byteorder() != Some(false) {
         array
     } else {
         array

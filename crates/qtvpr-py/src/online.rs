@@ -115,6 +115,46 @@ impl PyOnline {
         Ok(OnlineDecisions::new(py, &decisions, self.inner.params().gate))
     }
 
+    /// Continue a stream at query ``first_query`` on a fresh state: ``s_before`` holds
+    /// the scores of the ``min(first_query, window - 1)`` queries before it (|DB| x
+    /// that many; transposed with ``query_major=True``). The next push is query
+    /// ``first_query``, decided as in the whole stream. For a scheduler that decides
+    /// blocks of a stream independently (``qtvpr.dask``); errors name the stream's
+    /// queries.
+    #[pyo3(signature = (first_query, s_before, *, query_major = false))]
+    fn _resume(
+        &mut self,
+        py: Python<'_>,
+        first_query: usize,
+        s_before: &Bound<'_, PyAny>,
+        query_major: bool,
+    ) -> PyResult<()> {
+        let s = Scores::extract("s_val", s_before)?;
+        let view = s.view(query_major);
+        let online = &mut self.inner;
+        py.detach(|| with_scores!(view, |s| online.resume(first_query, s)))
+            .map_err(|e| matrix_error(e, 0, query_major))
+    }
+
+    /// :meth:`push_many`, with the positions in its errors counted in the stream (from
+    /// query 0) rather than in ``s_val``: for a scheduler (``qtvpr.dask``) that pushes
+    /// a block of the stream after :meth:`_resume`.
+    #[pyo3(signature = (s_val, *, query_major = false))]
+    fn _push_stream(
+        &mut self,
+        py: Python<'_>,
+        s_val: &Bound<'_, PyAny>,
+        query_major: bool,
+    ) -> PyResult<OnlineDecisions> {
+        let s = Scores::extract("s_val", s_val)?;
+        let view = s.view(query_major);
+        let online = &mut self.inner;
+        let decisions = py
+            .detach(|| with_scores!(view, |s| online.push_many(s)))
+            .map_err(|e| matrix_error(e, 0, query_major))?;
+        Ok(OnlineDecisions::new(py, &decisions, self.inner.params().gate))
+    }
+
     /// The threshold of the last decision (``None`` before the first push).
     #[getter]
     fn threshold(&self) -> Option<f64> {

@@ -310,6 +310,22 @@ impl Error {
         if query_major { self.transposed() } else { self }
     }
 
+    /// The same error for a view whose columns are columns `first..` of a larger
+    /// matrix (a block of deployment queries): the column of a non-finite score moves
+    /// by `first`. Other errors, which name no column, are returned unchanged.
+    #[must_use]
+    pub fn shifted(self, first: usize) -> Self {
+        match self {
+            Error::NotFinite { what, row, col, value } => Error::NotFinite {
+                what,
+                row,
+                col: col + first,
+                value,
+            },
+            other => other,
+        }
+    }
+
     /// The matrices the error is about. A shape
     /// mismatch is about the matrix whose shape is wrong (ground truth must take the
     /// shape of the similarity it labels); a column mismatch about both matrices,

@@ -311,6 +311,47 @@ impl Online {
         })
     }
 
+    /// Continue a stream at query `first_query` on a fresh state, as if queries
+    /// `0..first_query` had been pushed: `before` holds the scores of those of them
+    /// that a window reaches, the last `min(first_query, window - 1)` (|DB| x that
+    /// many). The next push is then query `first_query`, decided as in the whole
+    /// stream (its window, its warm-up and the numbering of queries and of errors are
+    /// the stream's), so that blocks of a stream can be decided independently.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] (`resume`) for a state that has decided queries, or
+    /// a `before` with another number of columns; as [`Online::push_many`] for its
+    /// scores, naming their queries in the stream. The state is then fresh again.
+    pub fn resume<T: Score>(&mut self, first_query: usize, before: ArrayView2<'_, T>) -> Result<()> {
+        if self.pushed != 0 {
+            return Err(Error::param(
+                "resume",
+                format!("needs a fresh state, but {} queries were pushed", self.pushed),
+            ));
+        }
+        let needed = first_query.min(self.params.window - 1);
+        if before.ncols() != needed {
+            return Err(Error::param(
+                "resume",
+                format!(
+                    "at query {first_query} with a window of {} takes the {needed} queries before it, got {}",
+                    self.params.window,
+                    before.ncols()
+                ),
+            ));
+        }
+        self.pushed = first_query - needed;
+        if let Err(err) = self.push_many(before) {
+            self.sorted.clear();
+            self.q.clear();
+            self.w.clear();
+            (self.next, self.pushed, self.threshold) = (0, 0, None);
+            self.accepted.clear();
+            return Err(err);
+        }
+        Ok(())
+    }
+
     /// Database indices accepted for the last pushed query, ascending (multi: every
     /// score `>= threshold`; single: the best match if accepted, else none).
     pub fn accepted(&self) -> &[usize] {

@@ -102,15 +102,7 @@ impl QuerySplit {
     /// queries. Other errors are returned unchanged.
     #[must_use]
     pub fn deployment_error(&self, err: Error) -> Error {
-        match err {
-            Error::NotFinite { what, row, col, value } => Error::NotFinite {
-                what,
-                row,
-                col: col + self.calibration_queries,
-                value,
-            },
-            err => err,
-        }
+        err.shifted(self.calibration_queries)
     }
 }
 

@@ -362,6 +362,44 @@ impl Calibration {
         self.transfer_in_chunks(s, params, progress, CHUNK_SCORES)
     }
 
+    /// [`Calibration::transfer`] of a block of a larger deployment set: the columns of
+    /// `s` are its queries `first_query..first_query + s.ncols()`. Segments (of
+    /// `params.segment_size` queries from the block's first) and the column of a
+    /// non-finite score count in the larger set, so that a scheduler that cuts the set
+    /// into blocks of whole segments has the transfer of the whole by concatenation.
+    ///
+    /// # Errors
+    /// As [`Calibration::transfer`] of the block.
+    pub fn transfer_at<T: Score>(&self, s: ArrayView2<'_, T>, params: &Params, first_query: usize) -> Result<Transfer> {
+        let mut out = self.transfer(s, params).map_err(|e| e.shifted(first_query))?;
+        for segment in &mut out.segments {
+            segment.start += first_query;
+            segment.end += first_query;
+        }
+        Ok(out)
+    }
+
+    /// What [`Calibration::transfer`] of a deployment similarity of shape `shape`
+    /// (|DB| x |Qval|) refuses before it reads a score, in the same order: invalid
+    /// parameters, an empty matrix, a |DB| other than the calibration's, a segment size
+    /// of 0 or above |Qval|, a margin gate the calibration cannot have. A scheduler that transfers blocks of the matrix
+    /// ([`Calibration::transfer_at`]) checks the whole request with it first.
+    ///
+    /// # Errors
+    /// Those of [`Calibration::transfer`] listed above.
+    pub fn check_transfer(&self, shape: (usize, usize), params: &Params) -> Result<()> {
+        params.validate()?;
+        check_nonempty(Input::DeploymentSimilarity, shape)?;
+        if shape.0 != self.n_db {
+            return Err(Error::DatabaseMismatch {
+                calibration: self.n_db,
+                deployment: shape.0,
+            });
+        }
+        segments(shape.1, params.segment_size)?;
+        self.check_gate(params.gate)
+    }
+
     /// The transfer, with deployment chunks of about `chunk_scores` scores.
     fn transfer_in_chunks<T: Score>(
         &self,
