@@ -16,7 +16,9 @@
 use arbitrary::Arbitrary;
 use libfuzzer_sys::fuzz_target;
 use ndarray::{Array2, ArrayView2, Axis};
-use qtvpr::{Calibration, Error, GroundTruth, Matching, Params, Truth, best_threshold, counts, ranked_correlation};
+use qtvpr::{
+    Calibration, Error, Gate, GroundTruth, Matching, Params, Truth, best_threshold, counts, ranked_correlation,
+};
 
 /// A score: mostly a small value (so that ties are common), sometimes any `f64`.
 #[derive(Arbitrary, Debug, Clone, Copy)]
@@ -56,6 +58,8 @@ struct Input {
     float32: bool,
     /// Hand the core transposed (query-major) views.
     query_major: bool,
+    /// Gate decisions on their margin (semantics §13; refused in multi matching).
+    gate: bool,
 }
 
 /// An `n_db` x `n` matrix of the scores, cycled, starting at `offset`.
@@ -111,6 +115,16 @@ fn check<T: qtvpr::Score>(
     };
     let (n_cal, n_val) = (s_cal.ncols(), s_val.ncols());
     let k = params.k.min(n_cal);
+    // The gate: m* is a margin or reject-all, every margin finite and non-negative,
+    // both present exactly when it is on, and the thresholds those of no gate.
+    assert_eq!(out.gate.is_some(), params.gate == Gate::Margin);
+    assert_eq!(out.query_margins.is_some(), params.gate == Gate::Margin);
+    if let (Some(m_star), Some(margins)) = (out.gate, &out.query_margins) {
+        assert!(m_star == f64::INFINITY || (m_star.is_finite() && m_star >= 0.0), "{m_star}");
+        assert!(margins.iter().all(|m| m.is_finite() && *m >= 0.0), "{margins:?}");
+        let plain = cal.transfer(s_val, &Params { gate: Gate::None, ..*params }).unwrap();
+        assert_eq!(plain.segments, out.segments);
+    }
 
     let mut next = 0;
     for seg in &out.segments {
@@ -211,6 +225,7 @@ fuzz_target!(
         k: usize::from(input.k % 12),
         precision,
         segment_size: input.segment_size.map(|m| usize::from(m % 14)),
+        gate: if input.gate { Gate::Margin } else { Gate::None },
     };
     // Query-major callers hand the core transposed views of |Q| x |DB| arrays.
     let (cal_t, val_t) = (s_cal.t().to_owned(), s_val.t().to_owned());
