@@ -8,8 +8,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::{Calibration, Defaults, Matching, QuerySplit, Split};
 
+use crate::args::{DescriptorFiles, MatchingArg, SplitArgs, gate_parser};
 use crate::gt_source::{CalGtSource, GtSource};
-use crate::inputs::{DescriptorFiles, MatchingArg, SplitArgs, gate_parser};
 use qtvpr::npy::read_scores;
 use qtvpr::with_scores;
 

@@ -16,9 +16,9 @@ use qtvpr::evaluate::{Ablation, MethodResult};
 use qtvpr::report::Report;
 use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
 
+use crate::args::{DescriptorFiles, MatchingArg};
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
-use crate::inputs::{DescriptorFiles, MatchingArg};
 use crate::output::emit;
 use crate::plot;
 use crate::summary::{Run, RunContext, ablation_setting, describe, fmt_num};
@@ -185,7 +185,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         }
     }
 
-    let sequence = crate::inputs::sequence(args.sequence, false)?;
+    let sequence = crate::args::sequence(args.sequence, false)?;
 
     // The scores stay where they are read (memory-mapped) or embedded; `scores` views them.
     let (file, embedded_scores, computed);

@@ -11,7 +11,7 @@ use qtvpr::ground_truth::HardSoft;
 use qtvpr::npy::matrix_shape;
 
 use crate::gt_source::{DEFAULT_IMAGE_RADIUS, GtSource, Kind};
-use crate::matrix_io::{write_npy, write_npz};
+use crate::output::{write_npy, write_npz};
 
 /// Arguments of `ground-truth`.
 #[derive(Debug, Args)]

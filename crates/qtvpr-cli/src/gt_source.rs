@@ -29,7 +29,7 @@ use qtvpr::image_names::image_paths;
 use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
 use qtvpr::{GroundTruth, QuerySplit, ScoresView};
 
-use crate::inputs::blame;
+use crate::args::blame;
 
 /// Declare a flattenable clap `Args` struct named `$name` with the ground-truth source
 /// options under the long-option prefix `$prefix` (see the [module docs](self)).

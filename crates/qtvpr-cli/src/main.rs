@@ -9,13 +9,12 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
+mod args;
 mod calibrate;
 mod embedded;
 mod evaluate;
 mod ground_truth;
 mod gt_source;
-mod inputs;
-mod matrix_io;
 mod output;
 mod plot;
 mod progress;

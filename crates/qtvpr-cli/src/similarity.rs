@@ -10,8 +10,8 @@ use qtvpr::Input;
 use qtvpr::npy::{FloatMatrix, read_float_matrix};
 use qtvpr::with_scores;
 
-use crate::inputs::blame;
-use crate::matrix_io::write_npy;
+use crate::args::blame;
+use crate::output::write_npy;
 use crate::{Global, progress};
 
 /// Arguments of `similarity`.
@@ -42,7 +42,7 @@ pub struct SimilarityArgs {
 /// Run `similarity`.
 pub fn run(args: &SimilarityArgs, global: &Global) -> Result<()> {
     // Check the cheap parameter before reading anything.
-    let sequence = crate::inputs::sequence(args.sequence, args.causal)?;
+    let sequence = crate::args::sequence(args.sequence, args.causal)?;
     let db = read_float_matrix(&args.db, FloatMatrix::Descriptors).context("--db")?;
     let queries = read_float_matrix(&args.queries, FloatMatrix::Descriptors).context("--queries")?;
     let sources = [

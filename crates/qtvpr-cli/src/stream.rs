@@ -11,7 +11,7 @@ use clap::Args;
 use ndarray::ArrayView2;
 use qtvpr::{Calibration, Decision, Online, OnlineParams, Score};
 
-use crate::inputs::gate_parser;
+use crate::args::gate_parser;
 use crate::output::{self, emit};
 use crate::{Global, progress};
 use qtvpr::npy::{Scores, read_scores};

@@ -21,8 +21,8 @@ use clap::Args;
 use qtvpr::report::ThresholdReport;
 use qtvpr::{Calibration, Defaults, Descriptors, Matching, Params, QuerySplit, ScoresView};
 
+use crate::args::{DescriptorFiles, MatchingArg, SplitArgs};
 use crate::gt_source::OptionalCalGtSource;
-use crate::inputs::{DescriptorFiles, MatchingArg, SplitArgs};
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
 use qtvpr::npy::read_scores;
@@ -92,7 +92,7 @@ pub struct ThresholdArgs {
     /// docs/semantics.md section 13): a deployed best match is then accepted only if its
     /// score is at or above its segment's threshold and its margin at or above m*
     /// [default: a calibration file's, else none].
-    #[arg(long, value_parser = crate::inputs::gate_parser())]
+    #[arg(long, value_parser = crate::args::gate_parser())]
     gate: Option<qtvpr::Gate>,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
     /// VPR-Bench files are query-major; a square matrix cannot be detected, so pass

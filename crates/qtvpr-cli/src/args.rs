@@ -1,5 +1,6 @@
-//! Inputs shared by several commands, and core errors named after the command line:
-//! which option and file a matrix came from.
+//! The arguments several commands share (`--matching`, `--gate`, `--cal-queries` /
+//! `--cal-fraction`, descriptor files, `--sequence`), and core errors named after the
+//! command line: which option and file a matrix came from.
 
 use std::path::Path;
 
