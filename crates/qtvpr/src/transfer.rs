@@ -492,7 +492,7 @@ impl Calibration {
 
     /// The transfer, reading deployment scores from `source` in chunks of about
     /// `chunk_scores` scores.
-    fn transfer_from<S: Deployment>(
+    fn transfer_from<S: ScoreSource>(
         &self,
         mut source: S,
         params: &Params,
@@ -586,19 +586,19 @@ impl Calibration {
 
 /// Where a transfer reads its deployment scores: a matrix (random access), or
 /// descriptors whose columns are computed chunk by chunk, left to right.
-trait Deployment {
+trait ScoreSource {
     /// The score type.
     type T: Score;
     /// (|DB|, |Qval|).
     fn dim(&self) -> (usize, usize);
-    /// Whether [`Deployment::columns`] may be asked for any columns, any number of
+    /// Whether [`ScoreSource::columns`] may be asked for any columns, any number of
     /// times, at no cost (a matrix), or only for consecutive chunks (descriptors).
     fn random_access(&self) -> bool;
     /// The scores of deployment queries `r`, |DB| x `r.len()`.
     fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, Self::T>;
 }
 
-impl<T: Score> Deployment for ArrayView2<'_, T> {
+impl<T: Score> ScoreSource for ArrayView2<'_, T> {
     type T = T;
     fn dim(&self) -> (usize, usize) {
         ArrayView2::dim(self)
@@ -617,7 +617,7 @@ struct Fused<'d, 'a> {
     dim: (usize, usize),
 }
 
-impl Deployment for Fused<'_, '_> {
+impl ScoreSource for Fused<'_, '_> {
     type T = f32;
     fn dim(&self) -> (usize, usize) {
         self.dim
