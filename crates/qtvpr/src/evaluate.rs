@@ -33,7 +33,7 @@ use crate::best_threshold::subset_threshold;
 use crate::decisions::{Candidates, Counts, Matching};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
-use crate::margin::{self, Gate, margins};
+use crate::margin::{self, Gate};
 use crate::names::Input;
 use crate::online::Online;
 use crate::params::{DEFAULT_K, OnlineParams, Params};
@@ -550,19 +550,18 @@ pub fn evaluate_with_progress<T: Score>(
     let calibration = needs_calibration
         .then(|| Calibration::with_labels(s_cal, gt_cal, protocol.matching).map(Arc::new))
         .transpose()?;
-    // The gate's margins and m*, and the quantile-transfer thresholds: each found once
-    // for the methods that share them.
+    // The gate's margins (of scores validated above) and m*, and the quantile-transfer
+    // thresholds: each found once for the methods that share them.
     let gate = if gated {
         let cal = calibration.as_ref().expect("built for the gate");
-        Some((margins(s_dep)?, cal.gate(tau)?))
+        Some((margin::of_columns(s_dep), cal.gate(tau)?))
     } else {
         None
     };
-    let transferred = std::cell::OnceCell::new();
-    let transfer_thresholds = || -> Result<Vec<f64>> {
-        if let Some(t) = transferred.get() {
-            return Ok(Vec::clone(t));
-        }
+    let transferred = if unique
+        .iter()
+        .any(|m| matches!(m, Method::QuantileTransfer | Method::QuantileTransferMargin))
+    {
         let params = Params {
             k: protocol.k,
             precision: tau,
@@ -570,37 +569,36 @@ pub fn evaluate_with_progress<T: Score>(
             gate: Gate::None,
         };
         let cal = calibration.as_ref().expect("built for quantile transfer");
-        let t: Vec<f64> = cal
-            .transfer(s_dep, &params)?
-            .segments
-            .iter()
-            .map(|g| g.threshold)
-            .collect();
-        Ok(Vec::clone(transferred.get_or_init(|| t)))
+        let segments = cal.transfer(s_dep, &params)?.segments;
+        Some(segments.iter().map(|g| g.threshold).collect::<Vec<f64>>())
+    } else {
+        None
     };
 
     let mut results = Vec::with_capacity(unique.len());
     for &method in &unique {
         // Every method but the online one gives each segment one threshold.
-        let scored = |thresholds: Vec<f64>| {
+        let scored = |thresholds: &[f64]| {
             let gate = gate.as_ref().filter(|_| method.is_gated());
-            score(method, &deployment, &ranges, &thresholds, &oracle, tau, gate)
+            score(method, &deployment, &ranges, thresholds, &oracle, tau, gate)
         };
         let result = match method {
-            Method::QuantileTransfer | Method::QuantileTransferMargin => scored(transfer_thresholds()?),
-            Method::Margin => scored(vec![f64::NEG_INFINITY; ranges.len()]),
-            Method::Schubert => scored(threads::install(|| {
+            Method::QuantileTransfer | Method::QuantileTransferMargin => {
+                scored(transferred.as_deref().expect("transferred for quantile transfer"))
+            }
+            Method::Margin => scored(&vec![f64::NEG_INFINITY; ranges.len()]),
+            Method::Schubert => scored(&threads::install(|| {
                 ranges
                     .par_iter()
                     .map(|r| schubert(s_dep.slice(s![.., r.clone()])))
-                    .collect()
+                    .collect::<Vec<f64>>()
             })),
-            Method::SchubertCalibrated => scored(vec![schubert(s_cal); ranges.len()]),
+            Method::SchubertCalibrated => scored(&vec![schubert(s_cal); ranges.len()]),
             Method::CalibrationThreshold => {
                 let cal = calibration.as_ref().expect("built for the calibration threshold");
-                scored(vec![cal.threshold(tau)?; ranges.len()])
+                scored(&vec![cal.threshold(tau)?; ranges.len()])
             }
-            Method::Oracle => scored(oracle.clone()),
+            Method::Oracle => scored(&oracle),
             // Decided query by query: its segments are counted as it goes.
             Method::QuantileTransferOnline => {
                 let cal = calibration.as_ref().expect("built for online quantile transfer");

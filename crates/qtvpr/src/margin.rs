@@ -145,7 +145,12 @@ fn lanes<T: Score>(xs: &[T], f: impl Fn(f64) -> f64) -> f64 {
 pub fn margins<T: Score>(s: ArrayView2<'_, T>) -> Result<Vec<f64>> {
     validate_scores(Input::Similarity, s)?;
     check(Matching::Single, s.nrows())?;
-    Ok(threads::install(|| {
+    Ok(of_columns(s))
+}
+
+/// [`margins`] of a matrix already checked (finite, at least 2 rows).
+pub(crate) fn of_columns<T: Score>(s: ArrayView2<'_, T>) -> Vec<f64> {
+    threads::install(|| {
         (0..s.ncols())
             .into_par_iter()
             .map_init(Vec::new, |column, j| {
@@ -155,11 +160,11 @@ pub fn margins<T: Score>(s: ArrayView2<'_, T>) -> Result<Vec<f64>> {
                 of_sorted(column)
             })
             .collect()
-    }))
+    })
 }
 
 /// The calibration's single-match decisions with their margins: what `m*` is found on.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub(crate) struct CalibrationMargins {
     /// (margin, correct) of every calibration decision, by descending margin.
     decisions: Vec<(f64, bool)>,

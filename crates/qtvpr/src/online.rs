@@ -269,7 +269,9 @@ impl Online {
             .rank(ranked, column.insert_axis(Axis(1)), self.pushed)?;
         self.profile.resize(self.n_db, 0.0);
         let p = &self.params;
-        let r = (self.calibration).query(ranked, 0, p.k, p.precision, p.gate, &mut self.profile);
+        let r = self
+            .calibration
+            .query(ranked, 0, p.k, p.precision, p.gate, &mut self.profile);
         self.reserve()?;
         Ok(self.commit(ranked.column(0), column, r))
     }

@@ -20,6 +20,7 @@
 //! segments (one segment when a segment is larger than the base chunk).
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
@@ -94,9 +95,10 @@ pub struct Calibration {
     gt: GroundTruth,
     /// The defaults of a calibration file's `params`.
     defaults: Defaults,
-    /// The single-match decisions with their margins, for the gate's `m*` (empty in
-    /// multi matching).
-    margins: CalibrationMargins,
+    /// The single-match decisions with their margins, for the gate's `m*`: found on the
+    /// first request for a gate (a pass over every profile that a calibration never
+    /// gated should not pay).
+    margins: OnceLock<CalibrationMargins>,
 }
 
 /// What the calibration gives one deployment query (semantics §4 and §5).
@@ -120,6 +122,8 @@ trait Profiles: Send + Sync {
     fn quantile(&self, columns: &[usize], t: f64) -> f64;
     /// The `f64` correlation of calibration query `i` with a standardised profile.
     fn correlation(&self, i: usize, u: &[f64]) -> f64;
+    /// The margin (semantics §13) of calibration query `i`.
+    fn margin(&self, i: usize) -> f64;
 }
 
 impl<T: Score> Profiles for Ranked<T> {
@@ -128,6 +132,9 @@ impl<T: Score> Profiles for Ranked<T> {
     }
     fn correlation(&self, i: usize, u: &[f64]) -> f64 {
         Ranked::correlation(self, i, u)
+    }
+    fn margin(&self, i: usize) -> f64 {
+        margin::of_sorted(self.column(i))
     }
 }
 
@@ -161,29 +168,16 @@ impl Calibration {
     /// The calibration of profiles `ranked` with their screen; `scores` is the
     /// calibration similarity they were ranked from, kept to be saved.
     fn from_ranked<T: Score>(ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
-        let n_db = scores.dim().0;
-        let candidates = crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching));
-        let margins = if margin::check(matching, n_db).is_ok() {
-            let of_columns: Vec<f64> = threads::install(|| {
-                (0..ranked.ncols())
-                    .into_par_iter()
-                    .map(|j| margin::of_sorted(ranked.column(j)))
-                    .collect()
-            });
-            CalibrationMargins::new(&of_columns, &candidates)
-        } else {
-            CalibrationMargins::default()
-        };
         Self {
             matching,
             screen: Screen::new(&ranked),
             profiles: Box::new(ranked),
-            candidates,
-            n_db,
+            candidates: crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching)),
+            n_db: scores.dim().0,
             scores,
             gt,
             defaults: Defaults::default(),
-            margins,
+            margins: OnceLock::new(),
         }
     }
 
@@ -331,7 +325,16 @@ impl Calibration {
     pub fn gate(&self, precision: f64) -> Result<f64> {
         margin::check(self.matching, self.n_db)?;
         check_precision(precision)?;
-        Ok(self.margins.gate(precision))
+        let margins = self.margins.get_or_init(|| {
+            let of_columns: Vec<f64> = threads::install(|| {
+                (0..self.len())
+                    .into_par_iter()
+                    .map(|i| self.profiles.margin(i))
+                    .collect()
+            });
+            CalibrationMargins::new(&of_columns, &self.candidates)
+        });
+        Ok(margins.gate(precision))
     }
 
     /// `Some(m*)` when `gate` is on, checked against this calibration.
