@@ -69,6 +69,17 @@ def test_evaluate_from_descriptors_equals_the_matrix_path(nordland):
     assert want["methods"]["quantile-transfer"]["segments"]
 
 
+def test_ablation_from_descriptors_equals_the_matrix_path(nordland):
+    db, q, gt = nordland
+    opts = {"k": [1, 5], "cal_queries": [50, N_CAL], "segment_size": 20, "methods": ["quantile-transfer"]}
+    want = qtvpr.ablation(qtvpr.cosine_similarity(db, q), gt, **opts)
+    got = qtvpr.ablation(qtvpr.Descriptors(db, q), gt, **opts)
+    assert got == want
+    runs = want["ablation"]
+    assert [(r["params"]["calibration_queries"], r["params"]["k"]) for r in runs] == [
+        (50, 1), (50, 5), (N_CAL, 1), (N_CAL, 5)]
+
+
 def test_bad_descriptors_name_the_row(nordland):
     db, q, _ = nordland
     bad = q.copy()

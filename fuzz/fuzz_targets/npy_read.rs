@@ -13,7 +13,7 @@ use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
 use qtvpr::ScoresView;
-use qtvpr::npy::{Scores, add_soft_ground_truth, read_ground_truth, read_hard_ground_truth, read_scores};
+use qtvpr::npy::{MatrixFile, add_soft_ground_truth, read_ground_truth, read_hard_ground_truth, read_scores};
 use qtvpr::{GroundTruth, Truth};
 
 /// A directory of this process's own, for the file under test.
@@ -33,7 +33,7 @@ fn dir() -> &'static PathBuf {
     })
 }
 
-fn touch_scores(s: &Scores) {
+fn touch_scores(s: &MatrixFile) {
     let sum = match s.view() {
         ScoresView::F32(v) => v.iter().map(|&x| f64::from(x)).sum::<f64>(),
         ScoresView::F64(v) => v.iter().sum::<f64>(),

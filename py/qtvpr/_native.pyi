@@ -435,10 +435,10 @@ def evaluate(
     query_major: bool = False,
 ) -> _Evaluation: ...
 def ablation(
-    s: ArrayLike,
-    gt: ArrayLike,
+    s: _Matrix | Descriptors,
+    gt: _Matrix,
     *,
-    gt_soft: ArrayLike | None = None,
+    gt_soft: _Matrix | None = None,
     methods: Iterable[_Method] | None = None,
     k: int | Sequence[int] = 10,
     precision: float = 1.0,

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use qtvpr::npy::{FloatMatrix, Scores, read_float_matrix};
+use qtvpr::npy::{FloatMatrix, MatrixFile, read_float_matrix};
 use qtvpr::{Descriptors, Input, Sequence, Split};
 
 /// Attach to a core error the options and files of the matrices it is about:
@@ -87,8 +87,8 @@ pub fn gate_parser() -> impl clap::builder::TypedValueParser<Value = qtvpr::Gate
 /// `--db-descriptors` and `--query-descriptors`, read (memory-mapped where possible) and
 /// held for the [`Descriptors`] that view them.
 pub struct DescriptorFiles {
-    db: Scores,
-    queries: Scores,
+    db: MatrixFile,
+    queries: MatrixFile,
     /// `--option FILE` of each, for [`blame`].
     sources: [(Input, String); 2],
 }

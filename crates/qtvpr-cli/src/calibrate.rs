@@ -6,12 +6,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Matching, QuerySplit, Split};
+use qtvpr::{Calibration, Defaults, Matching, QuerySplit, ScoreSource, Split};
 
 use crate::args::{DescriptorFiles, MatchingArg, SplitArgs, gate_parser};
 use crate::gt_source::{CalGtSource, GtSource};
 use qtvpr::npy::read_scores;
-use qtvpr::with_scores;
 
 /// Arguments of `calibrate`.
 #[derive(Debug, Args)]
@@ -103,12 +102,12 @@ fn from_descriptors(
     let Some((split, flag)) = split else {
         // Every query calibrates.
         let gt = gt_source.load(d.shape(), false)?;
-        return Calibration::from_descriptors(&d, 0..d.shape().1, &gt, matching)
+        return Calibration::new(&d, &gt, matching)
             .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()));
     };
     let split = QuerySplit::new(split, d.shape()).with_context(|| format!("{flag} of {}", files.describe()))?;
     let gt = gt_source.load_split(&split, false, &files.describe())?;
-    Calibration::from_descriptors(&d, split.calibration(), &gt, matching)
+    Calibration::new(ScoreSource::Descriptors(&d, split.calibration()), &gt, matching)
         .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()))
 }
 
@@ -119,7 +118,7 @@ pub fn from_matrix(path: &Path, gt_source: GtSource<'_>, matching: Matching, que
     let s_cal = read_scores(path).context("--cal")?;
     let s_cal = s_cal.view().oriented(query_major);
     let gt = gt_source.load(s_cal.dim(), query_major)?;
-    with_scores!(s_cal, |v| Calibration::new(v, &gt, matching))
+    Calibration::new(s_cal, &gt, matching)
         .map_err(|e| e.oriented(query_major))
         .with_context(|| format!("--cal {} / {}", path.display(), gt_source.describe()))
 }

@@ -14,7 +14,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::evaluate::{Ablation, MethodResult};
 use qtvpr::report::Report;
-use qtvpr::{Matching, Method, Protocol, ScoresView, Split, with_scores};
+use qtvpr::{Matching, Method, Options, Protocol, ScoresView, Split};
 
 use crate::args::{DescriptorFiles, MatchingArg};
 use crate::embedded;
@@ -238,24 +238,15 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         bar.set_position(done as u64);
     };
     let runs: Vec<Run> = if ablation {
-        let a = with_scores!(scores, |v| qtvpr::evaluate::ablation_with_progress(
-            v,
-            &gt,
-            &base,
-            &args.k,
-            &calibrations,
-            &methods,
-            progress
-        ))
-        .map_err(|e| e.oriented(query_major))
-        .with_context(input)?;
+        let options = Options::new(base).progress(&progress);
+        let a = qtvpr::ablation(scores, &gt, options, &args.k, &calibrations, &methods)
+            .map_err(|e| e.oriented(query_major))
+            .with_context(input)?;
         a.runs.into_iter().map(Run::from).collect()
     } else {
-        let eval = with_scores!(scores, |v| qtvpr::evaluate_with_progress(
-            v, &gt, &base, &methods, progress
-        ))
-        .map_err(|e| e.oriented(query_major))
-        .with_context(input)?;
+        let eval = qtvpr::evaluate(scores, &gt, Options::new(base).progress(&progress), &methods)
+            .map_err(|e| e.oriented(query_major))
+            .with_context(input)?;
         vec![Run::from(eval)]
     };
     bar.finish_and_clear();

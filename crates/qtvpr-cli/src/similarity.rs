@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use qtvpr::Input;
 use qtvpr::npy::{FloatMatrix, read_float_matrix};
-use qtvpr::with_scores;
+use qtvpr::{Descriptors, Options};
 
 use crate::args::blame;
 use crate::output::write_npy;
@@ -50,10 +50,10 @@ pub fn run(args: &SimilarityArgs, global: &Global) -> Result<()> {
         (Input::QueryDescriptors, format!("--queries {}", args.queries.display())),
     ];
     let bar = progress::bar(global.quiet, db.view().dim().0, "database rows");
-    let s = with_scores!(db.view(), |d| with_scores!(queries.view(), |q| {
-        qtvpr::cosine_similarity_with_progress(d, q, |done, _| bar.set_position(done as u64))
-    }))
-    .map_err(|e| blame(e, &sources))?;
+    let progress = |done: usize, _| bar.set_position(done as u64);
+    let s = Descriptors::new(db.view(), queries.view())
+        .and_then(|d| d.similarity(Options::new(0..d.shape().1).progress(&progress)))
+        .map_err(|e| blame(e, &sources))?;
     bar.finish_and_clear();
     drop((db, queries));
     let s = match sequence {

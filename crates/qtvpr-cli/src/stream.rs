@@ -14,7 +14,7 @@ use qtvpr::{Calibration, Decision, Online, OnlineParams, Score};
 use crate::args::gate_parser;
 use crate::output::{self, emit};
 use crate::{Global, progress};
-use qtvpr::npy::{Scores, read_scores};
+use qtvpr::npy::{MatrixFile, read_scores};
 use qtvpr::with_scores;
 
 /// Arguments of `stream`.
@@ -168,7 +168,7 @@ enum Failure {
 fn replay<T: Score>(
     online: &mut Online,
     s: ArrayView2<'_, T>,
-    file: &Scores,
+    file: &MatrixFile,
     format: StreamFormat,
     out: &mut impl Write,
     progress: impl Fn(usize),

@@ -11,7 +11,7 @@
 //! `--cal-fraction` (the rule of `evaluate`, [`qtvpr::Split::calibration_size`]): the
 //! first queries calibrate, the rest are thresholded. From descriptors the deployment
 //! similarity is computed chunk by chunk by the core
-//! ([`qtvpr::Calibration::transfer_descriptors`]) and never held whole.
+//! ([`qtvpr::ScoreSource::Descriptors`]) and never held whole.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -19,14 +19,13 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::report::ThresholdReport;
-use qtvpr::{Calibration, Defaults, Descriptors, Matching, Params, QuerySplit, ScoresView};
+use qtvpr::{Calibration, Defaults, Matching, Options, Params, QuerySplit, ScoreSource};
 
 use crate::args::{DescriptorFiles, MatchingArg, SplitArgs};
 use crate::gt_source::OptionalCalGtSource;
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
 use qtvpr::npy::read_scores;
-use qtvpr::with_scores;
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
@@ -107,32 +106,6 @@ pub struct ThresholdArgs {
     output: Option<PathBuf>,
 }
 
-/// Where the scores come from.
-enum Source<'a> {
-    /// A matrix, oriented |DB| x |Q|, and `--option FILE` that named it.
-    Matrix(ScoresView<'a>, String),
-    /// Database and query descriptors, and their files.
-    Descriptors(Descriptors<'a>, &'a DescriptorFiles),
-}
-
-impl Source<'_> {
-    /// (|DB|, |Q|) of the similarity.
-    fn shape(&self) -> (usize, usize) {
-        match self {
-            Source::Matrix(s, _) => s.dim(),
-            Source::Descriptors(d, _) => d.shape(),
-        }
-    }
-
-    /// The options and files of the input, to say what an error is about.
-    fn describe(&self) -> String {
-        match self {
-            Source::Matrix(_, named) => named.clone(),
-            Source::Descriptors(_, files) => files.describe(),
-        }
-    }
-}
-
 /// Run `threshold`.
 pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     if args.sequence.is_some() {
@@ -143,8 +116,8 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         );
     }
     let split = args.split.split()?;
-    let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
-    if args.val.is_none() && args.similarity.is_none() && descriptors.is_none() {
+    let descriptors_arg = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
+    if args.val.is_none() && args.similarity.is_none() && descriptors_arg.is_none() {
         bail!(
             "no deployment similarity: give --cal and --val, one --similarity with --cal-queries or \
              --cal-fraction, or --db-descriptors and --query-descriptors"
@@ -185,47 +158,42 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     params(&Defaults::default())?;
     let matching_arg = args.matching.map_or(Matching::Single, Matching::from);
     // Errors about a file's content name the file; the flag says which input it was.
-    // The core reports positions and shapes in its |DB| x |Q| views; `oriented` gives
-    // them back in the files' orientation. The inputs stay where they are read
-    // (memory-mapped); `source` views them.
+    // The inputs stay where they are read (memory-mapped); `source` views them.
     let matrix_arg =
         (args.val.as_ref().map(|p| ("--val", p))).or(args.similarity.as_ref().map(|p| ("--similarity", p)));
-    let (matrix, files);
-    let source = match (matrix_arg, descriptors) {
+    let (matrix, files, descriptors);
+    let (source, input): (ScoreSource<'_, '_>, String) = match (matrix_arg, descriptors_arg) {
         (Some((flag, path)), _) => {
             matrix = read_scores(path).context(flag)?;
-            Source::Matrix(
-                matrix.view().oriented(args.query_major),
-                format!("{flag} {}", path.display()),
-            )
+            files = None;
+            let source = matrix.view().oriented(args.query_major).into();
+            (source, format!("{flag} {}", path.display()))
         }
         (None, Some((db, q))) => {
-            files = DescriptorFiles::read(db, q)?;
-            Source::Descriptors(files.descriptors()?, &files)
+            files = Some(DescriptorFiles::read(db, q)?);
+            let read = files.as_ref().expect("just read");
+            descriptors = read.descriptors()?;
+            (ScoreSource::from(&descriptors), read.describe())
         }
         (None, None) => unreachable!("checked above"),
     };
-    let (n_db, n_q) = source.shape();
+    // A core error, named in the inputs' terms: a descriptor file by its option, a
+    // matrix position in the file's orientation.
+    let explain = |e: qtvpr::Error| match &files {
+        Some(files) => files.blame(e),
+        None => query_major_hint(e.oriented(args.query_major), args.query_major),
+    };
+    let (n_db, n_q) = source.dim();
 
     // The calibration, and the deployment queries: all of them, or those after the split.
     let (cal, queries, split) = match split {
         Some((split, flag)) => {
-            let split =
-                QuerySplit::new(split, (n_db, n_q)).with_context(|| format!("{flag} of {}", source.describe()))?;
+            let split = QuerySplit::new(split, (n_db, n_q)).with_context(|| format!("{flag} of {input}"))?;
             let gt_source = gt_source.expect("a split needs ground truth, checked above");
-            let gt_cal = gt_source.load_split(&split, args.query_major, &source.describe())?;
-            let cal = match &source {
-                Source::Descriptors(d, _) => {
-                    Calibration::from_descriptors(d, split.calibration(), &gt_cal, matching_arg)
-                }
-                Source::Matrix(s, _) => with_scores!(*s, |v| Calibration::new(
-                    v.slice(ndarray::s![.., split.calibration()]),
-                    &gt_cal,
-                    matching_arg
-                ))
-                .map_err(|e| e.oriented(args.query_major)),
-            }
-            .with_context(|| format!("{} / {}", source.describe(), gt_source.describe()))?;
+            let gt_cal = gt_source.load_split(&split, args.query_major, &input)?;
+            let cal = Calibration::new(source.columns(split.calibration()), &gt_cal, matching_arg)
+                .map_err(explain)
+                .with_context(|| format!("{input} / {}", gt_source.describe()))?;
             (cal, split.deployment(), Some(split))
         }
         None => {
@@ -252,26 +220,17 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     };
     let params = params(cal.defaults())?;
     cal.check_gate(params.gate).context("--gate")?;
-    let n_val = queries.len();
-    let bar = progress::bar(global.quiet, n_val, "deployment queries");
+    let bar = progress::bar(global.quiet, queries.len(), "deployment queries");
     let progress = |done: usize, _| bar.set_position(done as u64);
-    let transfer = match &source {
-        Source::Descriptors(d, files) => cal
-            .transfer_descriptors_with_progress(d, queries, &params, progress)
-            .map_err(|e| files.blame(e)),
-        Source::Matrix(s, _) => with_scores!(*s, |v| cal.transfer_with_progress(
-            v.slice(ndarray::s![.., queries.clone()]),
-            &params,
-            progress
-        ))
+    let transfer = cal
+        .transfer(source.columns(queries), Options::new(params).progress(&progress))
         // A split's deployment columns are a view: errors count the matrix's columns.
         .map_err(|e| match &split {
             Some(split) => split.deployment_error(e),
             None => e,
         })
-        .map_err(|e| query_major_hint(e.oriented(args.query_major), args.query_major)),
-    }
-    .with_context(|| source.describe())?;
+        .map_err(explain)
+        .with_context(|| input.clone())?;
     bar.finish_and_clear();
 
     let report = ThresholdReport::new(&cal, &params, &transfer);

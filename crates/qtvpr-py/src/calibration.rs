@@ -9,10 +9,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use qtvpr::{Matching, Params, QuerySplit, Split};
 
-use crate::convert::{self, GroundTruthArgs, Scores, count};
-use crate::descriptors::PyDescriptors;
+use crate::convert::{self, GroundTruthArgs, count};
+use crate::descriptors::SourceArg;
 use crate::error::Args;
-use qtvpr::with_scores;
 
 /// The Python `k` default (`10`) is written as a literal so that `help()` shows it.
 const _: () = assert!(qtvpr::DEFAULT_K == 10);
@@ -94,60 +93,27 @@ impl PyCalibration {
             query_major,
         };
         let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-        let params = transfer;
-        if let Some(d) = PyDescriptors::of(s_cal, query_major)? {
-            let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
-            let gt = gt.view(false);
-            let gt = py.detach(|| gt.build())?;
-            let (inner, out) = d
-                .get()
-                .with(py, |d, queries| {
-                    let Some(split) = split else {
-                        return qtvpr::Calibration::from_descriptors(d, queries, &gt, matching).map(|c| (c, None));
-                    };
-                    let split = QuerySplit::of_range(split, d.shape().0, queries)?;
-                    let cal = qtvpr::Calibration::from_descriptors(
-                        d,
-                        split.calibration(),
-                        &split.calibration_truth(&gt)?,
-                        matching,
-                    )?;
-                    let out = params
-                        .map(|p| cal.transfer_descriptors(d, split.deployment(), &p))
-                        .transpose()?;
-                    Ok((cal, out))
-                })?
-                .map_err(|e| args.error(e))?;
-            let out = out.map(|out| TransferResult::new(py, out));
-            return Ok((Self { inner: Arc::new(inner) }, out));
-        }
-        let s = Scores::extract("s_cal", s_cal)?;
+        let s = SourceArg::extract("s_cal", s_cal, query_major)?;
         let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
-        let (s, gt) = (s.view(query_major), gt.view(query_major));
+        let gt = gt.view(query_major);
         let gt = py.detach(|| gt.build())?;
-        let Some(split) = split else {
-            let inner = py
-                .detach(|| with_scores!(s, |s| qtvpr::Calibration::new(s, &gt, matching)))
-                .map_err(|e| args.error(e))?;
-            return Ok((Self { inner: Arc::new(inner) }, None));
-        };
-        let split = QuerySplit::new(split, s.dim()).map_err(|e| args.error(e))?;
-        let inner = py
-            .detach(|| {
+        // A transfer's error is returned apart: it is about the queries after the split.
+        let (inner, out) = s
+            .with(py, |s| {
+                let Some(split) = split else {
+                    return qtvpr::Calibration::new(s, &gt, matching).map(|c| (c, None));
+                };
+                let split = QuerySplit::new(split, s.dim())?;
                 let gt = split.calibration_truth(&gt)?;
-                with_scores!(s, |s| qtvpr::Calibration::new(
-                    s.slice(ndarray::s![.., split.calibration()]),
-                    &gt,
-                    matching
-                ))
-            })
+                let cal = qtvpr::Calibration::new(s.columns(split.calibration()), &gt, matching)?;
+                let out = transfer.map(|p| {
+                    cal.transfer(s.columns(split.deployment()), &p)
+                        .map_err(|e| split.deployment_error(e))
+                });
+                Ok((cal, out))
+            })?
             .map_err(|e| args.error(e))?;
-        let out = params
-            .map(|p| {
-                py.detach(|| with_scores!(s, |s| inner.transfer(s.slice(ndarray::s![.., split.deployment()]), &p)))
-                    .map_err(|e| args.split_error(split.deployment_error(e)))
-            })
-            .transpose()?;
+        let out = out.transpose().map_err(|e| args.split_error(e))?;
         let out = out.map(|out| TransferResult::new(py, out));
         Ok((Self { inner: Arc::new(inner) }, out))
     }
@@ -356,17 +322,9 @@ impl PyCalibration {
             query_major,
         };
         let params = self.params(k, precision, segment_size, gate, args)?;
-        if let Some(d) = PyDescriptors::of(s_val, query_major)? {
-            let out = d
-                .get()
-                .with(py, |d, r| self.inner.transfer_descriptors(d, r, &params))?
-                .map_err(|e| args.error(e))?;
-            return Ok(TransferResult::new(py, out));
-        }
-        let s = Scores::extract("s_val", s_val)?;
-        let s = s.view(query_major);
-        let out = py
-            .detach(|| with_scores!(s, |s| self.inner.transfer(s, &params)))
+        let s = SourceArg::extract("s_val", s_val, query_major)?;
+        let out = s
+            .with(py, |s| self.inner.transfer(s, &params))?
             .map_err(|e| args.error(e))?;
         Ok(TransferResult::new(py, out))
     }
@@ -418,10 +376,9 @@ impl PyCalibration {
             query_major,
         };
         let params = self.params(k, precision, segment_size, gate, args)?;
-        let s = Scores::extract("s_val", s_val)?;
-        let s = s.view(query_major);
-        let out = py
-            .detach(|| with_scores!(s, |s| self.inner.transfer_at(s, &params, first_query)))
+        let s = SourceArg::extract("s_val", s_val, query_major)?;
+        let out = s
+            .with(py, |s| self.inner.transfer_at(s, &params, first_query))?
             .map_err(|e| args.error(e))?;
         Ok(TransferResult::new(py, out))
     }

@@ -163,17 +163,17 @@ impl<'py> Column<'py> {
     }
 }
 
-/// A similarity-matrix argument.
-pub(crate) enum Scores<'py> {
+/// A matrix argument: a float32 or float64 array (borrowed), or a `.npy` path.
+pub(crate) enum MatrixArg<'py> {
     /// float32 scores.
     F32(PyReadonlyArray2<'py, f32>),
     /// float64 scores.
     F64(PyReadonlyArray2<'py, f64>),
-    /// Scores read from a `.npy` file (memory-mapped where possible).
-    File(qtvpr::npy::Scores),
+    /// A `.npy` file, memory-mapped where possible.
+    File(qtvpr::npy::MatrixFile),
 }
 
-impl<'py> Scores<'py> {
+impl<'py> MatrixArg<'py> {
     /// Borrow similarity-matrix argument `name` as a float32 or float64 matrix.
     /// A `str` or `os.PathLike` is read as a `.npy` file.
     ///
@@ -184,7 +184,7 @@ impl<'py> Scores<'py> {
         Self::extract_as(name, obj, FloatMatrix::Similarity)
     }
 
-    /// [`Scores::extract`] of a matrix holding `what` (descriptors, positions), for the
+    /// [`MatrixArg::extract`] of a matrix holding `what` (descriptors, positions), for the
     /// messages about a file.
     pub(crate) fn extract_as(name: &str, obj: &Bound<'py, PyAny>, what: FloatMatrix) -> PyResult<Self> {
         if let Some(path) = path_of(obj)? {

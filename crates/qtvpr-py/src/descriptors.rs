@@ -6,9 +6,10 @@ use std::ops::Range;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use qtvpr::ScoreSource;
 use qtvpr::npy::FloatMatrix;
 
-use crate::convert::Scores;
+use crate::convert::MatrixArg;
 use crate::error::named_error;
 
 /// Database and query descriptors, accepted wherever a similarity matrix is:
@@ -124,6 +125,47 @@ impl PyDescriptors {
     }
 }
 
+/// A similarity argument as the core reads it: a matrix (an array or a `.npy` path,
+/// |Q| x |DB| when `query_major`) or a ``Descriptors``. It is turned into a
+/// [`ScoreSource`] once, in [`SourceArg::with`]; no function dispatches on the two.
+pub(crate) enum SourceArg<'py> {
+    /// A matrix, and whether it is stored query-major.
+    Matrix(MatrixArg<'py>, bool),
+    /// Descriptors and their range of queries.
+    Descriptors(Bound<'py, PyDescriptors>),
+}
+
+impl<'py> SourceArg<'py> {
+    /// Borrow argument `name`: ``Descriptors`` as they are, anything else as a matrix
+    /// ([`MatrixArg::extract`]).
+    ///
+    /// # Errors
+    /// Those of [`MatrixArg::extract`], and ``query_major=True`` with descriptors.
+    pub(crate) fn extract(name: &str, obj: &Bound<'py, PyAny>, query_major: bool) -> PyResult<Self> {
+        Ok(match PyDescriptors::of(obj, query_major)? {
+            Some(d) => Self::Descriptors(d.clone()),
+            None => Self::Matrix(MatrixArg::extract(name, obj)?, query_major),
+        })
+    }
+
+    /// Run `f` (without the GIL) on the core's source. The outer error is about the
+    /// descriptors themselves (named `db` / `queries`); the inner one is `f`'s, for the
+    /// caller to name.
+    pub(crate) fn with<R: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(ScoreSource<'_, '_>) -> qtvpr::Result<R> + Send,
+    ) -> PyResult<qtvpr::Result<R>> {
+        match self {
+            Self::Matrix(s, query_major) => {
+                let s = s.view(*query_major);
+                Ok(py.detach(|| f(s.into())))
+            }
+            Self::Descriptors(d) => d.get().with(py, |d, r| f(ScoreSource::Descriptors(d, r))),
+        }
+    }
+}
+
 /// Borrow `db` and `queries`, check them as descriptors and run `f` on them without
 /// the GIL.
 fn with_arrays<R: Send>(
@@ -132,8 +174,8 @@ fn with_arrays<R: Send>(
     queries: &Bound<'_, PyAny>,
     f: impl FnOnce(&qtvpr::Descriptors<'_>) -> qtvpr::Result<R> + Send,
 ) -> PyResult<qtvpr::Result<R>> {
-    let db = Scores::extract_as("db", db, FloatMatrix::Descriptors)?;
-    let queries = Scores::extract_as("queries", queries, FloatMatrix::Descriptors)?;
+    let db = MatrixArg::extract_as("db", db, FloatMatrix::Descriptors)?;
+    let queries = MatrixArg::extract_as("queries", queries, FloatMatrix::Descriptors)?;
     let (d, q) = (db.view(false), queries.view(false));
     Ok(py.detach(|| qtvpr::Descriptors::new(d, q).and_then(|d| f(&d))))
 }

@@ -10,10 +10,9 @@ use pyo3::prelude::*;
 use qtvpr::report::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
-use crate::convert::{GroundTruthArgs, Scores, count};
-use crate::descriptors::PyDescriptors;
+use crate::convert::{GroundTruthArgs, count};
+use crate::descriptors::SourceArg;
 use crate::error::Args;
-use qtvpr::with_scores;
 
 /// One value or a list of them (the settings of an ablation).
 #[derive(FromPyObject)]
@@ -96,8 +95,9 @@ fn inputs<'py>(
     s: &Bound<'py, PyAny>,
     gt: &Bound<'py, PyAny>,
     gt_soft: Option<&Bound<'py, PyAny>>,
-) -> PyResult<(Scores<'py>, GroundTruthArgs<'py>, Option<String>)> {
-    let scores = Scores::extract("s", s)?;
+    query_major: bool,
+) -> PyResult<(SourceArg<'py>, GroundTruthArgs<'py>, Option<String>)> {
+    let scores = SourceArg::extract("s", s, query_major)?;
     let labels = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let dataset = s.extract::<PathBuf>().ok().map(|p| p.display().to_string());
     Ok((scores, labels, dataset))
@@ -110,8 +110,9 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 
 /// Run the evaluation protocol of the paper's Table I on one similarity matrix.
 ///
-/// ``s`` (|DB| x |Q|, float32 or float64) comes with ground truth ``gt`` (and optional
-/// ``gt_soft``) for every query. The first ``cal_queries`` queries (default
+/// ``s`` (|DB| x |Q|, float32 or float64, an array or a ``.npy`` path; or
+/// :class:`Descriptors`, whose similarity is then computed in memory) comes with
+/// ground truth ``gt`` (and optional ``gt_soft``) for every query. The first ``cal_queries`` queries (default
 /// ``floor(cal_fraction * |Q|)``) calibrate. The deployment set is every later query,
 /// or with ``deploy_fraction`` the last ``floor(deploy_fraction * |Q|)`` queries (the
 /// calibration-size ablation: the queries between the two sets are unused). It is cut
@@ -169,26 +170,6 @@ pub(crate) fn evaluate<'py>(
     deploy_fraction: Option<f64>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    // Descriptors: the matrix is built in memory (the protocol needs all of it).
-    if let Some(d) = PyDescriptors::of(s, query_major)? {
-        let m = d.get().similarity(py)?;
-        return evaluate(
-            py,
-            m.as_any(),
-            gt,
-            gt_soft,
-            methods,
-            k,
-            precision,
-            matching,
-            cal_fraction,
-            cal_queries,
-            segment_fraction,
-            segment_size,
-            deploy_fraction,
-            query_major,
-        );
-    }
     let Setup {
         methods,
         protocol,
@@ -204,11 +185,10 @@ pub(crate) fn evaluate<'py>(
         deploy_fraction,
         query_major,
     )?;
-    let (s, gt, dataset) = inputs(s, gt, gt_soft)?;
+    let (s, gt, dataset) = inputs(s, gt, gt_soft, query_major)?;
     let gt = build_ground_truth(py, &gt, query_major)?;
-    let s = s.view(query_major);
-    let out = py
-        .detach(|| with_scores!(s, |s| qtvpr::evaluate(s, &gt, &protocol, &methods)))
+    let out = s
+        .with(py, |s| qtvpr::evaluate(s, &gt, &protocol, &methods))?
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),
@@ -305,11 +285,10 @@ pub(crate) fn ablation<'py>(
             .map_err(|e| args.error(e))?;
         }
     }
-    let (s, gt, dataset) = inputs(s, gt, gt_soft)?;
+    let (s, gt, dataset) = inputs(s, gt, gt_soft, query_major)?;
     let gt = build_ground_truth(py, &gt, query_major)?;
-    let s = s.view(query_major);
-    let out = py
-        .detach(|| with_scores!(s, |s| qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods)))
+    let out = s
+        .with(py, |s| qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods))?
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
 use qtvpr::with_scores;
 
-use crate::convert::Scores;
+use crate::convert::MatrixArg;
 use crate::error::{Args, named_error};
 
 /// A non-negative integer argument.
@@ -71,8 +71,8 @@ pub(crate) fn ground_truth_positions<'py>(
     radius: f64,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
     qtvpr::ground_truth::check_radius("radius", radius).map_err(named_error)?;
-    let db = Scores::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
-    let q = Scores::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
+    let db = MatrixArg::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
+    let q = MatrixArg::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
     let (d, q) = (db.view(false), q.view(false));
     let gt = py
         .detach(|| {

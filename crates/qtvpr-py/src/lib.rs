@@ -24,7 +24,7 @@ use pyo3::prelude::*;
 use qtvpr::Matching;
 
 use crate::calibration::{PyCalibration, TransferResult};
-use crate::convert::{GroundTruthArgs, Scores};
+use crate::convert::{GroundTruthArgs, MatrixArg};
 use crate::error::Args;
 use qtvpr::with_scores;
 
@@ -135,7 +135,7 @@ fn margins<'py>(
     query_major: bool,
 ) -> PyResult<Bound<'py, numpy::PyArray1<f64>>> {
     let args = Args { gt: "gt", query_major };
-    let s = Scores::extract("s", s)?;
+    let s = MatrixArg::extract("s", s)?;
     let s = s.view(query_major);
     let m = py
         .detach(|| with_scores!(s, |s| qtvpr::margins(s)))
@@ -170,7 +170,7 @@ fn best_threshold(
 ) -> PyResult<f64> {
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-    let s = Scores::extract("s", s)?;
+    let s = MatrixArg::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
     let gt = py.detach(|| gt.build())?;
@@ -201,7 +201,7 @@ fn counts<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-    let s = Scores::extract("s", s)?;
+    let s = MatrixArg::extract("s", s)?;
     let gt = GroundTruthArgs::extract("gt", gt, gt_soft)?;
     let (s, gt) = (s.view(query_major), gt.view(query_major));
     let gt = py.detach(|| gt.build())?;
@@ -227,8 +227,8 @@ fn ranked_correlation<'py>(
     query_major: bool,
 ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
     let args = Args { gt: "gt", query_major };
-    let val = Scores::extract("s_val", s_val)?;
-    let cal = Scores::extract("s_cal", s_cal)?;
+    let val = MatrixArg::extract("s_val", s_val)?;
+    let cal = MatrixArg::extract("s_cal", s_cal)?;
     let (val, cal) = (val.view(query_major), cal.view(query_major));
     let r = py
         .detach(|| with_scores!(val, |val| with_scores!(cal, |cal| qtvpr::ranked_correlation(val, cal))))
@@ -249,7 +249,7 @@ fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
         gt: "gt",
         query_major: false,
     };
-    let s = Scores::extract("s", s)?;
+    let s = MatrixArg::extract("s", s)?;
     let s = s.view(false);
     py.detach(|| with_scores!(s, |s| qtvpr::schubert_threshold(s)))
         .map_err(|e| args.error(e))

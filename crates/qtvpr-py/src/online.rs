@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use qtvpr::{Decision, Error, OnlineParams};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{self, Column, Scores, count};
+use crate::convert::{self, Column, MatrixArg, count};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
 
@@ -105,7 +105,7 @@ impl PyOnline {
     /// (decided and in the window), the bad one and those after it are not.
     #[pyo3(signature = (s_val, *, query_major = false))]
     fn push_many(&mut self, py: Python<'_>, s_val: &Bound<'_, PyAny>, query_major: bool) -> PyResult<OnlineDecisions> {
-        let s = Scores::extract("s_val", s_val)?;
+        let s = MatrixArg::extract("s_val", s_val)?;
         let view = s.view(query_major);
         let first = self.inner.pushed();
         let online = &mut self.inner;
@@ -129,7 +129,7 @@ impl PyOnline {
         s_before: &Bound<'_, PyAny>,
         query_major: bool,
     ) -> PyResult<()> {
-        let s = Scores::extract("s_val", s_before)?;
+        let s = MatrixArg::extract("s_val", s_before)?;
         let view = s.view(query_major);
         let online = &mut self.inner;
         py.detach(|| with_scores!(view, |s| online.resume(first_query, s)))
@@ -146,7 +146,7 @@ impl PyOnline {
         s_val: &Bound<'_, PyAny>,
         query_major: bool,
     ) -> PyResult<OnlineDecisions> {
-        let s = Scores::extract("s_val", s_val)?;
+        let s = MatrixArg::extract("s_val", s_val)?;
         let view = s.view(query_major);
         let online = &mut self.inner;
         let decisions = py

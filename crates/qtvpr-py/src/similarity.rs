@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
 use qtvpr::{Sequence, with_scores};
 
-use crate::convert::Scores;
+use crate::convert::MatrixArg;
 use crate::error::named_error;
 
 /// A sequence window from Python arguments: a negative length gets the core's message.
@@ -48,8 +48,8 @@ pub(crate) fn cosine_similarity<'py>(
         None if causal => return Err(PyValueError::new_err("causal=True needs a sequence length")),
         None => None,
     };
-    let db = Scores::extract_as("db", db, FloatMatrix::Descriptors)?;
-    let queries = Scores::extract_as("queries", queries, FloatMatrix::Descriptors)?;
+    let db = MatrixArg::extract_as("db", db, FloatMatrix::Descriptors)?;
+    let queries = MatrixArg::extract_as("queries", queries, FloatMatrix::Descriptors)?;
     let (d, q) = (db.view(false), queries.view(false));
     let s = py
         .detach(|| {
@@ -86,7 +86,7 @@ pub(crate) fn sequence_match<'py>(
     causal: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let window = sequence(length, causal)?;
-    let s = Scores::extract("s", s)?;
+    let s = MatrixArg::extract("s", s)?;
     Ok(with_scores!(s.view(false), |v| py
         .detach(|| qtvpr::sequence_match(v, window))
         .map_err(named_error)?

@@ -236,7 +236,7 @@ mod file {
             gt = gt.with_soft(soft_gt.view()).map_err(|e| in_file(path, e))?;
         }
         let calibration =
-            crate::with_scores!(scores.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
+            with_scores!(scores.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
         calibration.with_defaults(defaults).map_err(|e| in_file(path, e))
     }
 

@@ -36,7 +36,8 @@ use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
 use crate::margin::{self, Gate};
 use crate::names::Input;
 use crate::online::Online;
-use crate::params::{DEFAULT_K, OnlineParams, Params};
+use crate::params::{DEFAULT_K, OnlineParams, Options, Params};
+use crate::source::ScoreSource;
 use crate::threads;
 use crate::transfer::Calibration;
 
@@ -470,38 +471,42 @@ impl Evaluation {
     }
 }
 
-/// Run the protocol on `s` (|DB| x |Q|) with ground truth `gt` for every query.
+/// Run the protocol on the similarity `scores` (|DB| x |Q|: a matrix, or descriptors,
+/// whose similarity is computed in memory, as the protocol reads all of it) with ground
+/// truth `gt` for every query.
 ///
 /// `methods` are evaluated in the order given (a repeated method once); the oracle
 /// threshold of every segment is computed whether or not [`Method::Oracle`] is asked
-/// for, since every method reports it.
+/// for, since every method reports it. `protocol` is the [`Protocol`] (`&protocol`),
+/// with an optional progress callback ([`Options::progress`]) called as
+/// `progress(done, total)` after each method: `done` of the `total` distinct methods
+/// are evaluated.
 ///
 /// # Errors
-/// Invalid parameters or split ([`Protocol::layout`]), empty or non-finite scores, or
-/// ground truth of another shape.
-pub fn evaluate<T: Score>(
-    s: ArrayView2<'_, T>,
+/// Invalid parameters or split ([`Protocol::layout`]), empty or non-finite scores, a
+/// range of descriptor queries that is empty or beyond |Q|, or ground truth of
+/// another shape.
+pub fn evaluate<'s, 'd: 's, 'p>(
+    scores: impl Into<ScoreSource<'s, 'd>>,
     gt: &GroundTruth,
-    protocol: &Protocol,
+    protocol: impl Into<Options<'p, Protocol>>,
     methods: &[Method],
 ) -> Result<Evaluation> {
-    evaluate_with_progress(s, gt, protocol, methods, |_, _| ())
+    let options = protocol.into();
+    options.params.validate()?;
+    scores
+        .into()
+        .with_matrix(None, |s| with_scores!(s, |s| evaluate_matrix(s, gt, &options, methods)))
 }
 
-/// [`evaluate`], calling `progress(done, total)` after each method: `done` of the
-/// `total` distinct methods are evaluated (for a progress bar; called from the calling
-/// thread, not at all when the input is rejected).
-///
-/// # Errors
-/// As [`evaluate`].
-pub fn evaluate_with_progress<T: Score>(
+/// [`evaluate`] of a matrix.
+fn evaluate_matrix<T: Score>(
     s: ArrayView2<'_, T>,
     gt: &GroundTruth,
-    protocol: &Protocol,
+    options: &Options<'_, Protocol>,
     methods: &[Method],
-    progress: impl Fn(usize, usize),
 ) -> Result<Evaluation> {
-    protocol.validate()?;
+    let protocol = &options.params;
     validate_scores(Input::Similarity, s)?;
     check_gt_shape(gt, Input::Similarity, s.dim())?;
     let layout = protocol.layout(s.nrows(), s.ncols())?;
@@ -609,7 +614,7 @@ pub fn evaluate_with_progress<T: Score>(
             }
         };
         results.push(result);
-        progress(results.len(), unique.len());
+        options.report(results.len(), unique.len());
     }
     Ok(Evaluation {
         layout,
@@ -642,35 +647,23 @@ pub struct Ablation {
 /// or [`ABLATION_DEPLOY_FRACTION`] (the last 50%) when that is `None`. The calibration
 /// set is always the first queries, and may not reach into the deployment set.
 ///
+/// `base` may carry a progress callback ([`Options::progress`]), called as
+/// `progress(done, total)` after each method of each run: `done` of the `total` method
+/// evaluations of the whole ablation are finished.
+///
 /// # Errors
 /// As [`evaluate`]; every setting is checked ([`Protocol::layout`]) before the first
 /// one runs.
-pub fn ablation<T: Score>(
-    s: ArrayView2<'_, T>,
+pub fn ablation<'s, 'd: 's, 'p>(
+    scores: impl Into<ScoreSource<'s, 'd>>,
     gt: &GroundTruth,
-    base: &Protocol,
+    base: impl Into<Options<'p, Protocol>>,
     ks: &[usize],
     calibration: &[Split],
     methods: &[Method],
 ) -> Result<Ablation> {
-    ablation_with_progress(s, gt, base, ks, calibration, methods, |_, _| ())
-}
-
-/// [`ablation`], calling `progress(done, total)` after each method of each run: `done`
-/// of the `total` method evaluations of the whole ablation are finished (for a progress
-/// bar; called from the calling thread).
-///
-/// # Errors
-/// As [`ablation`].
-pub fn ablation_with_progress<T: Score>(
-    s: ArrayView2<'_, T>,
-    gt: &GroundTruth,
-    base: &Protocol,
-    ks: &[usize],
-    calibration: &[Split],
-    methods: &[Method],
-    progress: impl Fn(usize, usize),
-) -> Result<Ablation> {
+    let options = base.into();
+    let base = &options.params;
     let ks = if ks.is_empty() {
         std::slice::from_ref(&base.k)
     } else {
@@ -693,15 +686,23 @@ pub fn ablation_with_progress<T: Score>(
             })
         })
         .collect();
+    let source = scores.into();
+    let (n_db, n_q) = source.dim();
     for p in &protocols {
-        p.layout(s.nrows(), s.ncols())?;
+        p.layout(n_db, n_q)?;
     }
     let n = protocols.len();
-    let runs = protocols
-        .iter()
-        .enumerate()
-        .map(|(i, p)| evaluate_with_progress(s, gt, p, methods, |done, total| progress(i * total + done, n * total)))
-        .collect::<Result<_>>()?;
+    // Descriptors are turned into their similarity once, for every run.
+    let runs = source.with_matrix(None, |s| {
+        protocols
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let progress = |done, total| options.report(i * total + done, n * total);
+                evaluate(s, gt, Options::new(*p).progress(&progress), methods)
+            })
+            .collect::<Result<_>>()
+    })?;
     Ok(Ablation { runs })
 }
 
@@ -877,20 +878,17 @@ mod tests {
         let (s, gt) = tiny();
         let methods = [Method::Schubert, Method::Oracle, Method::Schubert];
         let calls = std::cell::RefCell::new(vec![]);
-        let e = evaluate_with_progress(s.view(), &gt, &protocol(), &methods, |d, t| {
-            calls.borrow_mut().push((d, t))
-        })
-        .unwrap();
-        assert_eq!(calls.into_inner(), [(1, 2), (2, 2)]);
+        let record = |d, t| calls.borrow_mut().push((d, t));
+        let e = evaluate(s.view(), &gt, Options::new(protocol()).progress(&record), &methods).unwrap();
+        assert_eq!(calls.take(), [(1, 2), (2, 2)]);
         assert_eq!(e.methods, run(&methods).methods);
         // Rejected input (tau = 0): no call.
         let bad = Protocol {
             precision: 0.0,
             ..protocol()
         };
-        let calls = std::cell::Cell::new(0);
-        assert!(evaluate_with_progress(s.view(), &gt, &bad, &methods, |_, _| calls.set(calls.get() + 1)).is_err());
-        assert_eq!(calls.get(), 0);
+        assert!(evaluate(s.view(), &gt, Options::new(bad).progress(&record), &methods).is_err());
+        assert_eq!(calls.take(), []);
     }
 
     #[test]

@@ -138,8 +138,7 @@ impl GtSpec<'_> {
                         shape,
                     });
                 }
-                let within =
-                    |r: f64| crate::with_scores!(db, |d| crate::with_scores!(queries, |q| within_radius(d, q, r)));
+                let within = |r: f64| with_scores!(db, |d| with_scores!(queries, |q| within_radius(d, q, r)));
                 Ok(HardSoft {
                     hard: within(radius)?,
                     soft: soft_radius.map(within).transpose()?,

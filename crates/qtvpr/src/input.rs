@@ -26,6 +26,8 @@ pub trait Score: Copy + Default + Send + Sync + PartialOrd + sealed::Sealed + 's
     fn sort_ascending(v: &mut [Self]);
     /// An owned copy of `s` in its own type.
     fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix;
+    /// `s` as a view of either type, for code that dispatches at run time.
+    fn view(s: ArrayView2<'_, Self>) -> ScoresView<'_>;
 }
 
 /// An owned score matrix in its own type: what a [`crate::Calibration`] keeps of its
@@ -75,6 +77,9 @@ impl Score for f32 {
     fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix {
         ScoreMatrix::F32(s.to_owned())
     }
+    fn view(s: ArrayView2<'_, Self>) -> ScoresView<'_> {
+        ScoresView::F32(s)
+    }
     #[inline(always)]
     fn to_f64(self) -> f64 {
         f64::from(self)
@@ -88,6 +93,9 @@ impl Score for f64 {
     }
     fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix {
         ScoreMatrix::F64(s.to_owned())
+    }
+    fn view(s: ArrayView2<'_, Self>) -> ScoresView<'_> {
+        ScoresView::F64(s)
     }
     #[inline(always)]
     fn to_f64(self) -> f64 {
@@ -157,15 +165,9 @@ impl<'a> ScoresView<'a> {
     }
 }
 
-impl<'a> From<ArrayView2<'a, f32>> for ScoresView<'a> {
-    fn from(v: ArrayView2<'a, f32>) -> Self {
-        ScoresView::F32(v)
-    }
-}
-
-impl<'a> From<ArrayView2<'a, f64>> for ScoresView<'a> {
-    fn from(v: ArrayView2<'a, f64>) -> Self {
-        ScoresView::F64(v)
+impl<'a, T: Score> From<ArrayView2<'a, T>> for ScoresView<'a> {
+    fn from(v: ArrayView2<'a, T>) -> Self {
+        T::view(v)
     }
 }
 

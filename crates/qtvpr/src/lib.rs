@@ -13,6 +13,7 @@
 //! | semantics | module |
 //! |---|---|
 //! | 1 terms, input validation | [`input`] |
+//! | 1 the scores an operation reads: a matrix or descriptors | [`source`] |
 //! | 2 decisions and counts | [`decisions`] |
 //! | 3 best threshold under a precision target | [`best_threshold`](mod@best_threshold) |
 //! | 4 ranked correlation and neighbours | [`ranked_correlation`](mod@ranked_correlation) |
@@ -66,6 +67,11 @@
 //! # Ok::<(), qtvpr::Error>(())
 //! ```
 
+// First, so that `with_scores!` (defined beside `ScoresView`) is in scope in every
+// module below by name.
+#[macro_use]
+pub mod input;
+
 pub mod baselines;
 pub mod best_threshold;
 pub mod calibration_file;
@@ -75,7 +81,6 @@ mod error;
 pub mod evaluate;
 pub mod ground_truth;
 pub mod image_names;
-pub mod input;
 mod kd_tree;
 pub mod margin;
 pub mod names;
@@ -87,6 +92,7 @@ pub mod ranked_correlation;
 pub mod report;
 pub mod sequence;
 pub mod similarity;
+pub mod source;
 pub mod split;
 pub mod subset_quantile;
 pub mod threads;
@@ -96,15 +102,16 @@ pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
-pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate, evaluate_with_progress};
+pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate};
 pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
 pub use margin::{Gate, margins};
 pub use names::Input;
 pub use online::{Decision, Online};
-pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Params};
+pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Options, Params};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};
-pub use similarity::{Descriptors, cosine_similarity, cosine_similarity_with_progress};
+pub use similarity::{Descriptors, cosine_similarity};
+pub use source::ScoreSource;
 pub use split::QuerySplit;
 pub use threads::set_threads;
 pub use transfer::{Calibration, Segment, Transfer};

@@ -30,28 +30,29 @@ use npyz::{DType, NpyFile, Order, TypeChar, WriterBuilder};
 use crate::error::{Error, Result};
 use crate::input::{GroundTruth, ScoresView};
 
-/// A similarity matrix as read from a file: float32 or float64.
-pub enum Scores {
+/// A float32 or float64 matrix (similarity, descriptors, positions) as read from a
+/// `.npy` file: memory-mapped where the file allows, else read into memory.
+pub enum MatrixFile {
     /// float32 scores.
     F32(Matrix<f32>),
     /// float64 scores.
     F64(Matrix<f64>),
 }
 
-impl Scores {
+impl MatrixFile {
     /// The matrix as stored in the file (rows x columns).
     pub fn view(&self) -> ScoresView<'_> {
         match self {
-            Scores::F32(m) => ScoresView::F32(m.view()),
-            Scores::F64(m) => ScoresView::F64(m.view()),
+            MatrixFile::F32(m) => ScoresView::F32(m.view()),
+            MatrixFile::F64(m) => ScoresView::F64(m.view()),
         }
     }
 
     /// Whether the data is memory-mapped rather than read into memory.
     pub fn is_mapped(&self) -> bool {
         match self {
-            Scores::F32(m) => m.is_mapped(),
-            Scores::F64(m) => m.is_mapped(),
+            MatrixFile::F32(m) => m.is_mapped(),
+            MatrixFile::F64(m) => m.is_mapped(),
         }
     }
 
@@ -66,8 +67,8 @@ impl Scores {
     /// [`Error::File`] naming the file when it is now shorter than its data.
     pub fn check_mapped_file(&self) -> Result<()> {
         match self {
-            Scores::F32(m) => m.check_mapped_file(),
-            Scores::F64(m) => m.check_mapped_file(),
+            MatrixFile::F32(m) => m.check_mapped_file(),
+            MatrixFile::F64(m) => m.check_mapped_file(),
         }
     }
 }
@@ -181,7 +182,7 @@ pub struct Matrix<T> {
 enum Data<T> {
     Owned(Vec<T>),
     /// The map, where the data starts in it, and the file mapped (its size is checked
-    /// by [`Scores::check_mapped_file`]) with its path for messages.
+    /// by [`MatrixFile::check_mapped_file`]) with its path for messages.
     Mapped {
         map: Mmap,
         offset: usize,
@@ -206,7 +207,7 @@ impl<T> Matrix<T> {
 }
 
 impl<T: bytemuck::Pod> Matrix<T> {
-    /// [`Scores::check_mapped_file`] of one matrix.
+    /// [`MatrixFile::check_mapped_file`] of one matrix.
     fn check_mapped_file(&self) -> Result<()> {
         let Data::Mapped { offset, file, path, .. } = &self.data else {
             return Ok(());
@@ -605,7 +606,7 @@ impl<T> Matrix<T> {
 ///
 /// # Errors
 /// As [`read_float_matrix`].
-pub fn read_scores(path: &Path) -> Result<Scores> {
+pub fn read_scores(path: &Path) -> Result<MatrixFile> {
     read_float_matrix(path, FloatMatrix::Similarity)
 }
 
@@ -615,7 +616,7 @@ pub fn read_scores(path: &Path) -> Result<Scores> {
 /// # Errors
 /// [`Error::Io`] (missing file, a directory, ...), [`Error::File`] (not `.npy`,
 /// truncated, not 2-D), [`Error::Dtype`] (not float32/float64).
-pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<Scores> {
+pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<MatrixFile> {
     let file = open_file(path)?;
     if !is_regular(&file) {
         // A device or a pipe: read as a stream, never mapped (/dev/zero maps as empty).
@@ -669,18 +670,18 @@ pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<Scores> {
         Matrix { data, dim, fortran }
     }
     Ok(if size == 4 {
-        Scores::F32(mapped(map, offset, file, path, dim, fortran))
+        MatrixFile::F32(mapped(map, offset, file, path, dim, fortran))
     } else {
-        Scores::F64(mapped(map, offset, file, path, dim, fortran))
+        MatrixFile::F64(mapped(map, offset, file, path, dim, fortran))
     })
 }
 
-fn read_unmapped<R: Read>(reader: R, path: &Path, what: FloatMatrix) -> Result<Scores> {
+fn read_unmapped<R: Read>(reader: R, path: &Path, what: FloatMatrix) -> Result<MatrixFile> {
     let npy = parse(reader, path)?;
     let rule = what.dtype_rule();
     match plain_dtype(&npy, path, rule)? {
-        (TypeChar::Float, 4, _) => Ok(Scores::F32(read_matrix(npy, path, what.layout())?)),
-        (TypeChar::Float, 8, _) => Ok(Scores::F64(read_matrix(npy, path, what.layout())?)),
+        (TypeChar::Float, 4, _) => Ok(MatrixFile::F32(read_matrix(npy, path, what.layout())?)),
+        (TypeChar::Float, 8, _) => Ok(MatrixFile::F64(read_matrix(npy, path, what.layout())?)),
         _ => Err(Error::Dtype {
             path: path.display().to_string(),
             dtype: dtype_name(&npy),
@@ -695,7 +696,7 @@ fn read_unmapped<R: Read>(reader: R, path: &Path, what: FloatMatrix) -> Result<S
 ///
 /// # Errors
 /// As [`read_scores`].
-pub fn scores_from_bytes(bytes: &[u8], name: &str) -> Result<Scores> {
+pub fn scores_from_bytes(bytes: &[u8], name: &str) -> Result<MatrixFile> {
     read_unmapped(bytes, Path::new(name), FloatMatrix::Similarity)
 }
 

@@ -6,6 +6,11 @@
 //! gave, `None` for what was left out, to [`Params::resolve`] or
 //! [`OnlineParams::resolve`] with the calibration's defaults; nothing else decides a
 //! default or checks a parameter.
+//!
+//! An operation over a [`ScoreSource`](crate::ScoreSource) takes its parameters as
+//! [`Options`], with an optional progress callback.
+
+use std::ops::Range;
 
 use crate::error::{Error, Result};
 use crate::input::check_precision;
@@ -216,6 +221,69 @@ impl OnlineParams {
         };
         params.validate()?;
         Ok(params)
+    }
+}
+
+/// An operation's parameters `P` ([`Params`](crate::Params) for a transfer,
+/// [`Protocol`](crate::Protocol) for an evaluation, the range of queries for
+/// [`Descriptors::similarity`]), and an optional progress callback.
+///
+/// Every operation takes `impl Into<Options<P>>`, so `&params` alone means no progress.
+#[derive(Clone, Copy)]
+pub struct Options<'p, P> {
+    /// The operation's parameters.
+    pub params: P,
+    /// Called as `progress(done, total)` from the calling thread as the operation goes
+    /// (for a progress bar); not at all when the input is rejected. Each operation
+    /// says what it counts.
+    pub progress: Option<&'p dyn Fn(usize, usize)>,
+}
+
+impl<'p, P> Options<'p, P> {
+    /// `params`, without progress.
+    pub fn new(params: P) -> Self {
+        Self { params, progress: None }
+    }
+
+    /// The same options, calling `progress(done, total)`.
+    #[must_use]
+    pub fn progress(self, progress: &'p dyn Fn(usize, usize)) -> Self {
+        self.maybe_progress(Some(progress))
+    }
+
+    /// The same options with the progress callback `progress`, if any.
+    #[must_use]
+    pub(crate) fn maybe_progress(mut self, progress: Option<&'p dyn Fn(usize, usize)>) -> Self {
+        self.progress = progress;
+        self
+    }
+
+    /// Report `done` of `total`.
+    pub(crate) fn report(&self, done: usize, total: usize) {
+        if let Some(progress) = self.progress {
+            progress(done, total);
+        }
+    }
+}
+
+impl<P: Clone> From<&P> for Options<'_, P> {
+    fn from(params: &P) -> Self {
+        Self::new(params.clone())
+    }
+}
+
+impl From<Range<usize>> for Options<'_, Range<usize>> {
+    fn from(queries: Range<usize>) -> Self {
+        Self::new(queries)
+    }
+}
+
+impl<P: std::fmt::Debug> std::fmt::Debug for Options<'_, P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Options")
+            .field("params", &self.params)
+            .field("progress", &self.progress.is_some())
+            .finish()
     }
 }
 

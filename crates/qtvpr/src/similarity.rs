@@ -5,10 +5,10 @@
 //! writes. [`cosine_similarity`] turns them into the |DB| x |Q| matrix the rest of the
 //! crate takes: `S[i, j]` is the cosine of database row `i` and query row `j`, i.e. the
 //! dot product of the L2-normalised rows, `normalize(db) @ normalize(q).T` in NumPy.
-//! [`Descriptors`] holds the two descriptor matrices so that the transfer
-//! ([`Calibration::transfer_descriptors`](crate::Calibration::transfer_descriptors))
-//! can compute the similarity chunk by chunk instead: the |DB| x |Q| matrix then never
-//! exists.
+//! [`Descriptors`] holds the two descriptor matrices so that the transfer of a
+//! [`ScoreSource::Descriptors`](crate::ScoreSource::Descriptors)
+//! ([`Calibration::transfer`](crate::Calibration::transfer)) can compute the similarity
+//! chunk by chunk instead: the |DB| x |Q| matrix then never exists.
 //!
 //! # Arithmetic: f64, rounded once to f32
 //! Each row is widened to `f64` and made a unit vector as `(x * 2^-e) * (1 / |x 2^-e|)`,
@@ -53,13 +53,14 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::input::{Score, ScoresView, check_nonempty};
 use crate::names::Input;
+use crate::params::Options;
 use crate::threads;
 
 /// Queries per tile of the product: the width of every GEMM call.
 pub const TILE: usize = 64;
 /// Database rows per block of the product: the height of every GEMM call.
 pub const BLOCK_ROWS: usize = 256;
-/// Scores per step of [`cosine_similarity_with_progress`] (about 16 MB of `f32`).
+/// Scores per step of [`Descriptors::similarity`] (about 16 MB of `f32`).
 const STEP_SCORES: usize = 1 << 22;
 
 /// Cosine similarity of every database descriptor with every query descriptor.
@@ -77,24 +78,8 @@ const STEP_SCORES: usize = 1 << 22;
 ///
 /// Errors in `db` are reported before errors in `queries`.
 pub fn cosine_similarity<T: Score, U: Score>(db: ArrayView2<'_, T>, queries: ArrayView2<'_, U>) -> Result<Array2<f32>> {
-    cosine_similarity_with_progress(db, queries, |_, _| ())
-}
-
-/// [`cosine_similarity`], calling `progress(done, total)` after each step of database
-/// rows: `done` of the `total` = |DB| rows of the result are finished (for a progress
-/// bar; called from the calling thread, not at all when the input is rejected).
-///
-/// # Errors
-/// As [`cosine_similarity`].
-pub fn cosine_similarity_with_progress<T: Score, U: Score>(
-    db: ArrayView2<'_, T>,
-    queries: ArrayView2<'_, U>,
-    progress: impl Fn(usize, usize),
-) -> Result<Array2<f32>> {
-    let (db_scales, q_scales) = scales(db, queries)?;
-    let n_q = queries.nrows();
-    let (db, queries) = (Rows::new(db, &db_scales), Rows::new(queries, &q_scales));
-    Ok(similarity_in_steps(db, queries, 0..n_q, step_rows(n_q), progress))
+    let d = Descriptors::new(db, queries)?;
+    d.similarity(0..d.shape().1)
 }
 
 /// Database rows per step of a product with `n_cols` query columns: whole blocks of
@@ -323,10 +308,12 @@ fn fill<T: Score>(db: Rows<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst
 }
 
 /// Database and query descriptors, checked once, from which the similarity of any range
-/// of queries is computed on demand: what the fused transfer
-/// ([`Calibration::transfer_descriptors`](crate::Calibration::transfer_descriptors)) and
-/// [`Calibration::from_descriptors`](crate::Calibration::from_descriptors) take in place
-/// of a similarity matrix. The descriptors are not copied (the views may be
+/// of queries is computed on demand. As a [`ScoreSource::Descriptors`] (a range of its
+/// queries) it stands in for a similarity matrix wherever one is read: the fused
+/// transfer ([`Calibration::transfer`]) never holds it whole.
+///
+/// [`ScoreSource::Descriptors`]: crate::ScoreSource::Descriptors
+/// [`Calibration::transfer`]: crate::Calibration::transfer The descriptors are not copied (the views may be
 /// memory-mapped files); what is kept beside them is two `f64` factors per row (16 MB
 /// per million descriptors).
 ///
@@ -350,7 +337,7 @@ impl<'a> Descriptors<'a> {
     /// all-zero row; errors in `db` before errors in `queries`.
     pub fn new(db: impl Into<ScoresView<'a>>, queries: impl Into<ScoresView<'a>>) -> Result<Self> {
         let (db, queries) = (db.into(), queries.into());
-        let (db_scales, q_scales) = crate::with_scores!(db, |d| crate::with_scores!(queries, |q| scales(d, q)))?;
+        let (db_scales, q_scales) = with_scores!(db, |d| with_scores!(queries, |q| scales(d, q)))?;
         Ok(Self {
             db,
             queries,
@@ -375,25 +362,26 @@ impl<'a> Descriptors<'a> {
     }
 
     /// Columns `queries` of the similarity: |DB| x `queries.len()`, `f32`, C order,
-    /// equal bit for bit to those columns of [`cosine_similarity`].
+    /// equal bit for bit to those columns of [`cosine_similarity`]. With a progress
+    /// callback ([`Options::progress`]), `progress(done, total)` is called after each
+    /// step of database rows: `done` of the `total` = |DB| rows are finished.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for a range that is empty or not within 0..|Q|.
-    pub fn similarity(&self, queries: Range<usize>) -> Result<Array2<f32>> {
+    pub fn similarity<'p>(&self, queries: impl Into<Options<'p, Range<usize>>>) -> Result<Array2<f32>> {
+        let options = queries.into();
+        let queries = options.params.clone();
         self.check_range(&queries)?;
         let step = step_rows(queries.len());
-        Ok(crate::with_scores!(self.db, |d| crate::with_scores!(
-            self.queries,
-            |q| {
-                similarity_in_steps(
-                    Rows::new(d, &self.db_scales),
-                    Rows::new(q, &self.q_scales),
-                    queries.clone(),
-                    step,
-                    |_, _| (),
-                )
-            }
-        )))
+        Ok(with_scores!(self.db, |d| with_scores!(self.queries, |q| {
+            similarity_in_steps(
+                Rows::new(d, &self.db_scales),
+                Rows::new(q, &self.q_scales),
+                queries.clone(),
+                step,
+                |done, total| options.report(done, total),
+            )
+        })))
     }
 
     /// Check that `r` is a non-empty range of queries.
@@ -413,7 +401,7 @@ impl<'a> Descriptors<'a> {
 
     /// Columns `cols` into `dst` (|DB| x `cols.len()`, any layout).
     fn fill_columns(&self, cols: Range<usize>, dst: ArrayViewMut2<'_, f32>) {
-        crate::with_scores!(self.db, |d| crate::with_scores!(self.queries, |q| {
+        with_scores!(self.db, |d| with_scores!(self.queries, |q| {
             fill(
                 Rows::new(d, &self.db_scales),
                 0,
@@ -607,13 +595,13 @@ mod tests {
         // The public one: steps of 2^22 / 5 scores, rounded down to whole blocks of 256
         // rows (3276 blocks): one step of all 600 rows.
         let calls = std::cell::RefCell::new(vec![]);
-        cosine_similarity_with_progress(db.view(), q.view(), |d, t| calls.borrow_mut().push((d, t))).unwrap();
-        assert_eq!(calls.into_inner(), [(600, 600)]);
-        // Rejected input: no call.
-        let calls = std::cell::Cell::new(0);
-        let zero = array![[0.0f32, 0.0, 0.0]];
-        assert!(cosine_similarity_with_progress(zero.view(), q.view(), |_, _| calls.set(calls.get() + 1)).is_err());
-        assert_eq!(calls.get(), 0);
+        let record = |d, t| calls.borrow_mut().push((d, t));
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        d.similarity(Options::new(0..5).progress(&record)).unwrap();
+        assert_eq!(calls.take(), [(600, 600)]);
+        // A rejected range: no call.
+        assert!(d.similarity(Options::new(0..6).progress(&record)).is_err());
+        assert_eq!(calls.take(), []);
     }
 
     #[test]

@@ -13,7 +13,7 @@
 //! lies. Memory beyond the inputs is the calibration profiles plus one chunk.
 //!
 //! The deployment scores may also come from descriptors
-//! ([`Calibration::transfer_descriptors`]): each chunk's columns are then computed
+//! ([`ScoreSource::Descriptors`]): each chunk's columns are then computed
 //! when the chunk is needed, by the kernel of [`cosine_similarity`](crate::cosine_similarity),
 //! so the |DB| x |Qval| matrix never exists and the result is that of the matrix, bit
 //! for bit. Such a source has no random access, so a chunk then always holds whole
@@ -32,9 +32,10 @@ use crate::error::{Error, Result};
 use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
 use crate::margin::{self, CalibrationMargins, Gate};
 use crate::names::Input;
-use crate::params::{Defaults, Params};
+use crate::params::{Defaults, Options, Params};
 use crate::ranked_correlation::{Ranked, Screen};
-use crate::similarity::{DescriptorColumns, Descriptors};
+use crate::similarity::DescriptorColumns;
+use crate::source::ScoreSource;
 use crate::subset_quantile::subset_quantile;
 use crate::threads;
 
@@ -139,16 +140,34 @@ impl<T: Score> Profiles for Ranked<T> {
 }
 
 impl Calibration {
-    /// Prepare calibration similarity `s` (|DB| x |Qcal|) with its ground truth.
+    /// Prepare calibration similarity `scores` (|DB| x |Qcal|) with its ground truth:
+    /// a matrix, or descriptors, whose similarity is computed in memory (the
+    /// calibration keeps it anyway), bit for bit as
+    /// [`cosine_similarity`](crate::cosine_similarity) computes those columns.
     ///
     /// # Errors
-    /// Empty or non-finite scores, or ground truth of another shape.
-    pub fn new<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, matching: Matching) -> Result<Self> {
-        threads::install(|| {
-            let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
-            check_gt_shape(gt, Input::CalSimilarity, s.dim())?;
-            Ok(Self::from_ranked(ranked, T::to_matrix(s), gt.clone(), matching))
-        })
+    /// Empty or non-finite scores, a range of descriptor queries that is empty or
+    /// beyond |Q|, or ground truth of another shape.
+    pub fn new<'s, 'd: 's>(
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        gt: &GroundTruth,
+        matching: Matching,
+    ) -> Result<Self> {
+        match scores.into() {
+            ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
+                let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+                check_gt_shape(gt, Input::CalSimilarity, s.dim())?;
+                Ok(Self::from_ranked(ranked, Score::to_matrix(s), gt.clone(), matching))
+            })),
+            ScoreSource::Descriptors(d, queries) => {
+                d.check_range(&queries)?;
+                check_gt_shape(gt, Input::CalSimilarity, (d.shape().0, queries.len()))?;
+                // The computed matrix becomes the calibration's own copy: no second one.
+                let s = d.similarity(queries)?;
+                let ranked = Ranked::new(Input::CalSimilarity, s.view(), 0)?;
+                Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
+            }
+        }
     }
 
     /// [`Calibration::new`] on labels already known to have the shape of `s`.
@@ -172,7 +191,7 @@ impl Calibration {
             matching,
             screen: Screen::new(&ranked),
             profiles: Box::new(ranked),
-            candidates: crate::with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching)),
+            candidates: with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching)),
             n_db: scores.dim().0,
             scores,
             gt,
@@ -342,39 +361,47 @@ impl Calibration {
         gate.is_on().then(|| self.gate(precision)).transpose()
     }
 
-    /// Transfer thresholds to deployment similarity `s` (|DB| x |Qval|).
+    /// Transfer thresholds to the deployment similarity `scores` (|DB| x |Qval|): a
+    /// matrix, or descriptors. Segments and query indices count from the source's
+    /// first query. `options` are the [`Params`] (`&params`), and a progress callback
+    /// called as `progress(done, total)` as deployment queries are processed
+    /// ([`Options::progress`]).
+    ///
+    /// Descriptors are never held as a |DB| x |Qval| similarity: each chunk of columns
+    /// is computed when the transfer needs it, with the kernel of
+    /// [`cosine_similarity`](crate::cosine_similarity), so the result is exactly the
+    /// transfer of those columns of `cosine_similarity(db, q)`. Each chunk holds whole
+    /// segments (one segment when a segment is larger than the base chunk of about
+    /// 2^22 scores), so memory beyond the descriptors and the calibration is one chunk
+    /// of scores, with its sorted copy.
     ///
     /// # Errors
     /// Invalid parameters, empty or non-finite scores, a |DB| that differs from the
-    /// calibration's, or a segment size of 0 or above |Qval|.
-    pub fn transfer<T: Score>(&self, s: ArrayView2<'_, T>, params: &Params) -> Result<Transfer> {
-        self.transfer_with_progress(s, params, |_, _| ())
-    }
-
-    /// [`Calibration::transfer`], calling `progress(done, total)` as deployment queries
-    /// are processed (for a progress bar; called from the calling thread).
-    ///
-    /// # Errors
-    /// As [`Calibration::transfer`].
-    pub fn transfer_with_progress<T: Score>(
+    /// calibration's, a segment size of 0 or above |Qval|, or a range of descriptor
+    /// queries that is empty or beyond |Q|.
+    pub fn transfer<'s, 'd: 's, 'p>(
         &self,
-        s: ArrayView2<'_, T>,
-        params: &Params,
-        progress: impl Fn(usize, usize),
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        options: impl Into<Options<'p, Params>>,
     ) -> Result<Transfer> {
-        self.transfer_in_chunks(s, params, progress, CHUNK_SCORES)
+        self.transfer_in_chunks(scores.into(), &options.into(), CHUNK_SCORES)
     }
 
     /// [`Calibration::transfer`] of a block of a larger deployment set: the columns of
-    /// `s` are its queries `first_query..first_query + s.ncols()`. Segments (of
+    /// `scores` are its queries `first_query..first_query + |Qval|`. Segments (of
     /// `params.segment_size` queries from the block's first) and the column of a
     /// non-finite score count in the larger set, so that a scheduler that cuts the set
     /// into blocks of whole segments has the transfer of the whole by concatenation.
     ///
     /// # Errors
     /// As [`Calibration::transfer`] of the block.
-    pub fn transfer_at<T: Score>(&self, s: ArrayView2<'_, T>, params: &Params, first_query: usize) -> Result<Transfer> {
-        let mut out = self.transfer(s, params).map_err(|e| e.shifted(first_query))?;
+    pub fn transfer_at<'s, 'd: 's, 'p>(
+        &self,
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        options: impl Into<Options<'p, Params>>,
+        first_query: usize,
+    ) -> Result<Transfer> {
+        let mut out = self.transfer(scores, options).map_err(|e| e.shifted(first_query))?;
         for segment in &mut out.segments {
             segment.start += first_query;
             segment.end += first_query;
@@ -404,98 +431,34 @@ impl Calibration {
     }
 
     /// The transfer, with deployment chunks of about `chunk_scores` scores.
-    fn transfer_in_chunks<T: Score>(
+    fn transfer_in_chunks(
         &self,
-        s: ArrayView2<'_, T>,
-        params: &Params,
-        progress: impl Fn(usize, usize),
+        source: ScoreSource<'_, '_>,
+        options: &Options<'_, Params>,
         chunk_scores: usize,
     ) -> Result<Transfer> {
+        let params = &options.params;
         params.validate()?;
-        check_nonempty(Input::DeploymentSimilarity, s.dim())?;
-        self.transfer_from(s, params, progress, chunk_scores)
-    }
-
-    /// Prepare the similarity of query descriptors `queries` of `d` (the calibration
-    /// queries) with their ground truth (|DB| x `queries.len()`): the calibration matrix
-    /// is computed in memory (the calibration holds it anyway), bit for bit as
-    /// [`cosine_similarity`](crate::cosine_similarity) computes those columns.
-    ///
-    /// # Errors
-    /// A range of queries that is empty or beyond |Q| ([`Error::InvalidParameter`]), or
-    /// ground truth of another shape.
-    pub fn from_descriptors(
-        d: &Descriptors<'_>,
-        queries: Range<usize>,
-        gt: &GroundTruth,
-        matching: Matching,
-    ) -> Result<Self> {
-        d.check_range(&queries)?;
-        check_gt_shape(gt, Input::CalSimilarity, (d.shape().0, queries.len()))?;
-        // The computed matrix becomes the calibration's own copy: no second one.
-        let s = d.similarity(queries)?;
-        let ranked = Ranked::new(Input::CalSimilarity, s.view(), 0)?;
-        Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
-    }
-
-    /// Transfer thresholds to the deployment queries `queries` of descriptors `d`,
-    /// never holding their |DB| x |Qval| similarity: each chunk of columns is computed
-    /// when the transfer needs it, with the kernel of
-    /// [`cosine_similarity`](crate::cosine_similarity), so the result is exactly
-    /// [`Calibration::transfer`] of `cosine_similarity(db, q)` columns `queries`.
-    /// Segments and query indices count from `queries.start`.
-    ///
-    /// Each chunk holds whole segments (one segment when a segment is larger than the
-    /// base chunk of about 2^22 scores), so memory beyond the descriptors and the
-    /// calibration is one chunk of scores, with its sorted copy.
-    ///
-    /// # Errors
-    /// As [`Calibration::transfer`], and a range of queries that is empty or beyond |Q|.
-    pub fn transfer_descriptors(
-        &self,
-        d: &Descriptors<'_>,
-        queries: Range<usize>,
-        params: &Params,
-    ) -> Result<Transfer> {
-        self.transfer_descriptors_with_progress(d, queries, params, |_, _| ())
-    }
-
-    /// [`Calibration::transfer_descriptors`], calling `progress(done, total)` as
-    /// deployment queries are processed (called from the calling thread).
-    ///
-    /// # Errors
-    /// As [`Calibration::transfer_descriptors`].
-    pub fn transfer_descriptors_with_progress(
-        &self,
-        d: &Descriptors<'_>,
-        queries: Range<usize>,
-        params: &Params,
-        progress: impl Fn(usize, usize),
-    ) -> Result<Transfer> {
-        self.transfer_descriptors_in_chunks(d, queries, params, progress, CHUNK_SCORES)
-    }
-
-    /// The fused transfer, with base chunks of about `chunk_scores` scores.
-    fn transfer_descriptors_in_chunks(
-        &self,
-        d: &Descriptors<'_>,
-        queries: Range<usize>,
-        params: &Params,
-        progress: impl Fn(usize, usize),
-        chunk_scores: usize,
-    ) -> Result<Transfer> {
-        params.validate()?;
-        d.check_range(&queries)?;
-        let columns = Fused {
-            columns: DescriptorColumns::new(d, queries.start),
-            dim: (d.shape().0, queries.len()),
-        };
-        self.transfer_from(columns, params, progress, chunk_scores)
+        let progress = |done, total| options.report(done, total);
+        match source {
+            ScoreSource::Matrix(s) => {
+                check_nonempty(Input::DeploymentSimilarity, s.dim())?;
+                with_scores!(s, |s| self.transfer_from(s, params, progress, chunk_scores))
+            }
+            ScoreSource::Descriptors(d, queries) => {
+                d.check_range(&queries)?;
+                let columns = Fused {
+                    dim: (d.shape().0, queries.len()),
+                    columns: DescriptorColumns::new(d, queries.start),
+                };
+                self.transfer_from(columns, params, progress, chunk_scores)
+            }
+        }
     }
 
     /// The transfer, reading deployment scores from `source` in chunks of about
     /// `chunk_scores` scores.
-    fn transfer_from<S: ScoreSource>(
+    fn transfer_from<S: Chunks>(
         &self,
         mut source: S,
         params: &Params,
@@ -589,19 +552,19 @@ impl Calibration {
 
 /// Where a transfer reads its deployment scores: a matrix (random access), or
 /// descriptors whose columns are computed chunk by chunk, left to right.
-trait ScoreSource {
+trait Chunks {
     /// The score type.
     type T: Score;
     /// (|DB|, |Qval|).
     fn dim(&self) -> (usize, usize);
-    /// Whether [`ScoreSource::columns`] may be asked for any columns, any number of
+    /// Whether [`Chunks::columns`] may be asked for any columns, any number of
     /// times, at no cost (a matrix), or only for consecutive chunks (descriptors).
     fn random_access(&self) -> bool;
     /// The scores of deployment queries `r`, |DB| x `r.len()`.
     fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, Self::T>;
 }
 
-impl<T: Score> ScoreSource for ArrayView2<'_, T> {
+impl<T: Score> Chunks for ArrayView2<'_, T> {
     type T = T;
     fn dim(&self) -> (usize, usize) {
         ArrayView2::dim(self)
@@ -620,7 +583,7 @@ struct Fused<'d, 'a> {
     dim: (usize, usize),
 }
 
-impl ScoreSource for Fused<'_, '_> {
+impl Chunks for Fused<'_, '_> {
     type T = f32;
     fn dim(&self) -> (usize, usize) {
         self.dim
@@ -650,6 +613,7 @@ fn segment(r: Range<usize>, q: &[f64], w: &[f64], threshold: impl FnOnce(f64) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::similarity::Descriptors;
     use ndarray::{Array2, array};
 
     /// |DB| = 3, two calibration and two deployment queries (columns).
@@ -798,21 +762,19 @@ mod tests {
                     segment_size,
                     gate: Gate::None,
                 };
-                let one = cal.transfer_in_chunks(s_val.view(), &p, |_, _| (), usize::MAX).unwrap();
-                let many = cal.transfer_in_chunks(s_val.view(), &p, |_, _| (), 0).unwrap();
+                let one = cal
+                    .transfer_in_chunks(s_val.view().into(), &(&p).into(), usize::MAX)
+                    .unwrap();
+                let many = cal.transfer_in_chunks(s_val.view().into(), &(&p).into(), 0).unwrap();
                 assert_eq!(one, many, "{matching:?} {segment_size:?}");
                 let calls = std::cell::Cell::new(0);
-                cal.transfer_in_chunks(
-                    s_val.view(),
-                    &p,
-                    |done, total| {
-                        calls.set(calls.get() + 1);
-                        assert_eq!(total, 45);
-                        assert!(done <= total);
-                    },
-                    0,
-                )
-                .unwrap();
+                let count = |done, total| {
+                    calls.set(calls.get() + 1);
+                    assert_eq!(total, 45);
+                    assert!(done <= total);
+                };
+                cal.transfer_in_chunks(s_val.view().into(), &Options::new(p).progress(&count), 0)
+                    .unwrap();
                 assert_eq!(calls.get(), 3, "45 queries in chunks of 16 (or 15)");
             }
         }
@@ -837,7 +799,7 @@ mod tests {
         let gt = GroundTruth::new(Array2::from_shape_fn((40, 23), |(i, j)| i % 23 == j).view()).unwrap();
         for matching in [Matching::Single, Matching::Multi] {
             let cal = Calibration::new(s.slice(ndarray::s![.., ..23]), &gt, matching).unwrap();
-            let fused_cal = Calibration::from_descriptors(&d, 0..23, &gt, matching).unwrap();
+            let fused_cal = Calibration::new(ScoreSource::Descriptors(&d, 0..23), &gt, matching).unwrap();
             assert_eq!(fused_cal.scores(), cal.scores());
             for segment_size in [Some(3), Some(7), Some(20), None] {
                 let p = Params {
@@ -849,12 +811,11 @@ mod tests {
                 let want = cal.transfer(s.slice(ndarray::s![.., 23..]), &p).unwrap();
                 for chunk_scores in [0, usize::MAX] {
                     let calls = std::cell::RefCell::new(vec![]);
+                    let record = |a, _| calls.borrow_mut().push(a);
                     let got = fused_cal
-                        .transfer_descriptors_in_chunks(
-                            &d,
-                            23..130,
-                            &p,
-                            |a, _| calls.borrow_mut().push(a),
+                        .transfer_in_chunks(
+                            ScoreSource::Descriptors(&d, 23..130),
+                            &Options::new(p).progress(&record),
                             chunk_scores,
                         )
                         .unwrap();
@@ -878,16 +839,18 @@ mod tests {
         }
         // Errors: a range beyond the queries, an empty range, another database.
         let p = params(1, None);
-        let cal = Calibration::from_descriptors(&d, 0..23, &gt, Matching::Single).unwrap();
+        let cal = Calibration::new(ScoreSource::Descriptors(&d, 0..23), &gt, Matching::Single).unwrap();
         assert_eq!(
-            cal.transfer_descriptors(&d, 100..131, &p).unwrap_err().to_string(),
+            cal.transfer(ScoreSource::Descriptors(&d, 100..131), &p)
+                .unwrap_err()
+                .to_string(),
             "queries must be a non-empty range of the 130 query descriptors, got 100..131"
         );
-        assert!(cal.transfer_descriptors(&d, 5..5, &p).is_err());
-        assert!(Calibration::from_descriptors(&d, 0..22, &gt, Matching::Single).is_err());
+        assert!(cal.transfer(ScoreSource::Descriptors(&d, 5..5), &p).is_err());
+        assert!(Calibration::new(ScoreSource::Descriptors(&d, 0..22), &gt, Matching::Single).is_err());
         let small = Descriptors::new(db.slice(ndarray::s![..39, ..]), q.view()).unwrap();
         assert_eq!(
-            cal.transfer_descriptors(&small, 23..130, &p).unwrap_err(),
+            cal.transfer(ScoreSource::Descriptors(&small, 23..130), &p).unwrap_err(),
             Error::DatabaseMismatch {
                 calibration: 40,
                 deployment: 39

@@ -12,7 +12,10 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::similarity::TILE;
-use qtvpr::{Calibration, Descriptors, Gate, GroundTruth, Matching, Params, cosine_similarity};
+use qtvpr::{
+    Calibration, Descriptors, Gate, GroundTruth, Matching, Method, Options, Params, Protocol, ScoreSource, Split,
+    cosine_similarity,
+};
 
 /// The implementation before the tiled kernel: every row normalised into one `f64`
 /// copy, one GEMM of all database rows with all queries.
@@ -74,7 +77,7 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
     let gt = GroundTruth::new(Array2::from_shape_fn((n_db, n_cal), |(i, j)| i.abs_diff(j) <= 1).view()).unwrap();
     for matching in [Matching::Single, Matching::Multi] {
         let cal = Calibration::new(s.slice(s![.., ..n_cal]), &gt, matching).unwrap();
-        let fused = Calibration::from_descriptors(d, 0..n_cal, &gt, matching).unwrap();
+        let fused = Calibration::new(ScoreSource::Descriptors(d, 0..n_cal), &gt, matching).unwrap();
         assert_eq!(fused.scores(), cal.scores());
         // Segments of 1, of 10 (dividing neither the tile of 64 nor the chunk), of
         // the tile width, of 100, and one batch of every deployment query.
@@ -86,7 +89,7 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
                 gate: Gate::None,
             };
             let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
-            let got = fused.transfer_descriptors(d, n_cal..n_q, &p).unwrap();
+            let got = fused.transfer(ScoreSource::Descriptors(d, n_cal..n_q), &p).unwrap();
             assert_eq!(got, want, "{matching:?} {segment_size:?}");
             let bits = |t: &qtvpr::Transfer| -> Vec<u64> { t.segments.iter().map(|g| g.threshold.to_bits()).collect() };
             assert_eq!(bits(&got), bits(&want));
@@ -94,14 +97,14 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
     }
     // With the margin gate (single matching): the same m* and margins, bit for bit.
     let cal = Calibration::new(s.slice(s![.., ..n_cal]), &gt, Matching::Single).unwrap();
-    let fused = Calibration::from_descriptors(d, 0..n_cal, &gt, Matching::Single).unwrap();
+    let fused = Calibration::new(ScoreSource::Descriptors(d, 0..n_cal), &gt, Matching::Single).unwrap();
     let p = Params {
         segment_size: Some(10),
         gate: Gate::Margin,
         ..Params::default()
     };
     let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
-    let got = fused.transfer_descriptors(d, n_cal..n_q, &p).unwrap();
+    let got = fused.transfer(ScoreSource::Descriptors(d, n_cal..n_q), &p).unwrap();
     assert_eq!(got, want);
     assert!(want.gate.is_some());
     let margins = qtvpr::margins(s.slice(s![.., n_cal..])).unwrap();
@@ -121,6 +124,80 @@ fn fused_transfer_gives_the_bits_of_the_matrix_path() {
     let (db64, q64) = (db.mapv(f64::from), q.mapv(f64::from));
     assert_eq!(cosine_similarity(db64.view(), q64.view()).unwrap(), s);
     fused_equals_matrix(&Descriptors::new(db64.view(), q64.view()).unwrap(), s.view(), 200);
+}
+
+/// Every operation takes a [`ScoreSource`]: a calibration, an evaluation and an
+/// ablation of descriptors (a range of their queries) equal those of the matrix, and
+/// the progress of `Options` counts the same steps.
+#[test]
+fn every_operation_reads_descriptors_as_its_matrix() {
+    let Some((db, q)) = data::nordland(300) else {
+        return;
+    };
+    let d = Descriptors::new(db.view(), q.view()).unwrap();
+    // Queries 50..300 of the descriptors are the columns 50.. of the matrix.
+    let s = cosine_similarity(db.view(), q.view()).unwrap();
+    let s = s.slice(s![.., 50..]);
+    let source = ScoreSource::Descriptors(&d, 50..300);
+    assert_eq!(source.dim(), s.dim());
+    let gt = GroundTruth::new(Array2::from_shape_fn(s.dim(), |(i, j)| i.abs_diff(j + 50) <= 2).view()).unwrap();
+    let protocol = Protocol {
+        calibration: Split::Count(40),
+        segment: Split::Count(10),
+        ..Protocol::default()
+    };
+    let methods = Method::all_for(Matching::Single);
+    let calls = std::cell::RefCell::new(vec![]);
+    let record = |done, total| calls.borrow_mut().push((done, total));
+    let want = qtvpr::evaluate(s, &gt, &protocol, &methods).unwrap();
+    let got = qtvpr::evaluate(source.clone(), &gt, Options::new(protocol).progress(&record), &methods).unwrap();
+    assert_eq!(got.methods, want.methods);
+    assert!(got.methods.iter().any(|m| m.pooled().tp > 0), "something is accepted");
+    let n = methods.len();
+    assert_eq!(calls.take(), (1..=n).map(|i| (i, n)).collect::<Vec<_>>());
+
+    let ks = [1, 5];
+    let want = qtvpr::ablation(s, &gt, &protocol, &ks, &[], &methods).unwrap();
+    let got = qtvpr::ablation(
+        source.clone(),
+        &gt,
+        Options::new(protocol).progress(&record),
+        &ks,
+        &[],
+        &methods,
+    )
+    .unwrap();
+    assert_eq!(got.runs.len(), 2);
+    for (got, want) in got.runs.iter().zip(&want.runs) {
+        assert_eq!(got.methods, want.methods);
+    }
+    assert_eq!(calls.take().last(), Some(&(2 * n, 2 * n)));
+
+    // A calibration on the first 40 columns of the source, a transfer to the rest.
+    let gt_cal = GroundTruth::from_truth(gt.view().slice(s![.., ..40]).to_owned());
+    let cal = Calibration::new(source.columns(0..40), &gt_cal, Matching::Single).unwrap();
+    assert_eq!(
+        cal.scores(),
+        Calibration::new(s.slice(s![.., ..40]), &gt_cal, Matching::Single)
+            .unwrap()
+            .scores()
+    );
+    let p = Params {
+        segment_size: Some(30),
+        ..Params::default()
+    };
+    let got = cal
+        .transfer(source.columns(40..250), Options::new(p).progress(&record))
+        .unwrap();
+    assert_eq!(got, cal.transfer(s.slice(s![.., 40..]), &p).unwrap());
+    assert_eq!(calls.take().last(), Some(&(210, 210)));
+    // A range beyond the descriptors is refused by the operation, naming it.
+    assert_eq!(
+        cal.transfer(ScoreSource::Descriptors(&d, 250..301), &p)
+            .unwrap_err()
+            .to_string(),
+        "queries must be a non-empty range of the 300 query descriptors, got 250..301"
+    );
 }
 
 #[test]

@@ -32,14 +32,14 @@ const PARAMS: OnlineParams = OnlineParams {
 };
 
 /// The calibration (111 x 11) and the deployment scores (111 x 100).
-fn load() -> (Calibration, qtvpr::npy::Scores) {
+fn load() -> (Calibration, qtvpr::npy::MatrixFile) {
     let s_cal = read_scores(&corridor("cal_S.npy")).unwrap();
     let gt = read_ground_truth(&corridor("cal_GT.npy"), None).unwrap();
     let cal = qtvpr::with_scores!(s_cal.view(), |v| Calibration::new(v, &gt, Matching::Single)).unwrap();
     (cal, read_scores(&corridor("deploy_S.npy")).unwrap())
 }
 
-fn deployment(scores: &qtvpr::npy::Scores) -> ArrayView2<'_, f64> {
+fn deployment(scores: &qtvpr::npy::MatrixFile) -> ArrayView2<'_, f64> {
     match scores.view() {
         ScoresView::F64(v) => v,
         ScoresView::F32(_) => panic!("data/corridor/deploy_S.npy is float64"),
