@@ -12,7 +12,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-step() { printf '\n== %s\n' "$*"; }
+# Each step says how long the one before it took (CONTRIBUTING.md quotes these).
+step_name="" step_start=$SECONDS
+step() {
+    [ -z "$step_name" ] || printf '== %s: %d s\n' "$step_name" $((SECONDS - step_start))
+    step_name="$*" step_start=$SECONDS
+    printf '\n== %s\n' "$*"
+}
+trap '[ -z "$step_name" ] || printf "== %s: %d s (total %d s)\n" "$step_name" $((SECONDS - step_start)) $SECONDS' EXIT
 target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 
 step "cargo fmt --check"
@@ -21,6 +28,7 @@ step "cargo clippy"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 step "cargo test"
 cargo test --workspace --locked
+step "C interface"
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
 step "fuzz targets compile"
