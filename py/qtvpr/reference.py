@@ -942,18 +942,28 @@ def _check_methods(methods, matching: str) -> list:
     return list(dict.fromkeys(methods))  # a repeated method once
 
 
+#: The protocol's defaults (the paper's): k, precision, calibration and segment fractions.
+PROTOCOL_DEFAULTS = (10, 1.0, 0.1, 0.01)
+
+
+def _protocol_defaults(*given):
+    """Each of ``k``, ``precision``, ``cal_fraction``, ``segment_fraction``, or its
+    default when None."""
+    return tuple(d if v is None else v for v, d in zip(given, PROTOCOL_DEFAULTS, strict=True))
+
+
 def evaluate(
     s,
     gt,
     *,
     gt_soft=None,
     methods=None,
-    k=10,
-    precision=1.0,
+    k=None,
+    precision=None,
     matching="single",
-    cal_fraction=0.1,
+    cal_fraction=None,
     cal_queries=None,
-    segment_fraction=0.01,
+    segment_fraction=None,
     segment_size=None,
     deploy_fraction=None,
     query_major=False,
@@ -985,6 +995,7 @@ def evaluate(
     no segment is counted; ``threshold_mse`` is None when no counted segment has both
     thresholds finite. The pooled counts are summed over every full segment.
     """
+    k, precision, cal_fraction, segment_fraction = _protocol_defaults(k, precision, cal_fraction, segment_fraction)
     k = _check_positive_int("k", k)
     tau = _check_precision(precision)
     matching = _check_matching(matching)
@@ -1009,12 +1020,12 @@ def ablation(
     *,
     gt_soft=None,
     methods=None,
-    k=10,
-    precision=1.0,
+    k=None,
+    precision=None,
     matching="single",
-    cal_fraction=0.1,
+    cal_fraction=None,
     cal_queries=None,
-    segment_fraction=0.01,
+    segment_fraction=None,
     segment_size=None,
     deploy_fraction=None,
     query_major=False,
@@ -1029,6 +1040,7 @@ def ablation(
     "ablation": [run, ...]}``, each run with the ``params``, ``recall_at_1`` and
     ``methods`` of :func:`evaluate`.
     """
+    k, precision, cal_fraction, segment_fraction = _protocol_defaults(k, precision, cal_fraction, segment_fraction)
     methods = _check_methods(methods, _check_matching(matching))
     ks = [_check_positive_int("k", v) for v in _values(k)]
     if cal_queries is None:

@@ -68,19 +68,20 @@ pub struct EvaluateArgs {
     method: Vec<String>,
     /// Calibration queries sampled per deployment query by quantile transfer. A list
     /// (e.g. 1,3,5,10,20,40) runs one evaluation per value (an ablation).
-    #[arg(long, value_delimiter = ',', default_value = "10", value_name = "K1,K2,...")]
+    #[arg(long, value_delimiter = ',', default_values_t = [qtvpr::DEFAULT_K], value_name = "K1,K2,...")]
     k: Vec<usize>,
     /// Target precision tau, in (0, 1].
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = qtvpr::DEFAULT_PRECISION, allow_negative_numbers = true)]
     precision: f64,
     /// single: one decision per query on its best match; multi: every entry is a candidate.
     #[arg(long, value_enum, default_value_t = MatchingArg::Single)]
     matching: MatchingArg,
-    /// The first floor(F x |Q|) queries calibrate [default: 0.10]. A list (e.g.
-    /// 0.01,0.05,0.1,0.2,0.3,0.5) is an ablation.
+    /// The first floor(F x |Q|) queries calibrate. A list (e.g. 0.01,0.05,0.1,0.2,0.3,0.5)
+    /// is an ablation.
     #[arg(
         long,
         value_delimiter = ',',
+        default_values_t = [qtvpr::evaluate::DEFAULT_CAL_FRACTION],
         conflicts_with = "cal_queries",
         allow_negative_numbers = true,
         value_name = "F1,F2,..."
@@ -92,7 +93,7 @@ pub struct EvaluateArgs {
     /// Segments of ceil(F x |Q|) deployment queries (a fraction of all queries).
     #[arg(
         long,
-        default_value_t = 0.01,
+        default_value_t = qtvpr::evaluate::DEFAULT_SEGMENT_FRACTION,
         conflicts_with = "segment_size",
         allow_negative_numbers = true,
         value_name = "F"
@@ -152,12 +153,10 @@ fn methods_of(names: &[String], matching: qtvpr::Matching) -> Result<Vec<Method>
 /// Run `evaluate`.
 pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
     let methods = methods_of(&args.method, args.matching.into()).context("--method")?;
-    let calibrations: Vec<Split> = if !args.cal_queries.is_empty() {
-        args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
-    } else if !args.cal_fraction.is_empty() {
+    let calibrations: Vec<Split> = if args.cal_queries.is_empty() {
         args.cal_fraction.iter().map(|&f| Split::Fraction(f)).collect()
     } else {
-        vec![Split::Fraction(0.10)]
+        args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
     };
     let ablation = args.k.len() > 1 || calibrations.len() > 1;
     // An ablation's deployment set is the last half unless --deploy-fraction says

@@ -41,14 +41,16 @@ struct Setup {
     args: Args,
 }
 
+/// The methods, and the protocol of the values given (the core's defaults for those
+/// left `None`, [`Protocol::resolve`]).
 #[allow(clippy::too_many_arguments)] // the Python signature
 fn setup(
     methods: Option<Vec<String>>,
-    k: usize,
-    precision: f64,
+    k: Option<usize>,
+    precision: Option<f64>,
     matching: &str,
-    calibration: Split,
-    segment_fraction: f64,
+    calibration: Option<Split>,
+    segment_fraction: Option<f64>,
     segment_size: Option<i64>,
     deploy_fraction: Option<f64>,
     query_major: bool,
@@ -63,18 +65,12 @@ fn setup(
             .collect::<qtvpr::Result<_>>()
             .map_err(|e| args.error(e))?,
     };
-    let protocol = Protocol {
-        calibration,
-        deploy_fraction,
-        segment: match segment_size {
-            Some(n) => Split::Count(count("segment_size", n)?),
-            None => Split::Fraction(segment_fraction),
-        },
-        k,
-        precision,
-        matching,
+    let segment = match segment_size {
+        Some(n) => Some(Split::Count(count("segment_size", n)?)),
+        None => segment_fraction.map(Split::Fraction),
     };
-    protocol.validate().map_err(|e| args.error(e))?;
+    let protocol = Protocol::resolve(k, precision, Some(matching), calibration, segment, deploy_fraction)
+        .map_err(|e| args.error(e))?;
     Ok(Setup {
         methods,
         protocol,
@@ -82,10 +78,11 @@ fn setup(
     })
 }
 
-fn calibration(cal_fraction: f64, cal_queries: Option<i64>) -> PyResult<Split> {
+/// ``cal_queries`` or ``cal_fraction``, `None` for neither.
+fn calibration(cal_fraction: Option<f64>, cal_queries: Option<i64>) -> PyResult<Option<Split>> {
     Ok(match cal_queries {
-        Some(n) => Split::Count(count("cal_queries", n)?),
-        None => Split::Fraction(cal_fraction),
+        Some(n) => Some(Split::Count(count("cal_queries", n)?)),
+        None => cal_fraction.map(Split::Fraction),
     })
 }
 
@@ -112,7 +109,9 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 ///
 /// ``s`` (|DB| x |Q|, float32 or float64, an array or a ``.npy`` path; or
 /// :class:`Descriptors`, whose similarity is then computed in memory) comes with
-/// ground truth ``gt`` (and optional ``gt_soft``) for every query. The first ``cal_queries`` queries (default
+/// ground truth ``gt`` (and optional ``gt_soft``) for every query. A parameter left
+/// ``None`` is the library's default, as in ``qtvpr-cli evaluate``: ``k=10``,
+/// ``precision=1.0``, ``cal_fraction=0.1``, ``segment_fraction=0.01``. The first ``cal_queries`` queries (default
 /// ``floor(cal_fraction * |Q|)``) calibrate. The deployment set is every later query,
 /// or with ``deploy_fraction`` the last ``floor(deploy_fraction * |Q|)`` queries (the
 /// calibration-size ablation: the queries between the two sets are unused). It is cut
@@ -149,8 +148,8 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 /// oracle's threshold where both are finite (``None`` if nowhere).
 #[pyfunction]
 #[pyo3(signature = (
-    s, gt, *, gt_soft = None, methods = None, k = 10, precision = 1.0, matching = "single",
-    cal_fraction = 0.1, cal_queries = None, segment_fraction = 0.01, segment_size = None,
+    s, gt, *, gt_soft = None, methods = None, k = None, precision = None, matching = "single",
+    cal_fraction = None, cal_queries = None, segment_fraction = None, segment_size = None,
     deploy_fraction = None, query_major = false,
 ))]
 #[allow(clippy::too_many_arguments)] // the Python signature
@@ -160,12 +159,12 @@ pub(crate) fn evaluate<'py>(
     gt: &Bound<'py, PyAny>,
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
-    k: i64,
-    precision: f64,
+    k: Option<i64>,
+    precision: Option<f64>,
     matching: &str,
-    cal_fraction: f64,
+    cal_fraction: Option<f64>,
     cal_queries: Option<i64>,
-    segment_fraction: f64,
+    segment_fraction: Option<f64>,
     segment_size: Option<i64>,
     deploy_fraction: Option<f64>,
     query_major: bool,
@@ -176,7 +175,7 @@ pub(crate) fn evaluate<'py>(
         args,
     } = setup(
         methods,
-        count("k", k)?,
+        k.map(|k| count("k", k)).transpose()?,
         precision,
         matching,
         calibration(cal_fraction, cal_queries)?,
@@ -219,14 +218,10 @@ pub(crate) fn evaluate<'py>(
 #[pyfunction]
 #[pyo3(
     signature = (
-        s, gt, *, gt_soft = None, methods = None, k = OneOrMany::One(10), precision = 1.0,
-        matching = "single", cal_fraction = OneOrMany::One(0.1), cal_queries = None,
-        segment_fraction = 0.01, segment_size = None, deploy_fraction = None, query_major = false,
+        s, gt, *, gt_soft = None, methods = None, k = None, precision = None,
+        matching = "single", cal_fraction = None, cal_queries = None,
+        segment_fraction = None, segment_size = None, deploy_fraction = None, query_major = false,
     ),
-    // The defaults as Python spells them (pyo3 would show the list-or-value ones as `...`).
-    text_signature = "(s, gt, *, gt_soft=None, methods=None, k=10, precision=1.0, matching='single', \
-                      cal_fraction=0.1, cal_queries=None, segment_fraction=0.01, segment_size=None, \
-                      deploy_fraction=None, query_major=False)"
 )]
 #[allow(clippy::too_many_arguments)] // the Python signature
 pub(crate) fn ablation<'py>(
@@ -235,29 +230,31 @@ pub(crate) fn ablation<'py>(
     gt: &Bound<'py, PyAny>,
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
-    k: OneOrMany<i64>,
-    precision: f64,
+    k: Option<OneOrMany<i64>>,
+    precision: Option<f64>,
     matching: &str,
-    cal_fraction: OneOrMany<f64>,
+    cal_fraction: Option<OneOrMany<f64>>,
     cal_queries: Option<OneOrMany<i64>>,
-    segment_fraction: f64,
+    segment_fraction: Option<f64>,
     segment_size: Option<i64>,
     deploy_fraction: Option<f64>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let ks: Vec<usize> = nonempty("k", k)?
-        .into_iter()
-        .map(|k| count("k", k))
-        .collect::<PyResult<_>>()?;
-    let calibrations: Vec<Split> = match cal_queries {
-        Some(n) => nonempty("cal_queries", n)?
+    // Empty lists: the base protocol's value (the core's default) alone.
+    let ks: Vec<usize> = match k {
+        Some(k) => nonempty("k", k)?
+            .into_iter()
+            .map(|k| count("k", k))
+            .collect::<PyResult<_>>()?,
+        None => vec![],
+    };
+    let calibrations: Vec<Split> = match (cal_queries, cal_fraction) {
+        (Some(n), _) => nonempty("cal_queries", n)?
             .into_iter()
             .map(|n| count("cal_queries", n).map(Split::Count))
             .collect::<PyResult<_>>()?,
-        None => nonempty("cal_fraction", cal_fraction)?
-            .into_iter()
-            .map(Split::Fraction)
-            .collect(),
+        (None, Some(f)) => nonempty("cal_fraction", f)?.into_iter().map(Split::Fraction).collect(),
+        (None, None) => vec![],
     };
     let Setup {
         methods,
@@ -265,17 +262,19 @@ pub(crate) fn ablation<'py>(
         args,
     } = setup(
         methods,
-        ks[0],
+        ks.first().copied(),
         precision,
         matching,
-        calibrations[0],
+        calibrations.first().copied(),
         segment_fraction,
         segment_size,
         deploy_fraction,
         query_major,
     )?;
-    for &k in &ks {
-        for &calibration in &calibrations {
+    // Every setting is checked before any input is read (an empty list: the base's).
+    for &k in ks.iter().chain(ks.is_empty().then_some(&protocol.k)) {
+        let base = calibrations.is_empty().then_some(&protocol.calibration);
+        for &calibration in calibrations.iter().chain(base) {
             Protocol {
                 k,
                 calibration,

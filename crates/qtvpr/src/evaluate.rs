@@ -36,7 +36,7 @@ use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
 use crate::margin::{self, Gate};
 use crate::names::Input;
 use crate::online::Online;
-use crate::params::{DEFAULT_K, OnlineParams, Options, Params};
+use crate::params::{DEFAULT_K, DEFAULT_PRECISION, OnlineParams, Options, Params};
 use crate::source::ScoreSource;
 use crate::threads;
 use crate::transfer::Calibration;
@@ -168,14 +168,22 @@ pub struct Protocol {
     pub matching: Matching,
 }
 
+/// The share of the queries that calibrates when none is given: the paper's 10%.
+pub const DEFAULT_CAL_FRACTION: f64 = 0.10;
+
+/// The segment size as a share of the queries when none is given: the paper's 1%.
+pub const DEFAULT_SEGMENT_FRACTION: f64 = 0.01;
+
 impl Default for Protocol {
+    /// The paper's protocol: the first 10% of the queries calibrate, segments of 1% of
+    /// them, `k` = [`DEFAULT_K`], 100% precision, single matching.
     fn default() -> Self {
         Self {
-            calibration: Split::Fraction(0.10),
+            calibration: Split::Fraction(DEFAULT_CAL_FRACTION),
             deploy_fraction: None,
-            segment: Split::Fraction(0.01),
+            segment: Split::Fraction(DEFAULT_SEGMENT_FRACTION),
             k: DEFAULT_K,
-            precision: 1.0,
+            precision: DEFAULT_PRECISION,
             matching: Matching::Single,
         }
     }
@@ -245,6 +253,34 @@ impl Split {
 }
 
 impl Protocol {
+    /// The protocol of the values a user gave, [`Protocol::default`]'s for those left
+    /// out (`None`), checked: what every front end asks for, so that none decides a
+    /// default. A segment or a calibration set given as a count replaces the default
+    /// fraction.
+    ///
+    /// # Errors
+    /// As [`Protocol::validate`].
+    pub fn resolve(
+        k: Option<usize>,
+        precision: Option<f64>,
+        matching: Option<Matching>,
+        calibration: Option<Split>,
+        segment: Option<Split>,
+        deploy_fraction: Option<f64>,
+    ) -> Result<Self> {
+        let d = Self::default();
+        let protocol = Self {
+            calibration: calibration.unwrap_or(d.calibration),
+            deploy_fraction: deploy_fraction.or(d.deploy_fraction),
+            segment: segment.unwrap_or(d.segment),
+            k: k.unwrap_or(d.k),
+            precision: precision.unwrap_or(d.precision),
+            matching: matching.unwrap_or(d.matching),
+        };
+        protocol.validate()?;
+        Ok(protocol)
+    }
+
     /// Check the parameters that do not depend on the matrix: `k >= 1`, tau in (0, 1],
     /// fractions in (0, 1), counts >= 1.
     ///
@@ -889,6 +925,38 @@ mod tests {
         };
         assert!(evaluate(s.view(), &gt, Options::new(bad).progress(&record), &methods).is_err());
         assert_eq!(calls.take(), []);
+    }
+
+    #[test]
+    fn a_protocol_resolves_what_is_left_out_to_the_defaults() {
+        let none = Protocol::resolve(None, None, None, None, None, None).unwrap();
+        assert_eq!(none, Protocol::default());
+        assert_eq!(
+            (none.calibration, none.segment, none.k, none.precision),
+            (Split::Fraction(0.10), Split::Fraction(0.01), 10, 1.0)
+        );
+        let given = Protocol::resolve(
+            Some(3),
+            Some(0.9),
+            Some(Matching::Multi),
+            Some(Split::Count(20)),
+            Some(Split::Count(7)),
+            Some(0.5),
+        )
+        .unwrap();
+        assert_eq!(
+            given,
+            Protocol {
+                calibration: Split::Count(20),
+                deploy_fraction: Some(0.5),
+                segment: Split::Count(7),
+                k: 3,
+                precision: 0.9,
+                matching: Matching::Multi,
+            }
+        );
+        let err = Protocol::resolve(Some(0), None, None, None, None, None).unwrap_err();
+        assert_eq!(err.to_string(), "k must be >= 1, got 0");
     }
 
     #[test]
