@@ -317,16 +317,8 @@ impl PyCalibration {
         gate: Option<&str>,
         query_major: bool,
     ) -> PyResult<TransferResult> {
-        let args = Args {
-            gt: "gt_cal",
-            query_major,
-        };
-        let params = self.params(k, precision, segment_size, gate, args)?;
-        let s = SourceArg::extract("s_val", s_val, query_major)?;
-        let out = s
-            .with(py, |s| self.inner.transfer(s, &params))?
-            .map_err(|e| args.error(e))?;
-        Ok(TransferResult::new(py, out))
+        // The transfer of a whole set is that of a block starting at query 0.
+        self._transfer_at(py, s_val, 0, k, precision, segment_size, gate, query_major)
     }
 
     /// Check, from its shape alone, a transfer of a deployment similarity of shape
