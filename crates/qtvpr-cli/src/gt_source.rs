@@ -13,7 +13,7 @@
 //! A LIST is a directory or a text file of paths ([`qtvpr::image_names::image_paths`]).
 //!
 //! The options are one flattenable clap `Args` struct per prefix, made by
-//! [`gt_source_args!`] (a clap-derive struct cannot take its option names at run time),
+//! `gt_source_args!` (a clap-derive struct cannot take its option names at run time),
 //! so that `threshold` (`--cal-gt...`) and `evaluate` (`--gt...`) share names, checks
 //! and messages. `ground-truth` has the same options without a prefix and no file
 //! source, plus the shape options of a tolerance; it builds a [`GtSource`] with the

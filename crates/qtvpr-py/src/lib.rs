@@ -1,7 +1,7 @@
 //! `qtvpr._native`: the Python binding of the `qtvpr` core.
 //!
-//! The binding is thin on purpose: it converts arguments ([`convert`]), calls the core
-//! with the GIL released, and converts results and errors back ([`error`]). There is no
+//! The binding is thin on purpose: it converts arguments (`convert`), calls the core
+//! with the GIL released, and converts results and errors back (`error`). There is no
 //! arithmetic here, so the core's tests and the Python parity tests against
 //! `qtvpr.reference` cover the numbers, and this crate only has to get the plumbing
 //! right: dtypes, orientation, strides, exceptions.
@@ -9,6 +9,10 @@
 //! Python docstrings live on the `#[pyfunction]`s and `#[pymethods]` below, with
 //! `#[pyo3(signature = ...)]` so that `help()` shows the real signature; the types live
 //! in `py/qtvpr/_native.pyi`.
+
+// Those docstrings are Python's (reStructuredText, `>>>` examples), not rustdoc's
+// Markdown: a `[...]` in them is a Python list, not a link.
+#![allow(rustdoc::broken_intra_doc_links)]
 
 mod calibration;
 mod convert;
