@@ -13,8 +13,8 @@ use std::fmt;
 /// A matrix of the core's input, as its errors name it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Input {
-    /// The one similarity matrix of [`best_threshold`](crate::best_threshold),
-    /// [`counts`](crate::counts), [`evaluate`](crate::evaluate), ...
+    /// The one similarity matrix of [`best_threshold`](fn@crate::best_threshold),
+    /// [`counts`](crate::counts), [`evaluate`](fn@crate::evaluate), ...
     Similarity,
     /// The calibration similarity of a [`Calibration`](crate::Calibration).
     CalSimilarity,

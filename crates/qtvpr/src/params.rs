@@ -224,9 +224,10 @@ impl OnlineParams {
     }
 }
 
-/// An operation's parameters `P` ([`Params`](crate::Params) for a transfer,
+/// An operation's parameters `P` ([`Params`] for a transfer,
 /// [`Protocol`](crate::Protocol) for an evaluation, the range of queries for
-/// [`Descriptors::similarity`]), and an optional progress callback.
+/// [`Descriptors::similarity`](crate::Descriptors::similarity)), and an optional
+/// progress callback.
 ///
 /// Every operation takes `impl Into<Options<P>>`, so `&params` alone means no progress.
 #[derive(Clone, Copy)]

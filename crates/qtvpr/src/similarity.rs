@@ -310,12 +310,12 @@ fn fill<T: Score>(db: Rows<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst
 /// Database and query descriptors, checked once, from which the similarity of any range
 /// of queries is computed on demand. As a [`ScoreSource::Descriptors`] (a range of its
 /// queries) it stands in for a similarity matrix wherever one is read: the fused
-/// transfer ([`Calibration::transfer`]) never holds it whole.
+/// transfer ([`Calibration::transfer`]) never holds it whole. The descriptors are not
+/// copied (the views may be memory-mapped files); what is kept beside them is two `f64`
+/// factors per row (16 MB per million descriptors).
 ///
 /// [`ScoreSource::Descriptors`]: crate::ScoreSource::Descriptors
-/// [`Calibration::transfer`]: crate::Calibration::transfer The descriptors are not copied (the views may be
-/// memory-mapped files); what is kept beside them is two `f64` factors per row (16 MB
-/// per million descriptors).
+/// [`Calibration::transfer`]: crate::Calibration::transfer
 ///
 /// Columns are computed in tiles aligned at query 0 of `queries` (see the
 /// [module docs](self)), so `similarity(a..b)` is exactly columns `a..b` of

@@ -101,7 +101,7 @@ pub(super) fn is_regular(file: &File) -> bool {
     file.metadata().is_ok_and(|m| m.is_file())
 }
 
-/// Open input `path` for reading as [`open_file`] does (never blocking on a FIFO
+/// Open input `path` for reading as `open_file` does (never blocking on a FIFO
 /// without a writer; a directory is an error), and say whether it is a regular file
 /// (seekable, mappable) rather than a stream.
 ///
