@@ -13,7 +13,7 @@ use common::{npy_bool, npy_f64};
 
 const Z: f64 = 4.753424308817087;
 
-/// |DB| = 3, |Q| = 7: calibration c0, c1, deployment d0..d4 (crates/qtvpr/src/evaluate.rs).
+/// |DB| = 3, |Q| = 7: calibration c0, c1, deployment d0..d4 (crates/qtvpr/src/evaluate/mod.rs).
 ///
 /// ```text
 ///        c0   c1    d0   d1   d2   d3   d4
@@ -200,9 +200,10 @@ fn hand_computed_json() {
         (Some(1), Some(1))
     );
     assert!(near(&q["threshold_mse"], 0.01));
-    // Online, a window of 2 over d0, d1, ... (crates/qtvpr/src/evaluate.rs): d0 alone
-    // -> 0.54, accepting d0 (T); d1 with d0 -> 0.6, accepting d1 (F). Segment 0: TP 1,
-    // FP 1 at the threshold of its last query, 0.6; segment 1 ends at d3: 0.5.
+    // Online, a window of 2 over d0, d1, ... (crates/qtvpr/src/evaluate/online.rs):
+    // d0 alone -> 0.54, accepting d0 (T); d1 with d0 -> 0.6, accepting d1 (F).
+    // Segment 0: TP 1, FP 1 at the threshold of its last query, 0.6; segment 1 ends at
+    // d3: 0.5.
     let o = &methods["quantile-transfer-online"];
     assert!(near(&o["segments"][0]["threshold"], 0.6) && near(&o["segments"][1]["threshold"], 0.5));
     assert_eq!(

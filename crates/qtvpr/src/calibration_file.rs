@@ -15,7 +15,7 @@
 //!  "params": {"k": 10, "precision": 1.0, "window": 28, "gate": "none"}, "qtvpr": "0.1.0"}
 //! ```
 //!
-//! `params` are [`Defaults`] for whoever uses the file (`window` is `null` when none is
+//! `params` are [`Defaults`](crate::params::Defaults) for whoever uses the file (`window` is `null` when none is
 //! set; `gate`, `"none"` or `"margin"`, is `"none"` when left out); each can be
 //! overridden there. `qtvpr` is the version of the crate that wrote
 //! it. Keys beyond these are ignored on load.

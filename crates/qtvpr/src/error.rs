@@ -474,7 +474,7 @@ mod tests {
 
     #[test]
     fn unknown_method_lists_the_methods_it_is_given() {
-        // `Method`'s parser gives every method (evaluate.rs tests that list).
+        // `Method`'s parser gives every method (evaluate/protocol.rs tests that list).
         let e = Error::UnknownMethod {
             name: "best".into(),
             expected: vec!["oracle", "schubert"],
