@@ -26,6 +26,10 @@ step "cargo fmt --check"
 cargo fmt --all -- --check
 step "cargo clippy"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+step "rustdoc"
+# Broken or private intra-doc links fail. The C library's crate is named `qtvpr` too
+# (libqtvpr.so), so its docs would overwrite the core's: include/qtvpr.h documents it.
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --exclude qtvpr-capi --no-deps --locked
 step "cargo test"
 cargo test --workspace --locked
 step "C interface"
