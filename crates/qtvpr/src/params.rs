@@ -248,14 +248,8 @@ impl<'p, P> Options<'p, P> {
 
     /// The same options, calling `progress(done, total)`.
     #[must_use]
-    pub fn progress(self, progress: &'p dyn Fn(usize, usize)) -> Self {
-        self.maybe_progress(Some(progress))
-    }
-
-    /// The same options with the progress callback `progress`, if any.
-    #[must_use]
-    pub(crate) fn maybe_progress(mut self, progress: Option<&'p dyn Fn(usize, usize)>) -> Self {
-        self.progress = progress;
+    pub fn progress(mut self, progress: &'p dyn Fn(usize, usize)) -> Self {
+        self.progress = Some(progress);
         self
     }
 

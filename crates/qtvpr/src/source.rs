@@ -8,7 +8,7 @@
 //! [`ablation`](crate::ablation()). A front end converts its input into a source once
 //! and never dispatches on matrices and descriptors itself.
 //!
-//! Beside it, every such operation takes [`Options`]: its parameters with an optional
+//! Beside it, every such operation takes [`Options`](crate::Options): its parameters with an optional
 //! progress callback, `cal.transfer(s, &params)` for none,
 //! `cal.transfer(s, Options::new(params).progress(&bar))` for a progress bar.
 //!
@@ -21,7 +21,6 @@ use ndarray::{Array2, ArrayView2, s};
 
 use crate::error::Result;
 use crate::input::{Score, ScoresView};
-use crate::params::Options;
 use crate::similarity::Descriptors;
 
 /// The similarity scores an operation reads.
@@ -85,17 +84,12 @@ impl ScoreSource<'_, '_> {
     }
 
     /// Run `f` on every score of the source at once: the matrix itself, or the
-    /// similarity of the descriptors computed in memory (checked range first), with
-    /// `progress` as it is computed.
-    pub(crate) fn with_matrix<R>(
-        &self,
-        progress: Option<&dyn Fn(usize, usize)>,
-        f: impl FnOnce(ScoresView<'_>) -> Result<R>,
-    ) -> Result<R> {
+    /// similarity of the descriptors computed in memory (checked range first).
+    pub(crate) fn with_matrix<R>(&self, f: impl FnOnce(ScoresView<'_>) -> Result<R>) -> Result<R> {
         match self {
             ScoreSource::Matrix(v) => f(*v),
             ScoreSource::Descriptors(d, r) => {
-                let s: Array2<f32> = d.similarity(Options::new(r.clone()).maybe_progress(progress))?;
+                let s: Array2<f32> = d.similarity(r.clone())?;
                 f(s.view().into())
             }
         }

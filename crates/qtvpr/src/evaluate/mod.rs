@@ -74,7 +74,7 @@ pub fn evaluate<'s, 'd: 's, 'p>(
     options.params.validate()?;
     scores
         .into()
-        .with_matrix(None, |s| with_scores!(s, |s| evaluate_matrix(s, gt, &options, methods)))
+        .with_matrix(|s| with_scores!(s, |s| evaluate_matrix(s, gt, &options, methods)))
 }
 
 /// [`evaluate`] of a matrix.
@@ -261,7 +261,7 @@ pub fn ablation<'s, 'd: 's, 'p>(
     }
     let n = protocols.len();
     // Descriptors are turned into their similarity once, for every run.
-    let runs = source.with_matrix(None, |s| {
+    let runs = source.with_matrix(|s| {
         protocols
             .iter()
             .enumerate()
