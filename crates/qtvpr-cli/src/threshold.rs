@@ -191,7 +191,9 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
             let split = QuerySplit::new(split, (n_db, n_q)).with_context(|| format!("{flag} of {input}"))?;
             let gt_source = gt_source.expect("a split needs ground truth, checked above");
             let gt_cal = gt_source.load_split(&split, args.query_major, &input)?;
-            let cal = Calibration::new(source.columns(split.calibration()), &gt_cal, matching_arg)
+            // Nothing here saves it: a calibration that keeps neither its scores nor its
+            // ground truth, which it drops once it has its candidates.
+            let cal = Calibration::for_transfer(source.columns(split.calibration()), gt_cal, matching_arg)
                 .map_err(explain)
                 .with_context(|| format!("{input} / {}", gt_source.describe()))?;
             (cal, split.deployment(), Some(split))

@@ -15,7 +15,7 @@ mod data;
 use common::{assert_clean_failure, ok_in, run_in};
 
 /// Queries of the test: the first 600 summer frames (137 calibrate, not a multiple of
-/// the kernel's tile of 64).
+/// the kernel's tile of 16).
 const N_Q: usize = 600;
 const N_CAL: usize = 137;
 

@@ -92,20 +92,19 @@ mod file {
         /// (temporary file and rename; the file gets the mode a plain create gives).
         ///
         /// # Errors
-        /// [`Error::InvalidParameter`] for bad `defaults`; [`Error::Write`] naming `path`.
+        /// [`Error::InvalidParameter`] for bad `defaults` or a calibration that did not keep
+        /// its input ([`Calibration::for_transfer`]); [`Error::Write`] naming `path`.
         pub fn save(&self, path: &Path, defaults: &Defaults) -> Result<()> {
-            self.check_defaults(defaults)?;
-            let (meta, gt, soft) = self.file_arrays(defaults);
+            let (meta, gt, soft) = self.file_arrays(defaults)?;
             npy::write_npz(path, &self.members(&meta, &gt, soft.as_ref()))
         }
 
         /// The calibration file as bytes (for sending it elsewhere, e.g. pickling).
         ///
         /// # Errors
-        /// [`Error::InvalidParameter`] for bad `defaults`.
+        /// As [`Calibration::save`], but for writing.
         pub fn to_bytes(&self, defaults: &Defaults) -> Result<Vec<u8>> {
-            self.check_defaults(defaults)?;
-            let (meta, gt, soft) = self.file_arrays(defaults);
+            let (meta, gt, soft) = self.file_arrays(defaults)?;
             let mut out = Cursor::new(Vec::new());
             npy::write_npz_to(&mut out, &self.members(&meta, &gt, soft.as_ref())).map_err(|e| Error::Write {
                 path: "memory".into(),
@@ -137,8 +136,17 @@ mod file {
             read(npy::open_npz(Cursor::new(bytes), path)?, path)
         }
 
-        /// The `meta` JSON and the hard and (if any entry is ignored) soft ground truth.
-        fn file_arrays(&self, defaults: &Defaults) -> (String, Array2<bool>, Option<Array2<bool>>) {
+        /// The `meta` JSON and the hard and (if any entry is ignored) soft ground truth,
+        /// once `defaults` are checked and the calibration is known to keep its input.
+        fn file_arrays(&self, defaults: &Defaults) -> Result<(String, Array2<bool>, Option<Array2<bool>>)> {
+            self.check_defaults(defaults)?;
+            let labels = self.ground_truth().ok_or_else(|| {
+                Error::param(
+                    "calibration",
+                    "was built by Calibration::for_transfer, which keeps neither its scores nor its \
+                     ground truth, so it cannot be saved: build it with Calibration::new",
+                )
+            })?;
             let meta = Meta {
                 format: FORMAT.into(),
                 version: VERSION,
@@ -152,13 +160,13 @@ mod file {
                 qtvpr: env!("CARGO_PKG_VERSION").into(),
             };
             let meta = serde_json::to_string(&meta).expect("meta serialises");
-            let labels = self.ground_truth().view();
+            let labels = labels.view();
             let gt = labels.mapv(|t| t == Truth::True);
             let soft = labels
                 .iter()
                 .any(|&t| t == Truth::Ignored)
                 .then(|| labels.mapv(|t| t != Truth::False));
-            (meta, gt, soft)
+            Ok((meta, gt, soft))
         }
 
         fn members<'a>(
@@ -167,7 +175,7 @@ mod file {
             gt: &'a Array2<bool>,
             soft: Option<&'a Array2<bool>>,
         ) -> Vec<(&'static str, NpyArray<'a>)> {
-            let s = match self.scores() {
+            let s = match self.scores().expect("file_arrays checked that the input is kept") {
                 ScoreMatrix::F32(m) => NpyArray::F32(m.view()),
                 ScoreMatrix::F64(m) => NpyArray::F64(m.view()),
             };
@@ -486,6 +494,19 @@ mod tests {
         let err = cal.save(&d.path().join("no/such/dir/cal.npz"), &DEFAULTS).unwrap_err();
         assert!(err.to_string().starts_with("cannot write "), "{err}");
         assert!(err.to_string().contains("cal.npz"), "{err}");
+        // A calibration that kept nothing to save says so, and writes no file.
+        let s = Array2::from_shape_fn((6, 9), |(i, j)| (i * 9 + j) as f32);
+        let gt = GroundTruth::new(Array2::from_shape_fn((6, 9), |(i, j)| i == j % 6).view()).unwrap();
+        let lean = Calibration::for_transfer(s.view(), gt, Matching::Single).unwrap();
+        let path = d.path().join("lean.npz");
+        let err = lean.save(&path, &DEFAULTS).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "calibration was built by Calibration::for_transfer, which keeps neither its scores nor its \
+             ground truth, so it cannot be saved: build it with Calibration::new"
+        );
+        assert_eq!(lean.to_bytes(&DEFAULTS).unwrap_err(), err);
+        assert!(!path.exists());
     }
 
     fn meta(format: &str, version: &str, matching: &str, params: &str) -> String {

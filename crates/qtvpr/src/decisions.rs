@@ -106,6 +106,26 @@ impl Candidates {
         })
     }
 
+    /// No columns: where [`Candidates::append`] starts.
+    pub(crate) fn none() -> Self {
+        Self {
+            offsets: vec![0],
+            scores: Vec::new(),
+            correct: Vec::new(),
+            positives: Vec::new(),
+        }
+    }
+
+    /// The candidates of `more`'s columns after those of `self` (a calibration collected
+    /// a few columns at a time).
+    pub(crate) fn append(&mut self, more: Candidates) {
+        let base = self.scores.len();
+        self.offsets.extend(more.offsets[1..].iter().map(|o| base + o));
+        self.scores.extend(more.scores);
+        self.correct.extend(more.correct);
+        self.positives.extend(more.positives);
+    }
+
     /// Column `j`'s candidates: scores (descending) and correctness.
     pub(crate) fn column(&self, j: usize) -> (&[f64], &[bool]) {
         let r = self.offsets[j]..self.offsets[j + 1];

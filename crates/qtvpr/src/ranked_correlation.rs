@@ -101,7 +101,7 @@
 //! are, never what is chosen. Below |DB| = 256 (`DIRECT_BELOW`), summaries would save
 //! little: every correlation is computed, as [`top_k`] asks.
 
-use ndarray::{Array2, ArrayView2, ShapeBuilder, s};
+use ndarray::{Array2, ArrayView2, ArrayViewMut1, ShapeBuilder, s};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -153,46 +153,88 @@ impl<T: Score> Ranked<T> {
     /// # Errors
     /// As [`Ranked::new`]; `self` is then left in an unspecified but valid state.
     pub(crate) fn refill(&mut self, what: Input, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
-        threads::install(|| {
-            check_nonempty(what, s.dim())?;
-            let (n_db, n) = s.dim();
-            let Self { sorted, standard, .. } = self;
-            self.n_db = n_db;
-            sorted.resize(s.len(), T::default());
-            standard.resize(n, Standard::CONSTANT);
-            const TILE: usize = 64;
-            sorted.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
-                let cols = tile * TILE..(tile * TILE + out.len() / n_db);
-                for rows in (0..n_db).step_by(4 * TILE).map(|r| r..(r + 4 * TILE).min(n_db)) {
-                    let block = s.slice(s![rows.clone(), cols.clone()]);
-                    for (i, row) in rows.zip(block.rows()) {
-                        for (j, &v) in row.iter().enumerate() {
-                            out[j * n_db + i] = v;
-                        }
-                    }
-                }
-            });
-            let bad =
-                sorted
-                    .par_chunks_mut(n_db)
-                    .zip(standard)
-                    .enumerate()
-                    .find_map_first(|(col, (column, standard))| {
-                        if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
-                            let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
-                            return Some(Error::NotFinite {
-                                what,
-                                row,
-                                col: first_col + col,
-                                value: v.to_f64(),
-                            });
-                        }
-                        T::sort_ascending(column);
-                        *standard = pulp::Arch::new().dispatch(Standardise(column));
-                        None
-                    });
-            bad.map_or(Ok(()), Err)
-        })
+        check_nonempty(what, s.dim())?;
+        self.refill_with(what, s.dim(), first_col, |out| gather(s, out))
+    }
+
+    /// [`Ranked::refill`] with the |DB| x `n` scores written by `fill` into the
+    /// column-major buffer it is given, where they are then sorted: the scores are never
+    /// copied (the fused transfer computes them there).
+    ///
+    /// # Errors
+    /// As [`Ranked::new`].
+    pub(crate) fn refill_with(
+        &mut self,
+        what: Input,
+        (n_db, n): (usize, usize),
+        first_col: usize,
+        fill: impl FnOnce(&mut [T]),
+    ) -> Result<()> {
+        self.n_db = n_db;
+        self.sorted.resize(n_db * n, T::default());
+        self.standard.clear();
+        self.rank_from(what, first_col, fill)
+    }
+
+    /// No columns yet, room for `n` columns of `n_db` scores, to be added by
+    /// [`Ranked::extend_with`] (a calibration built a few columns at a time).
+    pub(crate) fn with_capacity(n_db: usize, n: usize) -> Self {
+        Self {
+            n_db,
+            sorted: Vec::with_capacity(n_db * n),
+            standard: Vec::with_capacity(n),
+        }
+    }
+
+    /// Append `n` columns, written by `fill` as by [`Ranked::refill_with`]; `first_col`
+    /// is the first's column index, for errors.
+    ///
+    /// # Errors
+    /// As [`Ranked::new`].
+    pub(crate) fn extend_with(
+        &mut self,
+        what: Input,
+        n: usize,
+        first_col: usize,
+        fill: impl FnOnce(&mut [T]),
+    ) -> Result<()> {
+        self.sorted.resize(self.sorted.len() + self.n_db * n, T::default());
+        self.rank_from(what, first_col, fill)
+    }
+
+    /// Fill the columns after the last standardised one with `fill`, then check, sort
+    /// and standardise them: in parallel, or on the calling thread for one column (a
+    /// push, which then never waits for the pool).
+    fn rank_from(&mut self, what: Input, first_col: usize, fill: impl FnOnce(&mut [T])) -> Result<()> {
+        let Self { n_db, sorted, standard } = self;
+        let new = &mut sorted[standard.len() * *n_db..];
+        fill(new);
+        let base = standard.len();
+        standard.resize(base + new.len() / *n_db, Standard::CONSTANT);
+        let rank = |col: usize, (column, standard): (&mut [T], &mut Standard)| {
+            if !column.iter().fold(true, |finite, v| finite & v.to_f64().is_finite()) {
+                let (row, v) = column.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite())?;
+                return Some(Error::NotFinite {
+                    what,
+                    row,
+                    col: first_col + col,
+                    value: v.to_f64(),
+                });
+            }
+            T::sort_ascending(column);
+            *standard = pulp::Arch::new().dispatch(Standardise(column));
+            None
+        };
+        let columns = new.chunks_mut(*n_db).zip(&mut standard[base..]);
+        let bad = if columns.len() == 1 {
+            columns.enumerate().find_map(|(col, c)| rank(col, c))
+        } else {
+            threads::install(|| {
+                let columns = new.par_chunks_mut(*n_db).zip(&mut standard[base..]);
+                columns.enumerate().find_map_first(|(col, c)| rank(col, c))
+            })
+        };
+        bad.map_or(Ok(()), Err)
     }
 
     pub(crate) fn ncols(&self) -> usize {
@@ -206,7 +248,7 @@ impl<T: Score> Ranked<T> {
 
     /// All columns as a |DB| x n view (the same multiset of scores per column as the input).
     pub(crate) fn view(&self) -> ArrayView2<'_, T> {
-        ArrayView2::from_shape((self.n_db, self.ncols()).f(), &self.sorted).expect("length is n_db * ncols")
+        ArrayView2::from_shape((self.n_db, self.ncols()).f(), &self.sorted[..]).expect("length is n_db * ncols")
     }
 
     /// The standardised profile of column `j`, in `f64`, into `out`.
@@ -225,6 +267,44 @@ impl<T: Score> Ranked<T> {
             standard: self.standard[j],
         })
     }
+}
+
+/// Copy the columns of `s` into `out`, column-major: one column (a push) on the calling
+/// thread; contiguous columns (a Fortran-order matrix) as slices; otherwise a tile of
+/// columns at a time in parallel, in blocks of rows (so that a C-order matrix is read
+/// row by row).
+fn gather<T: Score>(s: ArrayView2<'_, T>, out: &mut [T]) {
+    let n_db = s.nrows();
+    if s.ncols() == 1 {
+        ArrayViewMut1::from(out).assign(&s.column(0));
+        return;
+    }
+    if s.strides()[0] == 1 {
+        threads::install(|| {
+            out.par_chunks_mut(n_db).enumerate().for_each(|(j, out)| {
+                out.copy_from_slice(s.column(j).to_slice().expect("a column of unit stride"));
+            });
+        });
+        return;
+    }
+    threads::install(|| gather_tiles(s, out));
+}
+
+/// [`gather`] of a matrix whose columns are strided, in parallel over tiles of columns.
+fn gather_tiles<T: Score>(s: ArrayView2<'_, T>, out: &mut [T]) {
+    const TILE: usize = 64;
+    let n_db = s.nrows();
+    out.par_chunks_mut(n_db * TILE).enumerate().for_each(|(tile, out)| {
+        let cols = tile * TILE..(tile * TILE + out.len() / n_db);
+        for rows in (0..n_db).step_by(4 * TILE).map(|r| r..(r + 4 * TILE).min(n_db)) {
+            let block = s.slice(s![rows.clone(), cols.clone()]);
+            for (i, row) in rows.zip(block.rows()) {
+                for (j, &v) in row.iter().enumerate() {
+                    out[j * n_db + i] = v;
+                }
+            }
+        }
+    });
 }
 
 /// The block summaries of every calibration profile, which bound each correlation of a

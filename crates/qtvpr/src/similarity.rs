@@ -57,7 +57,7 @@ use crate::params::Options;
 use crate::threads;
 
 /// Queries per tile of the product: the width of every GEMM call.
-pub const TILE: usize = 64;
+pub const TILE: usize = 16;
 /// Database rows per block of the product: the height of every GEMM call.
 pub const BLOCK_ROWS: usize = 256;
 /// Scores per step of [`Descriptors::similarity`] (about 16 MB of `f32`).
@@ -102,7 +102,8 @@ fn similarity_in_steps<T: Score, U: Score>(
     let mut out = Array2::zeros((n_db, cols.len()));
     let tiles = QueryTiles::new(queries, cols.clone());
     for (s, dst) in out.axis_chunks_iter_mut(Axis(0), step).enumerate() {
-        fill(db, s * step, &tiles, dst);
+        let none = ArrayViewMut2::from_shape((dst.nrows(), 0), &mut []).expect("no columns");
+        fill(db, s * step, &tiles, dst, none);
         progress((s * step + step).min(n_db), n_db);
     }
     out
@@ -271,16 +272,29 @@ impl QueryTiles {
 }
 
 /// The kernel: rows `first_row..first_row + dst.nrows()` (`first_row` a multiple of
-/// [`BLOCK_ROWS`]) of the columns `tiles.cols` into `dst` (any layout), in parallel over
-/// blocks of database rows, each normalised once and multiplied by every tile.
-fn fill<T: Score>(db: Rows<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst: ArrayViewMut2<'_, f32>) {
+/// [`BLOCK_ROWS`]) of the columns `tiles.cols` into `dst` (any layout) and, past its
+/// columns, into `spill` (the same rows, any layout; no columns for none): the columns a
+/// caller keeps for later of the last tile it had to compute. In parallel over blocks of
+/// database rows, each normalised once and multiplied by every tile.
+fn fill<T: Score>(
+    db: Rows<'_, T>,
+    first_row: usize,
+    tiles: &QueryTiles,
+    mut dst: ArrayViewMut2<'_, f32>,
+    mut spill: ArrayViewMut2<'_, f32>,
+) {
     threads::install(|| {
         let dim = db.m.ncols();
         let cols = tiles.cols.clone();
-        let blocks: Vec<ArrayViewMut2<'_, f32>> = dst.axis_chunks_iter_mut(Axis(0), BLOCK_ROWS).collect();
+        let mid = cols.start + dst.ncols();
+        debug_assert_eq!(mid + spill.ncols(), cols.end, "dst and spill hold the columns");
+        let blocks: Vec<_> = dst
+            .axis_chunks_iter_mut(Axis(0), BLOCK_ROWS)
+            .zip(spill.axis_chunks_iter_mut(Axis(0), BLOCK_ROWS))
+            .collect();
         blocks.into_par_iter().enumerate().for_each_init(
             || (vec![0.0f64; BLOCK_ROWS * dim], vec![0.0f64; BLOCK_ROWS * TILE]),
-            |(lhs, prod), (b, mut out)| {
+            |(lhs, prod), (b, (mut out, mut spill))| {
                 let row0 = first_row + b * BLOCK_ROWS;
                 let rows = out.nrows();
                 for (r, unit) in lhs.chunks_mut(dim).enumerate() {
@@ -294,13 +308,22 @@ fn fill<T: Score>(db: Rows<'_, T>, first_row: usize, tiles: &QueryTiles, mut dst
                 for t in 0..tiles.len() {
                     let dst = MatMut::from_row_major_slice_mut(prod, BLOCK_ROWS, TILE);
                     matmul(dst, Accum::Replace, lhs, tiles.rhs(t), 1.0, Par::Seq);
-                    // The tile's columns that are asked for, as output columns.
                     let q0 = (tiles.first + t) * TILE;
-                    let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(cols.end));
                     let prod = ArrayView2::from_shape((BLOCK_ROWS, TILE), &prod[..]).expect("a block of the tile");
-                    Zip::from(out.slice_mut(s![.., lo - cols.start..hi - cols.start]))
-                        .and(prod.slice(s![..rows, lo - q0..hi - q0]))
-                        .for_each(|o, &p| *o = p as f32);
+                    // The tile's columns that are asked for, as output columns ...
+                    let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(mid));
+                    if lo < hi {
+                        Zip::from(out.slice_mut(s![.., lo - cols.start..hi - cols.start]))
+                            .and(prod.slice(s![..rows, lo - q0..hi - q0]))
+                            .for_each(|o, &p| *o = p as f32);
+                    }
+                    // ... and those kept for later.
+                    let (lo, hi) = (q0.max(mid), (q0 + TILE).min(cols.end));
+                    if lo < hi {
+                        Zip::from(spill.slice_mut(s![.., lo - mid..hi - mid]))
+                            .and(prod.slice(s![..rows, lo - q0..hi - q0]))
+                            .for_each(|o, &p| *o = p as f32);
+                    }
                 }
             },
         );
@@ -399,28 +422,32 @@ impl<'a> Descriptors<'a> {
         Ok(())
     }
 
-    /// Columns `cols` into `dst` (|DB| x `cols.len()`, any layout).
-    fn fill_columns(&self, cols: Range<usize>, dst: ArrayViewMut2<'_, f32>) {
+    /// Columns `cols` into `dst` (|DB| x its columns, any layout), then the columns after
+    /// them into `spill` (|DB| x its columns, any layout).
+    fn fill_columns(&self, cols: Range<usize>, dst: ArrayViewMut2<'_, f32>, spill: ArrayViewMut2<'_, f32>) {
         with_scores!(self.db, |d| with_scores!(self.queries, |q| {
             fill(
                 Rows::new(d, &self.db_scales),
                 0,
                 &QueryTiles::new(Rows::new(q, &self.q_scales), cols),
                 dst,
+                spill,
             )
         }));
     }
 }
 
 /// The columns of a range of queries of [`Descriptors`], computed as a transfer asks for
-/// them, chunk after chunk from left to right: the columns of the last tile computed
-/// that the next chunk needs are kept, so each tile is computed once.
+/// them, chunk after chunk from left to right, straight into the caller's buffer. The
+/// columns of the last tile computed that the chunk did not ask for are kept (fewer than
+/// [`TILE`]) and handed to the next chunk, so each tile is computed once and nothing but
+/// those columns is held beside the chunk.
 pub(crate) struct DescriptorColumns<'d, 'a> {
     descriptors: &'d Descriptors<'a>,
     /// The first query of the range (chunks count from it).
     offset: usize,
-    /// Column-major |DB| x (end - start): the columns of queries `start..end`.
-    buf: Vec<f32>,
+    /// Column-major |DB| x (end - start): the kept columns, of queries `start..end`.
+    kept: Vec<f32>,
     start: usize,
     end: usize,
 }
@@ -431,38 +458,39 @@ impl<'d, 'a> DescriptorColumns<'d, 'a> {
         Self {
             descriptors,
             offset,
-            buf: Vec::new(),
+            kept: Vec::new(),
             start: offset,
             end: offset,
         }
     }
 
-    /// Columns `r` (counted from the offset), |DB| x `r.len()`, column-major.
-    pub(crate) fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, f32> {
+    /// Columns `r` (counted from the offset) into `dst`, |DB| x `r.len()`, any layout.
+    pub(crate) fn fill(&mut self, r: Range<usize>, mut dst: ArrayViewMut2<'_, f32>) {
         let (n_db, n_q) = self.descriptors.shape();
         let (a, b) = (self.offset + r.start, self.offset + r.end);
-        if (self.start..self.end).contains(&a) {
-            // Keep the columns a..end computed with the last tile.
-            self.buf
-                .copy_within((a - self.start) * n_db..(self.end - self.start) * n_db, 0);
-            self.buf.truncate((self.end - a) * n_db);
-            self.start = a;
-        } else {
-            self.buf.clear();
+        debug_assert_eq!(dst.dim(), (n_db, r.len()));
+        if a != self.start {
+            // Not the next chunk: what was kept is of no use.
+            self.kept.clear();
             (self.start, self.end) = (a, a);
         }
-        if b > self.end {
-            let end = (b.div_ceil(TILE) * TILE).min(n_q);
-            self.buf.resize((end - self.start) * n_db, 0.0);
-            let held = (self.end - self.start) * n_db;
-            let dst = ArrayViewMut2::from_shape((n_db, end - self.end).f(), &mut self.buf[held..])
-                .expect("buffer holds the new columns");
-            self.descriptors.fill_columns(self.end..end, dst);
-            self.end = end;
+        let from_kept = self.end.min(b) - a;
+        let kept = ArrayView2::from_shape((n_db, self.end - self.start).f(), &self.kept[..])
+            .expect("kept columns are |DB| long");
+        dst.slice_mut(s![.., ..from_kept])
+            .assign(&kept.slice(s![.., ..from_kept]));
+        if b <= self.end {
+            self.kept.drain(..from_kept * n_db);
+            self.start = b;
+            return;
         }
-        let all =
-            ArrayView2::from_shape((n_db, self.end - self.start).f(), &self.buf[..]).expect("buffer holds its columns");
-        all.slice_move(ndarray::s![.., a - self.start..b - self.start])
+        let end = (b.div_ceil(TILE) * TILE).min(n_q);
+        self.kept.clear();
+        self.kept.resize((end - b) * n_db, 0.0);
+        let spill = ArrayViewMut2::from_shape((n_db, end - b).f(), &mut self.kept[..]).expect("room for the spill");
+        self.descriptors
+            .fill_columns(self.end..end, dst.slice_mut(s![.., from_kept..]), spill);
+        (self.start, self.end) = (b, end);
     }
 }
 
@@ -572,12 +600,61 @@ mod tests {
         for step in [256, 512, 1024] {
             assert_eq!(in_steps(db.view(), q.view(), 0..150, step, |_, _| ()), full);
         }
-        // Chunks of a transfer over queries 10..150, left to right: the second chunk
-        // reuses the first's tile, the third starts inside the second's last tile.
+        // Chunks of a transfer over queries 10..150, left to right, into buffers of
+        // either order: chunks within the kept columns of the last tile (0..3, 3..5),
+        // across them and into new tiles, a jump back (which drops what was kept).
         let mut columns = DescriptorColumns::new(&d, 10);
-        for r in [0..5, 5..60, 60..61, 61..140] {
+        for (i, r) in [0..3, 3..5, 5..60, 60..61, 61..62, 62..140, 20..30, 30..31]
+            .into_iter()
+            .enumerate()
+        {
             let (a, b) = (r.start + 10, r.end + 10);
-            assert_eq!(columns.columns(r), full.slice(ndarray::s![.., a..b]), "{a}..{b}");
+            let mut got = if i % 2 == 0 {
+                Array2::from_elem((600, r.len()), f32::NAN)
+            } else {
+                Array2::from_elem((600, r.len()).f(), f32::NAN)
+            };
+            columns.fill(r, got.view_mut());
+            assert_eq!(got, full.slice(ndarray::s![.., a..b]), "{a}..{b}");
+            assert!(columns.kept.len() < TILE * 600, "fewer than a tile kept");
+        }
+    }
+
+    #[test]
+    fn a_column_of_a_product_has_the_same_bits_in_tiles_of_16_and_64() {
+        // The kernel's tiles were 64 queries wide and are now 16: faer gives each column
+        // the same bits whatever the width of the call (for widths of 2 and more), so
+        // the similarity did not change with the width. Pinned here for faer's updates.
+        let mut x = 5u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for dim in [64, 512, 2048] {
+            let lhs: Vec<f64> = (0..BLOCK_ROWS * dim).map(|_| next()).collect();
+            let rhs: Vec<f64> = (0..64 * dim).map(|_| next()).collect();
+            let product = |cols: Range<usize>| {
+                let mut out = vec![0.0; BLOCK_ROWS * cols.len()];
+                matmul(
+                    MatMut::from_row_major_slice_mut(&mut out, BLOCK_ROWS, cols.len()),
+                    Accum::Replace,
+                    MatRef::from_row_major_slice(&lhs, BLOCK_ROWS, dim),
+                    MatRef::from_row_major_slice(&rhs[cols.start * dim..cols.end * dim], cols.len(), dim).transpose(),
+                    1.0,
+                    Par::Seq,
+                );
+                Array2::from_shape_vec((BLOCK_ROWS, cols.len()), out).unwrap()
+            };
+            let wide = product(0..64);
+            for t in 0..4 {
+                let narrow = product(t * 16..(t + 1) * 16);
+                let bits = |a: ArrayView2<'_, f64>| a.mapv(f64::to_bits);
+                assert_eq!(
+                    bits(narrow.view()),
+                    bits(wide.slice(s![.., t * 16..(t + 1) * 16])),
+                    "D {dim}"
+                );
+            }
         }
     }
 

@@ -22,7 +22,7 @@
 use std::ops::Range;
 use std::sync::OnceLock;
 
-use ndarray::{Array2, ArrayView2};
+use ndarray::{Array2, ArrayView2, ArrayViewMut2, ShapeBuilder};
 use rayon::prelude::*;
 
 use crate::best_threshold::subset_threshold;
@@ -34,7 +34,7 @@ use crate::margin::{self, CalibrationMargins, Gate};
 use crate::names::Input;
 use crate::params::{Defaults, Options, Params};
 use crate::ranked_correlation::{Ranked, Screen};
-use crate::similarity::DescriptorColumns;
+use crate::similarity::{DescriptorColumns, TILE};
 use crate::source::ScoreSource;
 use crate::subset_quantile::subset_quantile;
 use crate::threads;
@@ -75,13 +75,14 @@ pub struct Transfer {
 
 /// A calibration traverse with ground truth, ready to transfer thresholds.
 ///
-/// Besides what the transfer needs, it keeps its input (the raw scores in their own
-/// type and the ground truth) so that it can be saved as a calibration file
-/// (`Calibration::save`, feature `npy`) and loaded with bit-identical results. That
-/// costs one more copy of the calibration matrix (|DB| x |Qcal| scores of 4 or 8
-/// bytes) and one byte per entry for the ground truth, beside the ranked profiles
-/// (the same size again) and their screen (2 KiB a profile; see
-/// `docs/performance.md`).
+/// Built by [`Calibration::new`], it keeps its input besides what the transfer needs
+/// (the raw scores in their own type and the ground truth) so that it can be saved as a
+/// calibration file (`Calibration::save`, feature `npy`) and loaded with bit-identical
+/// results. That costs one more copy of the calibration matrix (|DB| x |Qcal| scores of
+/// 4 or 8 bytes) and one byte per entry for the ground truth, beside the ranked profiles
+/// (the same size again) and their screen (2 KiB a profile). Built by
+/// [`Calibration::for_transfer`], it keeps only the profiles, the screen and the
+/// candidates (see `docs/performance.md`).
 pub struct Calibration {
     matching: Matching,
     /// The ranked profiles, ascending, in the input's own type, with their
@@ -91,9 +92,8 @@ pub struct Calibration {
     screen: Screen,
     candidates: Candidates,
     n_db: usize,
-    /// The input, kept to be saved.
-    scores: ScoreMatrix,
-    gt: GroundTruth,
+    /// The input, kept to be saved (`None` for [`Calibration::for_transfer`]).
+    input: Option<(ScoreMatrix, GroundTruth)>,
     /// The defaults of a calibration file's `params`.
     defaults: Defaults,
     /// The single-match decisions with their margins, for the gate's `m*`: found on the
@@ -170,31 +170,100 @@ impl Calibration {
         }
     }
 
-    /// [`Calibration::new`] on labels already known to have the shape of `s`.
+    /// A calibration that only transfers: the same thresholds, neighbours and records as
+    /// [`Calibration::new`] of the same input, bit for bit, but it keeps neither its
+    /// scores nor its ground truth, so it cannot be saved. It takes the ground truth by
+    /// value and drops it as soon as the candidates of semantics §2 are found.
+    ///
+    /// From descriptors, the |DB| x |Qcal| similarity is never held beside the ranked
+    /// profiles: it is computed twice, a few columns at a time, once for the candidates
+    /// (under the ground truth) and once straight into the profiles, where it is
+    /// sorted. What such a calibration holds is then its profiles (4 bytes a score),
+    /// their screen and its candidates; while it is built, the ground truth or the
+    /// profiles, and a few columns.
+    ///
+    /// # Errors
+    /// As [`Calibration::new`].
+    pub fn for_transfer<'s, 'd: 's>(
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        gt: GroundTruth,
+        matching: Matching,
+    ) -> Result<Self> {
+        match scores.into() {
+            ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
+                let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+                check_gt_shape(&gt, Input::CalSimilarity, s.dim())?;
+                let candidates = Candidates::new(s, gt.view(), matching);
+                Ok(Self::from_parts(ranked, candidates, matching, None))
+            })),
+            ScoreSource::Descriptors(d, queries) => {
+                d.check_range(&queries)?;
+                let n_db = d.shape().0;
+                check_gt_shape(&gt, Input::CalSimilarity, (n_db, queries.len()))?;
+                // Groups of about a chunk of scores, at least a tile of columns. Two
+                // passes, so that the ground truth and the profiles are never held at
+                // once: the candidates under the ground truth, then the profiles.
+                let (n, width) = (queries.len(), (CHUNK_SCORES / n_db).max(TILE));
+                let groups: Vec<Range<usize>> = (0..n).step_by(width).map(|a| a..(a + width).min(n)).collect();
+                let mut columns = DescriptorColumns::new(d, queries.start);
+                let mut candidates = Candidates::none();
+                for r in &groups {
+                    let mut group = Array2::zeros((n_db, r.len()).f());
+                    columns.fill(r.clone(), group.view_mut());
+                    let labels = gt.view().slice_move(ndarray::s![.., r.clone()]);
+                    candidates.append(Candidates::new(group.view(), labels, matching));
+                }
+                drop(gt);
+                let mut ranked = Ranked::with_capacity(n_db, queries.len());
+                let mut columns = DescriptorColumns::new(d, queries.start);
+                for r in groups {
+                    let (n, first) = (r.len(), r.start);
+                    ranked.extend_with(Input::CalSimilarity, n, first, |out| {
+                        columns.fill(r, column_major((n_db, n), out));
+                    })?;
+                }
+                Ok(Self::from_parts(ranked, candidates, matching, None))
+            }
+        }
+    }
+
+    /// [`Calibration::for_transfer`] of a matrix, on labels already known to have the
+    /// shape of `s` (the evaluation protocol's, never saved).
     pub(crate) fn with_labels<T: Score>(
         s: ArrayView2<'_, T>,
         gt: ArrayView2<'_, Truth>,
         matching: Matching,
     ) -> Result<Self> {
-        Ok(Self::from_ranked(
-            Ranked::new(Input::CalSimilarity, s, 0)?,
-            T::to_matrix(s),
-            GroundTruth::from_truth(gt.to_owned()),
+        let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+        Ok(Self::from_parts(
+            ranked,
+            Candidates::new(s, gt, matching),
             matching,
+            None,
         ))
     }
 
-    /// The calibration of profiles `ranked` with their screen; `scores` is the
-    /// calibration similarity they were ranked from, kept to be saved.
+    /// The calibration of profiles `ranked`; `scores` is the calibration similarity they
+    /// were ranked from, kept to be saved with `gt`.
     fn from_ranked<T: Score>(ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
+        let candidates = with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching));
+        Self::from_parts(ranked, candidates, matching, Some((scores, gt)))
+    }
+
+    /// The calibration of profiles `ranked` with their screen.
+    fn from_parts<T: Score>(
+        ranked: Ranked<T>,
+        candidates: Candidates,
+        matching: Matching,
+        input: Option<(ScoreMatrix, GroundTruth)>,
+    ) -> Self {
         Self {
             matching,
             screen: Screen::new(&ranked),
+            n_db: ranked.view().nrows(),
             profiles: Box::new(ranked),
-            candidates: with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching)),
-            n_db: scores.dim().0,
-            scores,
-            gt,
+            candidates,
+            input,
             defaults: Defaults::default(),
             margins: OnceLock::new(),
         }
@@ -244,14 +313,16 @@ impl Calibration {
         self.n_db
     }
 
-    /// The calibration similarity as given, |DB| x |Qcal|, in its own type.
-    pub fn scores(&self) -> &ScoreMatrix {
-        &self.scores
+    /// The calibration similarity as given, |DB| x |Qcal|, in its own type (`None` for
+    /// [`Calibration::for_transfer`], which does not keep it).
+    pub fn scores(&self) -> Option<&ScoreMatrix> {
+        self.input.as_ref().map(|(s, _)| s)
     }
 
-    /// The calibration ground truth as given (hard, with soft entries as ignored).
-    pub fn ground_truth(&self) -> &GroundTruth {
-        &self.gt
+    /// The calibration ground truth as given, hard with soft entries as ignored (`None`
+    /// for [`Calibration::for_transfer`], which does not keep it).
+    pub fn ground_truth(&self) -> Option<&GroundTruth> {
+        self.input.as_ref().map(|(_, gt)| gt)
     }
 
     /// Gather, check, sort and standardise the deployment columns `s` into `ranked`.
@@ -372,8 +443,9 @@ impl Calibration {
     /// [`cosine_similarity`](crate::cosine_similarity), so the result is exactly the
     /// transfer of those columns of `cosine_similarity(db, q)`. Each chunk holds whole
     /// segments (one segment when a segment is larger than the base chunk of about
-    /// 2^22 scores), so memory beyond the descriptors and the calibration is one chunk
-    /// of scores, with its sorted copy.
+    /// 2^22 scores), computed where it is sorted, so memory beyond the descriptors and
+    /// the calibration is one chunk of scores and fewer than a tile
+    /// ([`similarity::TILE`](crate::similarity::TILE)) of columns computed ahead.
     ///
     /// # Errors
     /// Invalid parameters, empty or non-finite scores, a |DB| that differs from the
@@ -484,12 +556,12 @@ impl Calibration {
         let mut segments = Vec::with_capacity(ranges.len());
         // Chunks bound the working memory whatever the matrix size. Where segments are
         // smaller, a chunk holds whole segments, whose thresholds are then read off the
-        // chunk's sorted copy while it is at hand: one pass over the data. A source
+        // chunk's sorted columns while they are at hand: one pass over the data. A source
         // without random access (descriptors) always works so, a chunk of one segment
         // when segments are larger.
         let base = (chunk_scores / self.n_db).clamp(16, 4096);
         let segment_size = ranges[0].len();
-        let in_chunks = segment_size <= base || !source.random_access();
+        let in_chunks = segment_size <= base || source.whole().is_none();
         let chunk = if segment_size <= base {
             base / segment_size * segment_size
         } else if in_chunks {
@@ -500,7 +572,7 @@ impl Calibration {
         let mut ranked = Ranked::default();
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            self.rank(&mut ranked, source.columns(start..end), start)?;
+            source.rank(&mut ranked, start..end)?;
             for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, params.gate)) {
                 neighbours
                     .row_mut(j)
@@ -526,8 +598,7 @@ impl Calibration {
             }
             progress(end, n_val);
         }
-        if !in_chunks {
-            let s = source.columns(0..n_val);
+        if let (false, Some(s)) = (in_chunks, source.whole()) {
             segments = threads::install(|| {
                 ranges
                     .into_par_iter()
@@ -557,11 +628,12 @@ trait Chunks {
     type T: Score;
     /// (|DB|, |Qval|).
     fn dim(&self) -> (usize, usize);
-    /// Whether [`Chunks::columns`] may be asked for any columns, any number of
-    /// times, at no cost (a matrix), or only for consecutive chunks (descriptors).
-    fn random_access(&self) -> bool;
-    /// The scores of deployment queries `r`, |DB| x `r.len()`.
-    fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, Self::T>;
+    /// Every score, when the source holds them (a matrix): a source without it is read
+    /// only in consecutive chunks.
+    fn whole(&self) -> Option<ArrayView2<'_, Self::T>>;
+    /// Gather, check, sort and standardise the scores of deployment queries `r` into
+    /// `ranked`.
+    fn rank(&mut self, ranked: &mut Ranked<Self::T>, r: Range<usize>) -> Result<()>;
 }
 
 impl<T: Score> Chunks for ArrayView2<'_, T> {
@@ -569,11 +641,12 @@ impl<T: Score> Chunks for ArrayView2<'_, T> {
     fn dim(&self) -> (usize, usize) {
         ArrayView2::dim(self)
     }
-    fn random_access(&self) -> bool {
-        true
+    fn whole(&self) -> Option<ArrayView2<'_, T>> {
+        Some(self.view())
     }
-    fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, T> {
-        self.slice(ndarray::s![.., r])
+    fn rank(&mut self, ranked: &mut Ranked<T>, r: Range<usize>) -> Result<()> {
+        let first = r.start;
+        ranked.refill(Input::DeploymentSimilarity, self.slice(ndarray::s![.., r]), first)
     }
 }
 
@@ -588,12 +661,21 @@ impl Chunks for Fused<'_, '_> {
     fn dim(&self) -> (usize, usize) {
         self.dim
     }
-    fn random_access(&self) -> bool {
-        false
+    fn whole(&self) -> Option<ArrayView2<'_, f32>> {
+        None
     }
-    fn columns(&mut self, r: Range<usize>) -> ArrayView2<'_, f32> {
-        self.columns.columns(r)
+    fn rank(&mut self, ranked: &mut Ranked<f32>, r: Range<usize>) -> Result<()> {
+        // Computed where they are sorted: the chunk is never copied.
+        let shape = (self.dim.0, r.len());
+        ranked.refill_with(Input::DeploymentSimilarity, shape, r.start, |out| {
+            self.columns.fill(r, column_major(shape, out));
+        })
     }
+}
+
+/// A column-major `shape` view of `out`.
+fn column_major(shape: (usize, usize), out: &mut [f32]) -> ArrayViewMut2<'_, f32> {
+    ArrayViewMut2::from_shape(shape.f(), out).expect("a buffer of the shape")
 }
 
 /// Deployment scores per chunk (32 MB of f64 working memory).
@@ -781,6 +863,34 @@ mod tests {
     }
 
     #[test]
+    fn a_calibration_for_transfer_from_descriptors_is_built_a_group_at_a_time() {
+        // |DB| = CHUNK_SCORES / TILE rows, so that a group is one tile of queries: 33
+        // calibration queries are ranked in groups of 16, 16 and 1 (each group's
+        // candidates first, under the ground truth), and transfer as the matrix path.
+        let n_db = CHUNK_SCORES / TILE;
+        let mut x = 11u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f32 / 1000.0 - 0.5
+        };
+        let db = Array2::from_shape_fn((n_db, 3), |_| next());
+        let q = Array2::from_shape_fn((50, 3), |_| next());
+        let s = crate::similarity::cosine_similarity(db.view(), q.view()).unwrap();
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        let gt = GroundTruth::new(Array2::from_shape_fn((n_db, 33), |(i, j)| i % 1000 == j).view()).unwrap();
+        let p = params(5, Some(6));
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Calibration::new(s.slice(ndarray::s![.., ..33]), &gt, matching).unwrap();
+            let lean = Calibration::for_transfer(ScoreSource::Descriptors(&d, 0..33), gt.clone(), matching).unwrap();
+            assert_eq!(lean.len(), 33);
+            assert_eq!(lean.db_size(), n_db);
+            let want = cal.transfer(s.slice(ndarray::s![.., 33..]), &p).unwrap();
+            assert_eq!(lean.transfer(ScoreSource::Descriptors(&d, 33..50), &p).unwrap(), want);
+            assert_eq!(lean.threshold(1.0).unwrap(), cal.threshold(1.0).unwrap());
+        }
+    }
+
+    #[test]
     fn descriptors_give_the_bits_of_their_matrix() {
         // 40 database and 130 query descriptors (3 tiles of 64) of dimension 5 from a
         // fixed LCG; the first 23 queries calibrate, 107 deploy. With base chunks of 16
@@ -801,6 +911,12 @@ mod tests {
             let cal = Calibration::new(s.slice(ndarray::s![.., ..23]), &gt, matching).unwrap();
             let fused_cal = Calibration::new(ScoreSource::Descriptors(&d, 0..23), &gt, matching).unwrap();
             assert_eq!(fused_cal.scores(), cal.scores());
+            // Calibrations that keep nothing to save, from the matrix and the descriptors.
+            let lean = [
+                Calibration::for_transfer(s.slice(ndarray::s![.., ..23]), gt.clone(), matching).unwrap(),
+                Calibration::for_transfer(ScoreSource::Descriptors(&d, 0..23), gt.clone(), matching).unwrap(),
+            ];
+            assert!(lean.iter().all(|c| c.scores().is_none() && c.ground_truth().is_none()));
             for segment_size in [Some(3), Some(7), Some(20), None] {
                 let p = Params {
                     k: 4,
@@ -809,6 +925,10 @@ mod tests {
                     gate: Gate::None,
                 };
                 let want = cal.transfer(s.slice(ndarray::s![.., 23..]), &p).unwrap();
+                for c in &lean {
+                    assert_eq!(c.transfer(ScoreSource::Descriptors(&d, 23..130), &p).unwrap(), want);
+                    assert_eq!(c.threshold(0.8).unwrap(), cal.threshold(0.8).unwrap());
+                }
                 for chunk_scores in [0, usize::MAX] {
                     let calls = std::cell::RefCell::new(vec![]);
                     let record = |a, _| calls.borrow_mut().push(a);
@@ -848,6 +968,18 @@ mod tests {
         );
         assert!(cal.transfer(ScoreSource::Descriptors(&d, 5..5), &p).is_err());
         assert!(Calibration::new(ScoreSource::Descriptors(&d, 0..22), &gt, Matching::Single).is_err());
+        for source in [
+            ScoreSource::Descriptors(&d, 0..22),
+            s.slice(ndarray::s![.., ..22]).into(),
+        ] {
+            assert!(matches!(
+                Calibration::for_transfer(source, gt.clone(), Matching::Single),
+                Err(Error::ShapeMismatch { .. })
+            ));
+        }
+        assert!(
+            Calibration::for_transfer(ScoreSource::Descriptors(&d, 120..131), gt.clone(), Matching::Single).is_err()
+        );
         let small = Descriptors::new(db.slice(ndarray::s![..39, ..]), q.view()).unwrap();
         assert_eq!(
             cal.transfer(ScoreSource::Descriptors(&small, 23..130), &p).unwrap_err(),

@@ -79,7 +79,10 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
         let cal = Calibration::new(s.slice(s![.., ..n_cal]), &gt, matching).unwrap();
         let fused = Calibration::new(ScoreSource::Descriptors(d, 0..n_cal), &gt, matching).unwrap();
         assert_eq!(fused.scores(), cal.scores());
-        // Segments of 1, of 10 (dividing neither the tile of 64 nor the chunk), of
+        // A calibration for transfers only: nothing kept to save, the same results.
+        let lean = Calibration::for_transfer(ScoreSource::Descriptors(d, 0..n_cal), gt.clone(), matching).unwrap();
+        assert!(lean.scores().is_none());
+        // Segments of 1, of 10 (dividing neither the tile of 16 nor the chunk), of
         // the tile width, of 100, and one batch of every deployment query.
         for segment_size in [Some(1), Some(10), Some(TILE), Some(100), None] {
             let p = Params {
@@ -91,6 +94,8 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
             let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
             let got = fused.transfer(ScoreSource::Descriptors(d, n_cal..n_q), &p).unwrap();
             assert_eq!(got, want, "{matching:?} {segment_size:?}");
+            let lean = lean.transfer(ScoreSource::Descriptors(d, n_cal..n_q), &p).unwrap();
+            assert_eq!(lean, want, "{matching:?} {segment_size:?}");
             let bits = |t: &qtvpr::Transfer| -> Vec<u64> { t.segments.iter().map(|g| g.threshold.to_bits()).collect() };
             assert_eq!(bits(&got), bits(&want));
         }
