@@ -44,11 +44,11 @@
  * threads; a qtvpr_online must be used by one thread at a time (give each thread its
  * own). The last error is per thread.
  *
- * Threads: the library runs its parallel work (loading a calibration, each push) on a
- * thread pool of its own, started on first use: RAYON_NUM_THREADS threads if that
- * environment variable is set then, else one per core. The calling thread waits for the
- * pool, so a push costs the caller one wake-up of the pool's threads. Size it with
- * qtvpr_set_threads (1 keeps the work on one pool thread); real-time users who pin
+ * Threads: a push runs on the calling thread, sequentially; it never waits for another
+ * thread. The library's parallel work (loading a calibration) runs on a thread pool of
+ * its own, started on first use: RAYON_NUM_THREADS threads if that environment
+ * variable is set then, else one per core; the calling thread waits for it. Size it
+ * with qtvpr_set_threads (1 keeps the work on one pool thread); real-time users who pin
  * threads find the pool's by name, qtvpr-0, qtvpr-1, ... (pthread_getname_np,
  * /proc/self/task/TID/comm). A process that forks after using the library has a working
  * library in the child: the child builds a pool of its own, of the same size, on its
@@ -220,8 +220,8 @@ const char *qtvpr_version(void);
 /**
  * Set the number of threads of the library's thread pool to n.
  *
- * The library runs its parallel work (loading a calibration, every push) on a pool of
- * its own threads, named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
+ * The library runs its parallel work (loading a calibration) on a pool of its own
+ * threads (a push runs on the calling thread and never waits for them), named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
  * real-time application can find and pin them. By default the pool has
  * RAYON_NUM_THREADS threads if that environment variable is set when the pool is first
  * used, else one per core. This call replaces the pool with one of n threads: calls

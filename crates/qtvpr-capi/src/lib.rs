@@ -115,8 +115,8 @@ pub extern "C" fn qtvpr_version() -> *const c_char {
 
 /// Set the number of threads of the library's thread pool to n.
 ///
-/// The library runs its parallel work (loading a calibration, every push) on a pool of
-/// its own threads, named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
+/// The library runs its parallel work (loading a calibration) on a pool of its own
+/// threads (a push runs on the calling thread and never waits for them), named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
 /// real-time application can find and pin them. By default the pool has
 /// RAYON_NUM_THREADS threads if that environment variable is set when the pool is first
 /// used, else one per core. This call replaces the pool with one of n threads: calls

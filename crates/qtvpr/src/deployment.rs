@@ -95,8 +95,26 @@ pub(crate) fn sorted_columns_threshold<T: Score>(sorted: ArrayView2<'_, T>, q: f
                 .fold(f64::NEG_INFINITY, f64::max)
         },
         |lo, need_hi| {
-            // The smallest key with more than `lo` scores at or below it.
-            let (mut low, mut high) = (0u64, u64::MAX);
+            // The smallest key with more than `lo` scores at or below it. It lies between
+            // the columns' order statistics near rank lo / m (m columns of n scores):
+            // below L = min_j c_j[lo / m], each column has at most lo / m scores, so all
+            // of them at most lo; at U = max_j c_j[ceil((lo + 1) / m) - 1], each column
+            // has at least ceil((lo + 1) / m), so all of them more than lo. Bisecting
+            // between their keys takes a few steps where 0..2^64 takes 64.
+            let m = columns.len();
+            let equal = columns.iter().all(|c| c.len() == columns[0].len());
+            let (mut low, mut high) = if equal {
+                (
+                    columns.iter().map(|c| key(&c[lo / m])).min().expect("columns"),
+                    columns
+                        .iter()
+                        .map(|c| key(&c[(lo + 1).div_ceil(m) - 1]))
+                        .max()
+                        .expect("columns"),
+                )
+            } else {
+                (0u64, u64::MAX)
+            };
             while low < high {
                 let mid = low + (high - low) / 2;
                 if at_most(mid) > lo { high = mid } else { low = mid + 1 }
@@ -305,25 +323,30 @@ mod tests {
     #[test]
     fn sorted_columns_give_the_same_threshold() {
         // Scores with repeats, both signs and both zeros; every column sorted ascending.
+        // Shapes with one row, one column, more columns than rows and the reverse, so
+        // that the bisection's first bracket (the columns' order statistics near rank
+        // lo / m) is tried at every rank of each: q on a grid finer than 1 / (n - 1).
         let mut x = 99u64;
-        let mut s = Array2::from_shape_fn((11, 5).f(), |_| {
-            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            match (x >> 40) % 9 {
-                0 => -0.0,
-                1 => 0.0,
-                r => r as f64 / 3.0 - 1.5,
+        for shape in [(11, 5), (1, 7), (7, 1), (3, 20), (40, 3), (2, 2)] {
+            let mut s = Array2::from_shape_fn(shape.f(), |_| {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                match (x >> 40) % 9 {
+                    0 => -0.0,
+                    1 => 0.0,
+                    r => r as f64 / 3.0 - 1.5,
+                }
+            });
+            let unsorted = s.clone();
+            for mut c in s.columns_mut() {
+                c.as_slice_mut().unwrap().sort_by(f64::total_cmp);
             }
-        });
-        let unsorted = s.clone();
-        for mut c in s.columns_mut() {
-            c.as_slice_mut().unwrap().sort_by(f64::total_cmp);
-        }
-        for q in (0..=40).map(|i| i as f64 / 40.0).chain([0.123, 0.999, 1.5, -0.2]) {
-            let (a, b) = (
-                sorted_columns_threshold(s.view(), q),
-                deployment_threshold(unsorted.view(), q),
-            );
-            assert_eq!(a.to_bits(), b.to_bits(), "q = {q}: {a} vs {b}");
+            for q in (0..=400).map(|i| i as f64 / 400.0).chain([0.123, 0.999, 1.5, -0.2]) {
+                let (a, b) = (
+                    sorted_columns_threshold(s.view(), q),
+                    deployment_threshold(unsorted.view(), q),
+                );
+                assert_eq!(a.to_bits(), b.to_bits(), "{shape:?} q = {q}: {a} vs {b}");
+            }
         }
     }
 

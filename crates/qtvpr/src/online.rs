@@ -238,16 +238,16 @@ impl Online {
     /// [`Error::NotFinite`] naming the query (as the column) and the row of a NaN or
     /// infinite score. The state is then unchanged.
     pub fn push<T: Score>(&mut self, column: ArrayView1<'_, T>) -> Result<Decision> {
-        threads::install(|| {
-            self.check_length(column.len())?;
-            let mut scratch: Box<Scratch<T>> = match self.scratch.take().map(|s| s.downcast()) {
-                Some(Ok(s)) => s,
-                _ => Box::default(),
-            };
-            let decision = self.push_with(column, &mut scratch);
-            self.scratch = Some(scratch);
-            decision
-        })
+        // On the calling thread: every step of one push is sequential, so it never
+        // waits for the pool's threads (a hand-over each way, tens of microseconds).
+        self.check_length(column.len())?;
+        let mut scratch: Box<Scratch<T>> = match self.scratch.take().map(|s| s.downcast()) {
+            Some(Ok(s)) => s,
+            _ => Box::default(),
+        };
+        let decision = self.push_with(column, &mut scratch);
+        self.scratch = Some(scratch);
+        decision
     }
 
     /// [`Online::push`] with its buffers.
@@ -575,6 +575,16 @@ mod tests {
             assert_eq!(a, wide.push(c64.view()).unwrap(), "query {j}");
             assert!(a.weight > 0.0);
         }
+        // A push runs on the caller's thread: it never enters the pool (push_many does).
+        let installs = || crate::threads::INSTALLS.with(std::cell::Cell::get);
+        let before = installs();
+        for c in s_val.columns() {
+            mixed.push(c).unwrap();
+            mixed.push(c.mapv(f64::from).view()).unwrap();
+        }
+        assert_eq!(installs(), before);
+        mixed.push_many(s_val.view()).unwrap();
+        assert!(installs() > before);
     }
 
     #[test]

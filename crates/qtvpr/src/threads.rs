@@ -145,7 +145,16 @@ fn current() -> Arc<Pool> {
 /// Only if the operating system cannot start the pool's threads (as rayon's global
 /// pool would), or if `f` panics (the panic is propagated).
 pub fn install<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    #[cfg(test)]
+    INSTALLS.with(|n| n.set(n.get() + 1));
     current().pool.install(f)
+}
+
+#[cfg(test)]
+thread_local! {
+    /// The calls of [`install`] on this thread: for tests of what runs on the caller's
+    /// thread alone.
+    pub(crate) static INSTALLS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
 /// The number of threads of the library's pool (building it if needed).
