@@ -10,8 +10,10 @@ Build both first: cargo build --release -p qtvpr-cli && cargo build --release -p
 --example descriptor_floor. Cases (synthetic float32 descriptors, 512-D; query j is a
 noisy copy of database row j, positives |i - j| <= 1 (--cal-gt-tolerance 1); the first
 10% of the queries calibrate, segments of 1%):
-- SF-XL-like: 1,000,000 x 2,000 (2 GB of database descriptors; --scale shrinks |DB|);
+- SF-XL-like: 1,000,000 x 2,000, 512-D (2 GB of database descriptors; --scale shrinks
+  |DB|), and the same at 256-D;
 - MSLS val: 18,871 x 11,084, fused against similarity + matrix path.
+Beside each fused run's peak RSS: its memory target, the descriptors + 1 GiB.
 The descriptors are written into --work (default: a temporary directory) and deleted
 at the end. Wall time and peak RSS are those of the CLI process (/usr/bin/time -v).
 --smoke runs tiny sizes only (a check that the script works, seconds).
@@ -33,20 +35,19 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from report import machine, write_block  # noqa: E402
 
-DIM = 512
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def write_case(work: Path, name: str, n_db: int, n_q: int, seed: int) -> dict[str, Path]:
+def write_case(work: Path, name: str, n_db: int, n_q: int, dim: int, seed: int) -> dict[str, Path]:
     """Database and query descriptors (float32, C order): query j is database row j
     plus noise."""
     rng = np.random.default_rng(seed)
     paths = {k: work / f"{name}_{k}.npy" for k in ("db", "q")}
-    db = np.lib.format.open_memmap(paths["db"], mode="w+", dtype=np.float32, shape=(n_db, DIM))
+    db = np.lib.format.open_memmap(paths["db"], mode="w+", dtype=np.float32, shape=(n_db, dim))
     step = 65536
     for i in range(0, n_db, step):
-        db[i : i + step] = rng.standard_normal((min(step, n_db - i), DIM), dtype=np.float32)
-    q = db[:n_q] + 0.8 * rng.standard_normal((n_q, DIM), dtype=np.float32)
+        db[i : i + step] = rng.standard_normal((min(step, n_db - i), dim), dtype=np.float32)
+    q = db[:n_q] + 0.8 * rng.standard_normal((n_q, dim), dtype=np.float32)
     np.save(paths["q"], q.astype(np.float32))
     db.flush()
     del db
@@ -80,7 +81,13 @@ def main() -> None:
     ap.add_argument("--no-docs", action="store_true")
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(dir=args.work))
-    sizes = [(2000, 200), (400, 300)] if args.smoke else [(int(1_000_000 * args.scale), 2000), (18871, 11084)]
+    n_large = 2000 if args.smoke else int(1_000_000 * args.scale)
+    msls = (400, 300) if args.smoke else (18871, 11084)
+    cases = [
+        ("SF-XL-like", n_large, 200 if args.smoke else 2000, 512),
+        ("SF-XL-like", n_large, 200 if args.smoke else 2000, 256),
+        ("MSLS val", *msls, 512),
+    ]
     cli = str(args.cli)
     try:
         floor = json.loads(subprocess.run([str(args.floor)], capture_output=True, text=True, check=True).stdout)
@@ -91,23 +98,25 @@ def main() -> None:
             f"{floor['sort_ns_per_score']:.2f} ns per score.",
             "",
             "| case | \\|DB\\| x \\|Q\\| x D | f32 descriptors | path | wall | per deployment query "
-            "| peak RSS | floor |",
-            "|---|---|---|---|---|---|---|---|",
+            "| peak RSS | descriptors + 1 GiB | floor |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
-        for case, (n_db, n_q) in zip(["SF-XL-like", "MSLS val"], sizes, strict=True):
-            p = write_case(work, case.split()[0], n_db, n_q, seed=n_db)
-            desc_mib = (n_db + n_q) * DIM * 4 / 2**20
+        for case, n_db, n_q, dim in cases:
+            p = write_case(work, case.split()[0], n_db, n_q, dim, seed=n_db + dim)
+            desc_mib = (n_db + n_q) * dim * 4 / 2**20
             n_val = n_q - n_q // 10
-            floor_s = 2 * n_db * n_q * DIM / (floor["gemm_f32_gflops"] * 1e9) + n_db * n_q * floor[
+            floor_s = 2 * n_db * n_q * dim / (floor["gemm_f32_gflops"] * 1e9) + n_db * n_q * floor[
                 "sort_ns_per_score"
             ] * 1e-9
             common = threshold_args(n_q)
             fused = ["threshold", "--db-descriptors", str(p["db"]), "--query-descriptors", str(p["q"])]
             wall, rss = timed([cli, *fused, *common, "-o", str(work / "fused.json")])
-            shape = f"{n_db} x {n_q} x {DIM}"
+            shape = f"{n_db} x {n_q} x {dim}"
+            target = desc_mib + 1024
             lines.append(
                 f"| {case} | {shape} | {desc_mib:.0f} MiB | fused | {wall:.1f} s | "
-                f"{wall / n_val * 1e3:.2f} ms | {rss:.0f} MiB | {floor_s:.1f} s |"
+                f"{wall / n_val * 1e3:.2f} ms | {rss:.0f} MiB | {target:.0f} MiB "
+                f"({'met' if rss <= target else 'not met'}) | {floor_s:.1f} s |"
             )
             if case == "MSLS val":
                 s = work / "S.npy"
@@ -117,7 +126,7 @@ def main() -> None:
                 lines.append(
                     f"| {case} | {shape} | {desc_mib:.0f} MiB | similarity + threshold --similarity "
                     f"({s.stat().st_size / 2**20:.0f} MiB matrix written) | {w1:.1f} + {w2:.1f} s | "
-                    f"{(w1 + w2) / n_val * 1e3:.2f} ms | {max(r1, r2):.0f} MiB | |"
+                    f"{(w1 + w2) / n_val * 1e3:.2f} ms | {max(r1, r2):.0f} MiB | | |"
                 )
                 lines.append("")
                 lines.append(f"MSLS: fused and matrix-path JSON byte-identical: {'yes' if same else 'NO'}.")

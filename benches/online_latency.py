@@ -10,9 +10,11 @@ pool):
    window 28;
 3. MSLS val scale (synthetic): 18,871 DB, 1,108 calibration queries, window 111.
 
-Each query is pushed as a column view of a float32 matrix, as a front end would hand
-it over. Reported: the median and 99th percentile of the pushes once the window is full
-(the steady state), and beside them, measured in the same run with NumPy on one thread
+Each query is pushed in two ways: as a column view of a C-order float32 |DB| x |Q|
+matrix (strided: a score a cache line), and contiguous (one query's |DB| scores, as an
+online front end receives them, or a row of a query-major matrix). Reported: the
+median and 99th percentile of the pushes once the window is full (the steady state),
+and beside them, measured in the same run with NumPy on one thread
 of the same machine:
 
 - the *float32 pass*: one float32 dot product of the column with every calibration
@@ -103,18 +105,19 @@ def yardsticks_ms(s_cal: np.ndarray, column: np.ndarray, k: int, reps: int = 20)
     return {"sort": sort, "pass": best(lambda: profiles @ u), "floor": sort + best(lambda: profiles64 @ u64)}
 
 
-def measure(name: str, s_cal, gt_cal, s_val, window: int, k: int = 10) -> dict:
+def measure(name: str, s_cal, gt_cal, s_val, window: int, contiguous: bool, k: int = 10) -> dict:
     cal = qtvpr.Calibration(s_cal, gt_cal)
     online = qtvpr.Online(cal, k=k, precision=1.0, window=window)
+    columns = np.ascontiguousarray(s_val.T) if contiguous else s_val.T  # row j: query j's scores
     times = []
-    for j in range(s_val.shape[1]):
-        column = s_val[:, j]
+    for column in columns:
         t = time.perf_counter_ns()
         online.push(column)
         times.append(time.perf_counter_ns() - t)
     steady = np.array(times[window:], dtype=np.float64) / 1e6
     return {
         "name": name,
+        "layout": "contiguous" if contiguous else "strided",
         "db": s_cal.shape[0],
         "cal": s_cal.shape[1],
         "window": window,
@@ -139,7 +142,10 @@ def main() -> None:
     if "nordland" in cases:
         s, gt = nordland()
         n_cal = s.shape[1] // 10
-        rows.append(measure("Nordland HOG (real)", s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:], window=36))
+        for contiguous in (False, True):
+            rows.append(
+                measure("Nordland HOG (real)", s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:], 36, contiguous)
+            )
     scales = (
         ("paper", "paper scale (synthetic)", 27592, 2760, 28),
         ("msls", "MSLS val scale (synthetic)", 18871, 11084, 111),
@@ -149,7 +155,8 @@ def main() -> None:
             continue
         with tempfile.TemporaryDirectory() as tmp:
             s_cal, gt_cal, s_val = synthetic_case(Path(tmp), n_db, n_q, min(args.queries, n_q - n_q // 10))
-            rows.append(measure(name, s_cal, gt_cal, s_val, window=window))
+            for contiguous in (False, True):
+                rows.append(measure(name, s_cal, gt_cal, s_val, window, contiguous))
 
     lines = [
         f"Measured by `benches/online_latency.py` on one thread, on {machine()}; float32 columns, k = 10, tau = 1; "
@@ -158,13 +165,14 @@ def main() -> None:
         "calibration profile (4 x |DB| x |Qcal| bytes, the yardstick); and the *k-profile floor*, the sort plus one "
         "float64 dot product with k profiles (what an exact push pays at least).",
         "",
-        "| case | \\|DB\\| | calibration queries | window | pushes | median | 99th percentile | NumPy sort "
-        "| NumPy float32 pass | median / pass | k-profile floor |",
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "| case | \\|DB\\| | calibration queries | window | column | pushes | median | 99th percentile "
+        "| NumPy sort | NumPy float32 pass | median / pass | k-profile floor |",
+        "|---|--:|--:|--:|---|--:|--:|--:|--:|--:|--:|--:|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['name']} | {r['db']} | {r['cal']} | {r['window']} | {r['pushes']} | {r['median']:.3f} ms | "
+            f"| {r['name']} | {r['db']} | {r['cal']} | {r['window']} | {r['layout']} | {r['pushes']} "
+            f"| {r['median']:.3f} ms | "
             f"{r['p99']:.3f} ms | {r['sort']:.3f} ms | {r['pass']:.3f} ms | {r['median'] / r['pass']:.2f}x | "
             f"{r['floor']:.3f} ms |"
         )
