@@ -10,7 +10,8 @@
 //! sorts sorted data. Run: `cargo bench -p qtvpr --bench sort`; the figures are in
 //! `docs/performance.md` (*Sort*).
 
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use voracious_radix_sort::RadixSort;
 
@@ -88,56 +89,27 @@ fn sorts(c: &mut Criterion) {
         let mut g = c.benchmark_group(format!("sort/{n}"));
         g.sample_size(if n > 100_000 { 20 } else { 100 });
         g.throughput(Throughput::Elements(n as u64));
-        let mut buf = vec![0.0f32; n];
-        let mut i = 0;
-        let mut next = |buf: &mut Vec<f32>| {
-            i = (i + 1) % 16;
-            buf.copy_from_slice(&f32s[i]);
-        };
-        g.bench_function(BenchmarkId::new("f32", "radsort"), |b| {
-            b.iter(|| {
-                next(&mut buf);
-                radsort::sort(black_box(&mut buf[..]));
-            })
-        });
-        g.bench_function(BenchmarkId::new("f32", "voracious"), |b| {
-            b.iter(|| {
-                next(&mut buf);
-                black_box(&mut buf[..]).voracious_sort();
-            })
-        });
-        g.bench_function(BenchmarkId::new("f32", "lsd-3x11"), |b| {
-            b.iter(|| {
-                next(&mut buf);
-                lsd_f32(black_box(&mut buf[..]), &mut keys, &mut spare);
-            })
-        });
-        g.bench_function(BenchmarkId::new("f32", "pdqsort"), |b| {
-            b.iter(|| {
-                next(&mut buf);
-                black_box(&mut buf[..]).sort_unstable_by(f32::total_cmp);
-            })
-        });
-        let mut buf = vec![0.0f64; n];
-        let mut i = 0;
-        let mut next = |buf: &mut Vec<f64>| {
-            i = (i + 1) % 16;
-            buf.copy_from_slice(&f64s[i]);
-        };
-        g.bench_function(BenchmarkId::new("f64", "radsort"), |b| {
-            b.iter(|| {
-                next(&mut buf);
-                radsort::sort(black_box(&mut buf[..]));
-            })
-        });
-        g.bench_function(BenchmarkId::new("f64", "voracious"), |b| {
-            b.iter(|| {
-                next(&mut buf);
-                black_box(&mut buf[..]).voracious_sort();
-            })
-        });
+        time(&mut g, "f32/radsort", &f32s, radsort::sort);
+        time(&mut g, "f32/voracious", &f32s, |v| v.voracious_sort());
+        time(&mut g, "f32/lsd-3x11", &f32s, |v| lsd_f32(v, &mut keys, &mut spare));
+        time(&mut g, "f32/pdqsort", &f32s, |v| v.sort_unstable_by(f32::total_cmp));
+        time(&mut g, "f64/radsort", &f64s, radsort::sort);
+        time(&mut g, "f64/voracious", &f64s, |v| v.voracious_sort());
         g.finish();
     }
+}
+
+/// Time `sort` on a fresh copy of one of `columns` per iteration, in turn.
+fn time<T: Copy>(g: &mut BenchmarkGroup<'_, WallTime>, name: &str, columns: &[Vec<T>], mut sort: impl FnMut(&mut [T])) {
+    let mut buf = columns[0].clone();
+    let mut i = 0;
+    g.bench_function(name, |b| {
+        b.iter(|| {
+            i = (i + 1) % columns.len();
+            buf.copy_from_slice(&columns[i]);
+            sort(black_box(&mut buf[..]));
+        })
+    });
 }
 
 criterion_group!(benches, sorts);
