@@ -30,7 +30,7 @@ use std::sync::Arc;
 
 use ndarray::{ArrayView1, ArrayView2, ArrayViewMut1, Axis, ShapeBuilder, s};
 
-use crate::decisions::{Matching, best_match};
+use crate::decisions::{Matching, first_at};
 use crate::deployment::{sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
 use crate::input::Score;
@@ -462,7 +462,8 @@ impl Online {
         let window = ArrayView2::from_shape((n_db, len).f(), &self.sorted[..n_db * len]).expect("slots of n_db scores");
         let threshold = sorted_columns_threshold(window, quantile);
         self.accepted.clear();
-        let best = best_match(column);
+        // The first maximum, whose value the sorted column ends with.
+        let best = first_at(column, sorted[sorted.len() - 1].to_f64());
         let score = column[best].to_f64();
         match self.calibration.matching() {
             Matching::Single => {
