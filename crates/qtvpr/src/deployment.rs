@@ -96,25 +96,20 @@ pub(crate) fn sorted_columns_threshold<T: Score>(sorted: ArrayView2<'_, T>, q: f
         },
         |lo, need_hi| {
             // The smallest key with more than `lo` scores at or below it. It lies between
-            // the columns' order statistics near rank lo / m (m columns of n scores):
+            // the columns' order statistics near rank lo / m (the m columns of a matrix):
             // below L = min_j c_j[lo / m], each column has at most lo / m scores, so all
             // of them at most lo; at U = max_j c_j[ceil((lo + 1) / m) - 1], each column
             // has at least ceil((lo + 1) / m), so all of them more than lo. Bisecting
             // between their keys takes a few steps where 0..2^64 takes 64.
             let m = columns.len();
-            let equal = columns.iter().all(|c| c.len() == columns[0].len());
-            let (mut low, mut high) = if equal {
-                (
-                    columns.iter().map(|c| key(&c[lo / m])).min().expect("columns"),
-                    columns
-                        .iter()
-                        .map(|c| key(&c[(lo + 1).div_ceil(m) - 1]))
-                        .max()
-                        .expect("columns"),
-                )
-            } else {
-                (0u64, u64::MAX)
-            };
+            let (mut low, mut high) = (
+                columns.iter().map(|c| key(&c[lo / m])).min().expect("columns"),
+                columns
+                    .iter()
+                    .map(|c| key(&c[(lo + 1).div_ceil(m) - 1]))
+                    .max()
+                    .expect("columns"),
+            );
             while low < high {
                 let mid = low + (high - low) / 2;
                 if at_most(mid) > lo { high = mid } else { low = mid + 1 }

@@ -248,7 +248,7 @@ impl<T: Score> Ranked<T> {
 
     /// All columns as a |DB| x n view (the same multiset of scores per column as the input).
     pub(crate) fn view(&self) -> ArrayView2<'_, T> {
-        ArrayView2::from_shape((self.n_db, self.ncols()).f(), &self.sorted[..]).expect("length is n_db * ncols")
+        ArrayView2::from_shape((self.n_db, self.ncols()).f(), &self.sorted).expect("length is n_db * ncols")
     }
 
     /// The standardised profile of column `j`, in `f64`, into `out`.

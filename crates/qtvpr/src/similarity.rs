@@ -310,19 +310,15 @@ fn fill<T: Score>(
                     matmul(dst, Accum::Replace, lhs, tiles.rhs(t), 1.0, Par::Seq);
                     let q0 = (tiles.first + t) * TILE;
                     let prod = ArrayView2::from_shape((BLOCK_ROWS, TILE), &prod[..]).expect("a block of the tile");
-                    // The tile's columns that are asked for, as output columns ...
-                    let (lo, hi) = (q0.max(cols.start), (q0 + TILE).min(mid));
-                    if lo < hi {
-                        Zip::from(out.slice_mut(s![.., lo - cols.start..hi - cols.start]))
-                            .and(prod.slice(s![..rows, lo - q0..hi - q0]))
-                            .for_each(|o, &p| *o = p as f32);
-                    }
-                    // ... and those kept for later.
-                    let (lo, hi) = (q0.max(mid), (q0 + TILE).min(cols.end));
-                    if lo < hi {
-                        Zip::from(spill.slice_mut(s![.., lo - mid..hi - mid]))
-                            .and(prod.slice(s![..rows, lo - q0..hi - q0]))
-                            .for_each(|o, &p| *o = p as f32);
+                    // The tile's columns that are asked for, as output columns, and
+                    // those kept for later.
+                    for (to, from) in [(&mut out, cols.start..mid), (&mut spill, mid..cols.end)] {
+                        let (lo, hi) = (q0.max(from.start), (q0 + TILE).min(from.end));
+                        if lo < hi {
+                            Zip::from(to.slice_mut(s![.., lo - from.start..hi - from.start]))
+                                .and(prod.slice(s![..rows, lo - q0..hi - q0]))
+                                .for_each(|o, &p| *o = p as f32);
+                        }
                     }
                 }
             },
