@@ -57,6 +57,10 @@
 //!    `mu + 2 g` (then every query left has `c <= upper + mu < v' - 2 g <= v - 2 g`).
 //!    The neighbours and weight are then [`top_k`] of the computed correlations, which
 //!    hold the true top `k`: the same set, ranked and summed in the same order.
+//!    Correlations are computed a few at a time (the first `k` together, then up to
+//!    four the stop does not yet rule out), in one pass over `u` each few: one more
+//!    than needed changes nothing, as the top `k` of a superset of the true top `k` is
+//!    the same. Each is summed in the same lanes and order alone or in a group.
 //!
 //! # Floating-point margin
 //!
@@ -259,15 +263,36 @@ impl<T: Score> Ranked<T> {
             .for_each(|(o, &x)| *o = standard.apply(x));
     }
 
-    /// The correlation of column `j` with a standardised profile `u`, in `f64`.
-    pub(crate) fn correlation(&self, j: usize, u: &[f64]) -> f64 {
-        pulp::Arch::new().dispatch(Correlation {
-            u,
-            column: self.column(j),
-            standard: self.standard[j],
-        })
+    /// The correlation of column `j` with a standardised profile `u`, in `f64`: one
+    /// [`sum_lanes`], the order [`Ranked::correlations`] keeps in its groups.
+    #[cfg(test)]
+    fn correlation(&self, j: usize, u: &[f64]) -> f64 {
+        let standard = self.standard[j];
+        sum_lanes(u, self.column(j), |a, x| a * standard.apply(x))
+    }
+
+    /// The correlations of columns `js` with a standardised profile `u` into `out`, each
+    /// the same bits as [`Ranked::correlation`]'s: [`GROUP`] columns in one pass over
+    /// `u`, so that `u` is read once a group and the group's sums run side by side
+    /// (one column's sum is a chain of dependent additions, which alone leaves the
+    /// core waiting on each).
+    pub(crate) fn correlations(&self, js: &[usize], u: &[f64], out: &mut [f64]) {
+        let arch = pulp::Arch::new();
+        for (js, out) in js.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
+            // A short group repeats its last column, whose sums are then dropped.
+            let j = |m: usize| js[m.min(js.len() - 1)];
+            let sums = arch.dispatch(Correlations {
+                u,
+                columns: std::array::from_fn(|m| self.column(j(m))),
+                standard: std::array::from_fn(|m| self.standard[j(m)]),
+            });
+            out.copy_from_slice(&sums[..out.len()]);
+        }
     }
 }
+
+/// How many correlations [`Ranked::correlations`] sums in one pass.
+const GROUP: usize = 4;
 
 /// Copy the columns of `s` into `out`, column-major: one column (a push) on the calling
 /// thread; contiguous columns (a Fortran-order matrix) as slices; otherwise a tile of
@@ -391,12 +416,16 @@ impl Screen {
     }
 
     /// [`top_k`] of the correlations of a standardised deployment profile `u` with the
-    /// calibration profiles, where `exact(i)` is the `f64` correlation with calibration
-    /// query `i`, asked only for the queries the bounds cannot rule out (module docs).
-    pub(crate) fn top_k(&self, u: &[f64], k: usize, exact: impl Fn(usize) -> f64) -> (Vec<usize>, f64) {
+    /// calibration profiles, where `exact(is, out)` puts into `out` the `f64`
+    /// correlations with calibration queries `is`, asked only for the queries the bounds
+    /// cannot rule out (module docs).
+    pub(crate) fn top_k(&self, u: &[f64], k: usize, exact: impl Fn(&[usize], &mut [f64])) -> (Vec<usize>, f64) {
         let k = k.min(self.n_cal);
         if self.edges.is_empty() || k == self.n_cal {
-            return top_k_of((0..self.n_cal).map(|i| (i, exact(i))).collect(), k);
+            let all: Vec<usize> = (0..self.n_cal).collect();
+            let mut row = vec![0.0; self.n_cal];
+            exact(&all, &mut row);
+            return top_k(&row, k);
         }
         let (lower, upper) = self.bounds(u);
         let mut kth = lower.clone();
@@ -410,20 +439,40 @@ impl Screen {
         let slack = self.margin + 3.0 * CORRELATION_GRID;
         // The k largest correlations computed so far, descending.
         let mut best: Vec<f64> = Vec::with_capacity(k + 1);
-        let mut pairs = Vec::with_capacity(2 * k);
-        for (hi, i) in order {
-            if best.len() == k && hi + slack < best[k - 1] {
+        let (mut is, mut cs) = (Vec::with_capacity(2 * k), Vec::with_capacity(2 * k));
+        let mut next = 0;
+        while next < order.len() {
+            // The first k are always computed, together; after them, the queries that
+            // the k-th correlation so far does not rule out, a group at a time (one
+            // computed beyond the stop changes nothing: the top k of more candidates
+            // that hold the true top k is the same).
+            let end = if best.len() < k {
+                k
+            } else {
+                let kth = best[k - 1];
+                next + order[next..]
+                    .iter()
+                    .take(GROUP)
+                    .take_while(|&&(hi, _)| hi + slack >= kth)
+                    .count()
+            };
+            if end == next {
                 break;
             }
-            let c = exact(i);
-            pairs.push((i, c));
-            let at = best.partition_point(|&b| b >= c);
-            if at < k {
-                best.insert(at, c);
-                best.truncate(k);
+            let end = end.min(order.len());
+            is.extend(order[next..end].iter().map(|&(_, i)| i));
+            cs.resize(is.len(), 0.0);
+            exact(&is[next..], &mut cs[next..]);
+            for &c in &cs[next..] {
+                let at = best.partition_point(|&b| b >= c);
+                if at < k {
+                    best.insert(at, c);
+                    best.truncate(k);
+                }
             }
+            next = end;
         }
-        top_k_of(pairs, k)
+        top_k_of(is.into_iter().zip(cs).collect(), k)
     }
 }
 
@@ -467,14 +516,18 @@ impl pulp::WithSimd for Summarise<'_> {
             let xb = &self.x[w[0]..w[1]];
             let n = xb.len() as f64;
             let centre = (n - 1.0) / 2.0;
-            // Pass 1: the sum and the dot product with the centred ramp `t - centre`.
-            let (mut sum, mut ramp) = ([0.0; LANES], [0.0; LANES]);
-            let x8 = xb.chunks_exact(LANES);
-            let tail = x8.remainder();
-            for (c, x) in x8.enumerate() {
+            // Pass 1: the sum and the dot product with the centred ramp `t - centre`. A
+            // chunk's ramp is the last one's plus LANES: exact (every value is a multiple
+            // of 1/2 far below 2^52), so the same bits as `t as f64 - centre` without a
+            // conversion a score.
+            let first: [f64; LANES] = std::array::from_fn(|l| l as f64 - centre);
+            let (mut sum, mut ramp, mut r) = ([0.0; LANES], [0.0; LANES], first);
+            let (x8, tail) = xb.as_chunks::<LANES>();
+            for x in x8 {
                 for l in 0..LANES {
                     sum[l] += x[l];
-                    ramp[l] += ((c * LANES + l) as f64 - centre) * x[l];
+                    ramp[l] += r[l] * x[l];
+                    r[l] += LANES as f64;
                 }
             }
             let start = xb.len() - tail.len();
@@ -492,15 +545,21 @@ impl pulp::WithSimd for Summarise<'_> {
             };
             let a = ramp * unit;
             let slope = a * unit;
-            // Pass 2: the norms of the residuals of the mean, and of the mean and ramp.
-            let (mut s2, mut e2) = ([0.0; LANES], [0.0; LANES]);
-            let x8 = xb.chunks_exact(LANES);
-            for (c, x) in x8.enumerate() {
+            // Pass 2: the norms of the residuals of the mean, and of the mean and ramp; in
+            // two loops, which the compiler turns into vector code each (one loop of
+            // both it left scalar, twice as slow as the two).
+            let (mut s2, mut e2, mut r) = ([0.0; LANES], [0.0; LANES], first);
+            for x in x8 {
                 for l in 0..LANES {
                     let d = x[l] - mean;
-                    let e = d - slope * ((c * LANES + l) as f64 - centre);
                     s2[l] += d * d;
+                }
+            }
+            for x in x8 {
+                for l in 0..LANES {
+                    let e = (x[l] - mean) - slope * r[l];
                     e2[l] += e * e;
+                    r[l] += LANES as f64;
                 }
             }
             for (t, &x) in tail.iter().enumerate() {
@@ -661,22 +720,44 @@ impl Standard {
     }
 }
 
-/// The correlation of a standardised profile `u` with a sorted `column`, compiled for
-/// the widest vectors the CPU has (the lanes of [`sum_lanes`] fix the summation order,
-/// so every CPU gets the same bits).
-struct Correlation<'a, T> {
+/// The correlations of a standardised profile `u` with [`GROUP`] sorted columns,
+/// compiled for the widest vectors the CPU has: each column's sum in the lanes and
+/// order of [`sum_lanes`], so every CPU, and every grouping, gets the same bits.
+struct Correlations<'a, T> {
     u: &'a [f64],
-    column: &'a [T],
-    standard: Standard,
+    columns: [&'a [T]; GROUP],
+    standard: [Standard; GROUP],
 }
 
-impl<T: Score> pulp::WithSimd for Correlation<'_, T> {
-    type Output = f64;
+impl<T: Score> pulp::WithSimd for Correlations<'_, T> {
+    type Output = [f64; GROUP];
 
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> f64 {
-        let standard = self.standard;
-        sum_lanes(self.u, self.column, |a, x| a * standard.apply(x))
+    fn with_simd<S: pulp::Simd>(self, _: S) -> [f64; GROUP] {
+        const LANES: usize = 8;
+        let Self { u, columns, standard } = self;
+        let (u8, _) = u.as_chunks::<LANES>();
+        let body = u8.len() * LANES;
+        let x8: [&[[T; LANES]]; GROUP] = std::array::from_fn(|m| &columns[m][..body].as_chunks().0[..u8.len()]);
+        #[inline(always)]
+        fn add<T: Score>(lanes: [f64; LANES], u: &[f64; LANES], x: &[T; LANES], standard: Standard) -> [f64; LANES] {
+            std::array::from_fn(|l| lanes[l] + u[l] * standard.apply(x[l]))
+        }
+        // The accumulators as values, not an array in memory, so they stay in registers.
+        let [mut l0, mut l1, mut l2, mut l3] = [[0.0; LANES]; GROUP];
+        for (c, u8) in u8.iter().enumerate() {
+            l0 = add(l0, u8, &x8[0][c], standard[0]);
+            l1 = add(l1, u8, &x8[1][c], standard[1]);
+            l2 = add(l2, u8, &x8[2][c], standard[2]);
+            l3 = add(l3, u8, &x8[3][c], standard[3]);
+        }
+        let lanes = [l0, l1, l2, l3];
+        std::array::from_fn(|m| {
+            let tail: f64 = (u[body..].iter().zip(&columns[m][body..]))
+                .map(|(&a, &x)| a * standard[m].apply(x))
+                .sum();
+            lanes[m].iter().sum::<f64>() + tail
+        })
     }
 }
 
@@ -748,11 +829,12 @@ pub fn ranked_correlation<T: Score, U: Score>(val: ArrayView2<'_, T>, cal: Array
             });
         }
         let mut r = vec![0.0; val.ncols() * cal.ncols()];
+        let all: Vec<usize> = (0..cal.ncols()).collect();
         r.par_chunks_mut(cal.ncols()).enumerate().for_each_init(
             || vec![0.0; val.n_db],
             |u, (j, row)| {
                 val.profile(j, u);
-                row.iter_mut().enumerate().for_each(|(i, r)| *r = cal.correlation(i, u));
+                cal.correlations(&all, u, row);
             },
         );
         Ok(Array2::from_shape_vec((val.ncols(), cal.ncols()), r).expect("shape matches length"))
@@ -826,6 +908,33 @@ mod tests {
     }
 
     #[test]
+    fn grouped_correlations_are_single_sums_bit_for_bit() {
+        // Lengths with and without a tail of the 8 lanes; groups of every size, short
+        // ones included, in any order and with repeats.
+        for n_db in [1, 7, 8, 29, 64, 203] {
+            let mut next = lcg(n_db as u64);
+            let cal = Array2::from_shape_fn((n_db, 11), |_| next() * 2.0 - 1.0);
+            let cal = Ranked::new(Input::CalSimilarity, cal.view(), 0).unwrap();
+            let val = Array2::from_shape_fn((n_db, 1), |_| next());
+            let val = Ranked::new(Input::DeploymentSimilarity, val.view(), 0).unwrap();
+            let mut u = vec![0.0; n_db];
+            val.profile(0, &mut u);
+            for len in 1..=9 {
+                let is: Vec<usize> = (0..len).map(|m| (7 * m + len) % 11).collect();
+                let mut got = vec![f64::NAN; len];
+                cal.correlations(&is, &u, &mut got);
+                for (&i, c) in is.iter().zip(&got) {
+                    assert_eq!(
+                        c.to_bits(),
+                        cal.correlation(i, &u).to_bits(),
+                        "|DB| {n_db}, group {is:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn correlations_within_the_grid_tie() {
         // 0.3 and 0.3 + 1e-15 differ by far less than 2^-40: a tie, so the lower index wins.
         assert_eq!(top_k(&[0.3, 0.3 + 1e-15], 1).0, vec![0]);
@@ -855,9 +964,9 @@ mod tests {
             }
             for k in [1, 3, 10, cal.ncols()] {
                 let calls = std::cell::Cell::new(0);
-                let got = screen.top_k(&u, k, |i| {
-                    calls.set(calls.get() + 1);
-                    row[i]
+                let got = screen.top_k(&u, k, |is, out| {
+                    calls.set(calls.get() + is.len());
+                    out.iter_mut().zip(is).for_each(|(o, &i)| *o = row[i]);
                 });
                 let want = top_k(&row, k);
                 assert_eq!(got.0, want.0, "column {j}, k = {k}: {row:?}");

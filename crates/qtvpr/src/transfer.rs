@@ -121,8 +121,9 @@ pub(crate) struct QueryTransfer {
 trait Profiles: Send + Sync {
     /// The quantile of a subset threshold `t` among sorted calibration columns.
     fn quantile(&self, columns: &[usize], t: f64) -> f64;
-    /// The `f64` correlation of calibration query `i` with a standardised profile.
-    fn correlation(&self, i: usize, u: &[f64]) -> f64;
+    /// The `f64` correlations of calibration queries `is` with a standardised profile
+    /// `u`, into `out`.
+    fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]);
     /// The margin (semantics §13) of calibration query `i`.
     fn margin(&self, i: usize) -> f64;
 }
@@ -131,8 +132,8 @@ impl<T: Score> Profiles for Ranked<T> {
     fn quantile(&self, columns: &[usize], t: f64) -> f64 {
         subset_quantile(columns.iter().map(|&i| self.column(i)), t)
     }
-    fn correlation(&self, i: usize, u: &[f64]) -> f64 {
-        Ranked::correlation(self, i, u)
+    fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]) {
+        Ranked::correlations(self, is, u, out)
     }
     fn margin(&self, i: usize) -> f64 {
         margin::of_sorted(self.column(i))
@@ -367,7 +368,9 @@ impl Calibration {
         u: &mut [f64],
     ) -> QueryTransfer {
         ranked.profile(j, u);
-        let (neighbours, weight) = self.screen.top_k(u, k, |i| self.profiles.correlation(i, u));
+        let (neighbours, weight) = self
+            .screen
+            .top_k(u, k, |is, out| self.profiles.correlations(is, u, out));
         let threshold = subset_threshold(&self.candidates, &neighbours, precision);
         let quantile = self.profiles.quantile(&neighbours, threshold);
         QueryTransfer {
