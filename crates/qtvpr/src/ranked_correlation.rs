@@ -745,10 +745,10 @@ impl<T: Score> Correlations<'_, T> {
         #[cfg(target_arch = "x86_64")]
         {
             if let Some(simd) = pulp::x86::V4::try_new() {
-                return pulp::Simd::vectorize(simd, OnV4(simd, self));
+                return pulp::Simd::vectorize(simd, Explicit(simd, self));
             }
             if let Some(simd) = pulp::x86::V3::try_new() {
-                return pulp::Simd::vectorize(simd, OnV3(simd, self));
+                return pulp::Simd::vectorize(simd, Explicit(simd, self));
             }
         }
         arch.dispatch(self)
@@ -807,92 +807,116 @@ fn as_f32<T: Score>(x: &[T; LANES]) -> Option<&[f32; LANES]> {
     (x as &dyn std::any::Any).downcast_ref()
 }
 
-/// [`Correlations`] with AVX-512: one 8-lane vector a column.
+/// The 8 lanes of [`sum_lanes`] in the vectors of one x86 level, with the operations of
+/// [`Correlations`]' explicit kernel: each does the scalar code's operation in every
+/// lane, one vector instruction a vector.
 #[cfg(target_arch = "x86_64")]
-struct OnV4<'a, T>(pulp::x86::V4, Correlations<'a, T>);
-
-#[cfg(target_arch = "x86_64")]
-impl<T: Score> pulp::WithSimd for OnV4<'_, T> {
-    type Output = [f64; GROUP];
-
+trait Lanes8: pulp::Simd {
+    /// 8 `f64` lanes, in the layout of `[f64; 8]`.
+    type V: pulp::bytemuck::Pod;
+    fn splat(self, v: f64) -> Self::V;
+    /// 8 scores widened to `f64`.
+    fn widen<T: Score>(self, x: &[T; LANES]) -> Self::V;
+    fn add(self, a: Self::V, b: Self::V) -> Self::V;
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V;
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V;
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> [f64; GROUP] {
-        use pulp::bytemuck::cast;
-        use pulp::{f64x8, x86::V4};
-        // Functions, not closures, in the loop: `inline(always)` keeps them in this
-        // function's target features.
-        #[inline(always)]
-        fn widen<T: Score>(simd: V4, x: &[T; LANES]) -> f64x8 {
-            match as_f32(x) {
-                Some(&x) => simd.convert_f32x8_to_f64x8(cast(x)),
-                None => cast(x.map(Score::to_f64)),
-            }
-        }
-        let Self(simd, group) = self;
-        let splat = |v: f64| V4::splat_f64x8(simd, v);
-        let standard = group
-            .standard
-            .map(|s| (splat(s.inv_scale), splat(s.mean), splat(s.inv_norm)));
-        let (u8, _) = group.u.as_chunks::<LANES>();
-        let x8 = group.chunks();
-        let mut acc = [splat(0.0); GROUP];
-        for (c, &u) in u8.iter().enumerate() {
-            let u: f64x8 = cast(u);
-            for m in 0..GROUP {
-                let (inv_scale, mean, inv_norm) = standard[m];
-                let x = simd.mul_f64x8(
-                    simd.sub_f64x8(simd.mul_f64x8(widen(simd, &x8[m][c]), inv_scale), mean),
-                    inv_norm,
-                );
-                acc[m] = simd.add_f64x8(acc[m], simd.mul_f64x8(u, x));
-            }
-        }
-        group.finish(acc.map(cast))
+    fn load(x: [f64; LANES]) -> Self::V {
+        pulp::bytemuck::cast(x)
+    }
+    #[inline(always)]
+    fn store(v: Self::V) -> [f64; LANES] {
+        pulp::bytemuck::cast(v)
     }
 }
 
-/// [`Correlations`] with AVX2: two 4-lane vectors a column.
+/// AVX-512: one `f64x8`.
 #[cfg(target_arch = "x86_64")]
-struct OnV3<'a, T>(pulp::x86::V3, Correlations<'a, T>);
+impl Lanes8 for pulp::x86::V4 {
+    type V = pulp::f64x8;
+    #[inline(always)]
+    fn splat(self, v: f64) -> Self::V {
+        self.splat_f64x8(v)
+    }
+    #[inline(always)]
+    fn widen<T: Score>(self, x: &[T; LANES]) -> Self::V {
+        match as_f32(x) {
+            Some(&x) => self.convert_f32x8_to_f64x8(pulp::bytemuck::cast(x)),
+            None => Self::load(x.map(Score::to_f64)),
+        }
+    }
+    #[inline(always)]
+    fn add(self, a: Self::V, b: Self::V) -> Self::V {
+        self.add_f64x8(a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V {
+        self.sub_f64x8(a, b)
+    }
+    #[inline(always)]
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V {
+        self.mul_f64x8(a, b)
+    }
+}
+
+/// AVX2: two `f64x4`, lanes 0-3 and 4-7.
+#[cfg(target_arch = "x86_64")]
+impl Lanes8 for pulp::x86::V3 {
+    type V = [pulp::f64x4; 2];
+    #[inline(always)]
+    fn splat(self, v: f64) -> Self::V {
+        [self.splat_f64x4(v); 2]
+    }
+    #[inline(always)]
+    fn widen<T: Score>(self, x: &[T; LANES]) -> Self::V {
+        match as_f32(x) {
+            Some(&x) => {
+                let [lo, hi]: [pulp::f32x4; 2] = pulp::bytemuck::cast(x);
+                [self.convert_f32x4_to_f64x4(lo), self.convert_f32x4_to_f64x4(hi)]
+            }
+            None => Self::load(x.map(Score::to_f64)),
+        }
+    }
+    #[inline(always)]
+    fn add(self, a: Self::V, b: Self::V) -> Self::V {
+        [self.add_f64x4(a[0], b[0]), self.add_f64x4(a[1], b[1])]
+    }
+    #[inline(always)]
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V {
+        [self.sub_f64x4(a[0], b[0]), self.sub_f64x4(a[1], b[1])]
+    }
+    #[inline(always)]
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V {
+        [self.mul_f64x4(a[0], b[0]), self.mul_f64x4(a[1], b[1])]
+    }
+}
+
+/// [`Correlations`] in the explicit vectors of `L`: one 8-lane value a column.
+#[cfg(target_arch = "x86_64")]
+struct Explicit<'a, L, T>(L, Correlations<'a, T>);
 
 #[cfg(target_arch = "x86_64")]
-impl<T: Score> pulp::WithSimd for OnV3<'_, T> {
+impl<L: Lanes8, T: Score> pulp::WithSimd for Explicit<'_, L, T> {
     type Output = [f64; GROUP];
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> [f64; GROUP] {
-        use pulp::bytemuck::cast;
-        use pulp::{f32x4, f64x4, x86::V3};
-        #[inline(always)]
-        fn widen<T: Score>(simd: V3, x: &[T; LANES]) -> [f64x4; 2] {
-            match as_f32(x) {
-                Some(&x) => {
-                    let [lo, hi]: [f32x4; 2] = cast(x);
-                    [simd.convert_f32x4_to_f64x4(lo), simd.convert_f32x4_to_f64x4(hi)]
-                }
-                None => cast(x.map(Score::to_f64)),
-            }
-        }
         let Self(simd, group) = self;
-        let splat = |v: f64| V3::splat_f64x4(simd, v);
         let standard = group
             .standard
-            .map(|s| (splat(s.inv_scale), splat(s.mean), splat(s.inv_norm)));
+            .map(|s| (simd.splat(s.inv_scale), simd.splat(s.mean), simd.splat(s.inv_norm)));
         let (u8, _) = group.u.as_chunks::<LANES>();
         let x8 = group.chunks();
-        let mut acc = [[splat(0.0); 2]; GROUP];
+        let mut acc = [simd.splat(0.0); GROUP];
         for (c, &u) in u8.iter().enumerate() {
-            let u: [f64x4; 2] = cast(u);
+            let u = L::load(u);
             for m in 0..GROUP {
                 let (inv_scale, mean, inv_norm) = standard[m];
-                let x = widen(simd, &x8[m][c]);
-                for h in 0..2 {
-                    let x = simd.mul_f64x4(simd.sub_f64x4(simd.mul_f64x4(x[h], inv_scale), mean), inv_norm);
-                    acc[m][h] = simd.add_f64x4(acc[m][h], simd.mul_f64x4(u[h], x));
-                }
+                let x = simd.mul(simd.sub(simd.mul(simd.widen(&x8[m][c]), inv_scale), mean), inv_norm);
+                acc[m] = simd.add(acc[m], simd.mul(u, x));
             }
         }
-        group.finish(acc.map(cast))
+        group.finish(acc.map(L::store))
     }
 }
 
@@ -1086,10 +1110,10 @@ mod tests {
             #[cfg(target_arch = "x86_64")]
             {
                 if let Some(simd) = pulp::x86::V3::try_new() {
-                    kernels.push(("AVX2", pulp::Simd::vectorize(simd, OnV3(simd, group()))));
+                    kernels.push(("AVX2", pulp::Simd::vectorize(simd, Explicit(simd, group()))));
                 }
                 if let Some(simd) = pulp::x86::V4::try_new() {
-                    kernels.push(("AVX-512", pulp::Simd::vectorize(simd, OnV4(simd, group()))));
+                    kernels.push(("AVX-512", pulp::Simd::vectorize(simd, Explicit(simd, group()))));
                 }
             }
             for (name, got) in &kernels {
