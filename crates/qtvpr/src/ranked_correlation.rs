@@ -511,7 +511,6 @@ impl pulp::WithSimd for Summarise<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) {
-        const LANES: usize = 8;
         let blocks = self.edges.len() - 1;
         for (b, w) in self.edges.windows(2).enumerate() {
             let xb = &self.x[w[0]..w[1]];
@@ -776,7 +775,8 @@ impl<T: Score> Correlations<'_, T> {
     }
 }
 
-/// The lanes of [`sum_lanes`].
+/// The interleaved lanes of every sum here ([`sum_lanes`], the correlations' kernels
+/// and the block summaries): they fix each sum's order, and so its bits.
 const LANES: usize = 8;
 
 /// The portable kernel (no AVX2): the same operations, lane by lane.
@@ -937,7 +937,6 @@ impl<T: Score> pulp::WithSimd for Standardise<'_, T> {
 /// vectorisable, and the same order every time.
 #[inline(always)]
 fn sum_lanes<A: Copy, B: Copy>(a: &[A], b: &[B], f: impl Fn(A, B) -> f64) -> f64 {
-    const LANES: usize = 8;
     let (a8, b8) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
     let tail: f64 = a8.remainder().iter().zip(b8.remainder()).map(|(&x, &y)| f(x, y)).sum();
     let mut lanes = [0.0; LANES];
