@@ -94,7 +94,7 @@ def main() -> None:
         lines = [
             f"Measured by `benches/descriptors.py` on {machine()}. "
             f"Floor: faer's f32 GEMM reaches {floor['gemm_f32_gflops']:.1f} GFLOP/s on a "
-            f"{' x '.join(map(str, floor['gemm_shape']))} product, one radix sort takes "
+            f"{' x '.join(map(str, floor['gemm_shape']))} product, one sort of a column (the core's) takes "
             f"{floor['sort_ns_per_score']:.2f} ns per score.",
             "",
             "| case | \\|DB\\| x \\|Q\\| x D | f32 descriptors | path | wall | per deployment query "

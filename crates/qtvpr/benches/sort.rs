@@ -1,5 +1,7 @@
 //! The sort of a profile, the stage that dominates once the screen no longer does:
-//! `radsort` (what `Score::sort_ascending` uses) against another radix sort crate,
+//! the core's (`Score::sort_ascending`: an AVX-512 quicksort of `f32` where the CPU
+//! has AVX-512, else `radsort`; `radsort` for `f64`) against `radsort`, another radix
+//! sort crate,
 //! `voracious_radix_sort`, a hand-written 3-pass LSD radix sort of 11-bit digits (the
 //! yardstick of a hand-written kernel), and the standard library's pattern-defeating
 //! quicksort, on `f32` and `f64` columns of 27,592 scores (a paper-scale profile) and
@@ -12,6 +14,7 @@
 
 use criterion::measurement::WallTime;
 use criterion::{BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
+use qtvpr::Score;
 use std::hint::black_box;
 use voracious_radix_sort::RadixSort;
 
@@ -83,12 +86,16 @@ fn sorts(c: &mut Criterion) {
         lsd_f32(&mut got, &mut keys, &mut spare);
         assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()));
         let mut got = f32s[3].clone();
+        <f32 as Score>::sort_ascending(&mut got);
+        assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()));
+        let mut got = f32s[3].clone();
         got.voracious_sort();
         assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()));
 
         let mut g = c.benchmark_group(format!("sort/{n}"));
         g.sample_size(if n > 100_000 { 20 } else { 100 });
         g.throughput(Throughput::Elements(n as u64));
+        time(&mut g, "f32/core", &f32s, <f32 as Score>::sort_ascending);
         time(&mut g, "f32/radsort", &f32s, radsort::sort);
         time(&mut g, "f32/voracious", &f32s, |v| v.voracious_sort());
         time(&mut g, "f32/lsd-3x11", &f32s, |v| lsd_f32(v, &mut keys, &mut spare));

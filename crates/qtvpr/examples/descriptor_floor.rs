@@ -1,6 +1,6 @@
 //! The floor of the fused transfer from descriptors on this machine (benches/descriptors.py):
-//! the speed faer's parallel `f32` GEMM reaches on a large product, and the time of one
-//! radix sort per score. Prints one JSON line.
+//! the speed faer's parallel `f32` GEMM reaches on a large product, and the time of the
+//! core's sort per score (`Score::sort_ascending`). Prints one JSON line.
 //!
 //!     cargo run --release -p qtvpr --example descriptor_floor -- [ROWS] [COLS] [DIM]
 
@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
+use qtvpr::Score;
 
 fn main() {
     let arg = |i: usize, default: usize| {
@@ -32,11 +33,11 @@ fn main() {
         best = best.min(t.elapsed().as_secs_f64());
     }
     let gflops = 2.0 * (rows * cols * dim) as f64 / best / 1e9;
-    // One radix sort of columns of `rows` scores each, as the transfer sorts them.
+    // One sort of columns of `rows` scores each, as the transfer sorts them.
     let mut scores: Vec<f32> = (0..rows * cols.min(64)).map(|_| next()).collect();
     let t = Instant::now();
     for column in scores.chunks_mut(rows) {
-        radsort::sort(column);
+        f32::sort_ascending(column);
     }
     let sort_ns = t.elapsed().as_secs_f64() * 1e9 / scores.len() as f64;
     println!(

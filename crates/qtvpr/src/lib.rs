@@ -32,6 +32,7 @@
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
 //! | extension: positions from image names (`@utm_east@utm_north@...@.jpg`) | [`image_names`] |
 //! | the thread pool, rebuilt in a forked child (§10) | [`threads`] |
+//! | the sort of a profile (AVX-512 quicksort, else `radsort`) | `sort` |
 //! | file input and output (feature `npy`) | `npy` |
 //! | the matrices errors are about ([`Input`]) | [`names`] |
 //!
@@ -92,6 +93,7 @@ pub mod ranked_correlation;
 pub mod report;
 pub mod sequence;
 pub mod similarity;
+mod sort;
 pub mod source;
 pub mod split;
 pub mod subset_quantile;
