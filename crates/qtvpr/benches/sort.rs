@@ -1,7 +1,6 @@
 //! The sort of a profile, the stage that dominates once the screen no longer does:
-//! the core's (`Score::sort_ascending`: an AVX-512 quicksort of `f32` where the CPU
-//! has AVX-512, else `radsort`; `radsort` for `f64`) against `radsort`, another radix
-//! sort crate,
+//! the core's (`Score::sort_ascending`: an AVX-512 quicksort where the CPU has
+//! AVX-512, else `radsort`) against `radsort`, another radix sort crate,
 //! `voracious_radix_sort`, a hand-written 3-pass LSD radix sort of 11-bit digits (the
 //! yardstick of a hand-written kernel), and the standard library's pattern-defeating
 //! quicksort, on `f32` and `f64` columns of 27,592 scores (a paper-scale profile) and
@@ -100,6 +99,7 @@ fn sorts(c: &mut Criterion) {
         time(&mut g, "f32/voracious", &f32s, |v| v.voracious_sort());
         time(&mut g, "f32/lsd-3x11", &f32s, |v| lsd_f32(v, &mut keys, &mut spare));
         time(&mut g, "f32/pdqsort", &f32s, |v| v.sort_unstable_by(f32::total_cmp));
+        time(&mut g, "f64/core", &f64s, <f64 as Score>::sort_ascending);
         time(&mut g, "f64/radsort", &f64s, radsort::sort);
         time(&mut g, "f64/voracious", &f64s, |v| v.voracious_sort());
         g.finish();

@@ -22,8 +22,8 @@ pub trait Score: Copy + Default + Send + Sync + PartialOrd + sealed::Sealed + 's
     const DTYPE: &'static str;
     /// Widen to `f64` (exact for both types).
     fn to_f64(self) -> f64;
-    /// Sort ascending in IEEE total order (-0.0 before +0.0): for `f32` a vectorised
-    /// quicksort where the CPU has AVX-512, else (and for `f64`) a radix sort.
+    /// Sort ascending in IEEE total order (-0.0 before +0.0): a vectorised quicksort
+    /// where the CPU has AVX-512, else a radix sort.
     fn sort_ascending(v: &mut [Self]);
     /// An owned copy of `s` in its own type.
     fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix;
@@ -90,7 +90,7 @@ impl Score for f32 {
 impl Score for f64 {
     const DTYPE: &'static str = "float64";
     fn sort_ascending(v: &mut [Self]) {
-        radsort::sort(v);
+        crate::sort::sort_f64(v);
     }
     fn to_matrix(s: ArrayView2<'_, Self>) -> ScoreMatrix {
         ScoreMatrix::F64(s.to_owned())
