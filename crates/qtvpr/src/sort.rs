@@ -52,30 +52,15 @@ pub(crate) fn sort_f64(v: &mut [f64]) {
 }
 
 /// The partitions a range may take before it is given to `radsort`: 2 log2(n).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 fn depth_limit(n: usize) -> u32 {
     2 * (usize::BITS - n.leading_zeros())
-}
-
-/// The lanes (of `n`) that keep the larger key in step (j, k) of an ascending bitonic
-/// sort: those where bit j and bit k of the lane differ.
-const fn larger(n: usize, j: usize, k: usize) -> u16 {
-    let mut m = 0;
-    let mut i = 0;
-    while i < n {
-        if (i & j != 0) != (i & k != 0) {
-            m |= 1 << i;
-        }
-        i += 1;
-    }
-    m
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
     use core::arch::x86_64::__m512i;
     use pulp::x86::V4;
-
-    use super::larger;
 
     /// The keys of one score type, in 64-byte vectors of `L` lanes (a mask's bit i is
     /// lane i). The loads and stores are safe: each reads or writes the slice it is
@@ -112,6 +97,20 @@ mod avx512 {
         fn sort_vector(simd: V4, x: __m512i) -> __m512i;
         /// A bitonic vector sorted.
         fn clean_vector(simd: V4, x: __m512i) -> __m512i;
+    }
+
+    /// The lanes (of `n`) that keep the larger key in step (j, k) of an ascending bitonic
+    /// sort: those where bit j and bit k of the lane differ.
+    const fn larger(n: usize, j: usize, k: usize) -> u16 {
+        let mut m = 0;
+        let mut i = 0;
+        while i < n {
+            if (i & j != 0) != (i & k != 0) {
+                m |= 1 << i;
+            }
+            i += 1;
+        }
+        m
     }
 
     /// The first `n` (at most 16) lanes.
