@@ -1,4 +1,4 @@
-//! The ascending sort of a column of scores ([`Score::sort_ascending`]): a vectorised
+//! The ascending sort of a column of scores (`Score::sort_ascending`): a vectorised
 //! quicksort where the CPU has AVX-512, `radsort` elsewhere.
 //!
 //! Every profile is sorted once per query, and once the screen reads only a few
@@ -27,9 +27,6 @@
 //!   and stored in the column;
 //! - a range still unsorted after 2 log2(n) partitions is given to `radsort`, so no
 //!   input costs more than O(n log n).
-
-#[cfg(doc)]
-use crate::input::Score;
 
 /// Sort `v` ascending in IEEE total order.
 pub(crate) fn sort_f32(v: &mut [f32]) {
