@@ -57,22 +57,32 @@ fn depth_limit(n: usize) -> u32 {
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
     use core::arch::x86_64::__m512i;
+    use std::ops::{Add, BitAnd, BitOr, Not};
+
     use pulp::x86::V4;
 
     /// The keys of one score type, in 64-byte vectors of `L` lanes (a mask's bit i is
-    /// lane i). The loads and stores are safe: each reads or writes the slice it is
-    /// given and no more.
-    pub(super) trait Key: Copy + PartialEq + Default + radsort::Key + pulp::bytemuck::Pod {
+    /// lane i). Each type gives its vector instructions; the key transform and the
+    /// bounds of every load and store are written once, here.
+    pub(super) trait Key:
+        Copy
+        + PartialEq
+        + Default
+        + radsort::Key
+        + pulp::bytemuck::Pod
+        + Not<Output = Self>
+        + BitOr<Output = Self>
+        + BitAnd<Output = Self>
+        + Add<Output = Self>
+    {
         /// Keys a vector.
         const L: usize;
         /// The largest key: the padding of a partial vector, sorted last.
         const MAX: Self;
-        /// The key of a score's bits: unsigned order is IEEE total order.
-        fn key(self) -> Self;
-        /// The score's bits back from its key.
-        fn unkey(self) -> Self;
-        /// The next key (`self` is not `MAX`).
-        fn next(self) -> Self;
+        /// The sign bit of the score's bits.
+        const SIGN: Self;
+        /// One.
+        const ONE: Self;
         fn splat(simd: V4, k: Self) -> __m512i;
         fn lanes_min(simd: V4, a: __m512i, b: __m512i) -> __m512i;
         fn lanes_max(simd: V4, a: __m512i, b: __m512i) -> __m512i;
@@ -84,16 +94,78 @@ mod avx512 {
         fn swap(simd: V4, x: __m512i, j: usize) -> __m512i;
         /// The lanes of `x` in reverse order.
         fn reverse(simd: V4, x: __m512i) -> __m512i;
-        /// The lanes of `m`, in order, into `out` (as long as `m` has lanes).
-        fn compress_store(simd: V4, m: u16, x: __m512i, out: &mut [Self]);
-        /// `v` (at most `L` keys) in the first lanes, `MAX` in the others.
-        fn load(simd: V4, v: &[Self]) -> __m512i;
-        /// The first `out.len()` (at most `L`) lanes of `x` into `out`.
-        fn store(simd: V4, x: __m512i, out: &mut [Self]);
         /// The lanes of `x` sorted.
         fn sort_vector(simd: V4, x: __m512i) -> __m512i;
         /// A bitonic vector sorted.
         fn clean_vector(simd: V4, x: __m512i) -> __m512i;
+        /// The lanes of `m` read at `at`, `fill`'s elsewhere.
+        ///
+        /// # Safety
+        /// `at` is valid for reads of the lanes of `m`.
+        unsafe fn masked_load(simd: V4, fill: __m512i, m: u16, at: *const Self) -> __m512i;
+        /// The lanes of `m` written at `at`.
+        ///
+        /// # Safety
+        /// `at` is valid for writes of the lanes of `m`.
+        unsafe fn masked_store(simd: V4, at: *mut Self, m: u16, x: __m512i);
+        /// The lanes of `m`, in order, written at `at`.
+        ///
+        /// # Safety
+        /// `at` is valid for writes of popcount(m) keys.
+        unsafe fn compress_store_at(simd: V4, at: *mut Self, m: u16, x: __m512i);
+
+        /// The key of a score's bits: unsigned order is IEEE total order.
+        #[inline(always)]
+        fn key(self) -> Self {
+            if self & Self::SIGN == Self::default() {
+                self | Self::SIGN
+            } else {
+                !self
+            }
+        }
+        /// The score's bits back from its key.
+        #[inline(always)]
+        fn unkey(self) -> Self {
+            if self & Self::SIGN == Self::default() {
+                !self
+            } else {
+                self & !Self::SIGN
+            }
+        }
+        /// The next key (`self` is not `MAX`).
+        #[inline(always)]
+        fn next(self) -> Self {
+            self + Self::ONE
+        }
+        /// `v` (at most `L` keys) in the first lanes, `MAX` in the others.
+        #[inline(always)]
+        fn load(simd: V4, v: &[Self]) -> __m512i {
+            if v.len() == Self::L {
+                // A whole vector, without a mask (the partitions' loop).
+                return pulp::bytemuck::pod_read_unaligned(pulp::bytemuck::cast_slice(v));
+            }
+            assert!(v.len() < Self::L);
+            // SAFETY: reads the first v.len() lanes only.
+            unsafe { Self::masked_load(simd, Self::splat(simd, Self::MAX), live(v.len()), v.as_ptr()) }
+        }
+        /// The first `out.len()` (at most `L`) lanes of `x` into `out`.
+        #[inline(always)]
+        fn store(simd: V4, x: __m512i, out: &mut [Self]) {
+            if out.len() == Self::L {
+                pulp::bytemuck::cast_slice_mut(out).copy_from_slice(pulp::bytemuck::bytes_of(&x));
+                return;
+            }
+            assert!(out.len() < Self::L);
+            // SAFETY: writes the first out.len() lanes only.
+            unsafe { Self::masked_store(simd, out.as_mut_ptr(), live(out.len()), x) }
+        }
+        /// The lanes of `m`, in order, into `out` (as long as `m` has lanes).
+        #[inline(always)]
+        fn compress_store(simd: V4, m: u16, x: __m512i, out: &mut [Self]) {
+            assert_eq!(out.len(), m.count_ones() as usize);
+            // SAFETY: writes popcount(m) = out.len() keys at its start.
+            unsafe { Self::compress_store_at(simd, out.as_mut_ptr(), m, x) }
+        }
     }
 
     /// The lanes (of `n`) that keep the larger key in step (j, k) of an ascending bitonic
@@ -148,18 +220,8 @@ mod avx512 {
     impl Key for u32 {
         const L: usize = 16;
         const MAX: Self = u32::MAX;
-        #[inline(always)]
-        fn key(self) -> Self {
-            if self >> 31 == 1 { !self } else { self | 1 << 31 }
-        }
-        #[inline(always)]
-        fn unkey(self) -> Self {
-            if self >> 31 == 1 { self & !(1 << 31) } else { !self }
-        }
-        #[inline(always)]
-        fn next(self) -> Self {
-            self + 1
-        }
+        const SIGN: Self = 1 << 31;
+        const ONE: Self = 1;
         #[inline(always)]
         fn splat(simd: V4, k: Self) -> __m512i {
             simd.avx512f._mm512_set1_epi32(k as i32)
@@ -196,36 +258,19 @@ mod avx512 {
                 ._mm512_permutexvar_epi32(pulp::bytemuck::cast(const { partners::<u32, 16>(15, U32_LANES) }), x)
         }
         #[inline(always)]
-        fn compress_store(simd: V4, m: u16, x: __m512i, out: &mut [Self]) {
-            assert_eq!(out.len(), m.count_ones() as usize);
-            // SAFETY: writes popcount(m) = out.len() keys at its start.
-            unsafe {
-                simd.avx512f
-                    ._mm512_mask_compressstoreu_epi32(out.as_mut_ptr().cast(), m, x)
-            }
+        unsafe fn masked_load(simd: V4, fill: __m512i, m: u16, at: *const Self) -> __m512i {
+            // SAFETY: the caller's.
+            unsafe { simd.avx512f._mm512_mask_loadu_epi32(fill, m, at.cast()) }
         }
         #[inline(always)]
-        fn load(simd: V4, v: &[Self]) -> __m512i {
-            match v.first_chunk::<16>() {
-                Some(&whole) => pulp::bytemuck::cast(whole),
-                // SAFETY: reads the first v.len() (under 16) lanes only.
-                None => unsafe {
-                    let fill = Self::splat(simd, Self::MAX);
-                    simd.avx512f
-                        ._mm512_mask_loadu_epi32(fill, live(v.len()), v.as_ptr().cast())
-                },
-            }
+        unsafe fn masked_store(simd: V4, at: *mut Self, m: u16, x: __m512i) {
+            // SAFETY: the caller's.
+            unsafe { simd.avx512f._mm512_mask_storeu_epi32(at.cast(), m, x) }
         }
         #[inline(always)]
-        fn store(simd: V4, x: __m512i, out: &mut [Self]) {
-            match out.first_chunk_mut::<16>() {
-                Some(whole) => *whole = pulp::bytemuck::cast(x),
-                // SAFETY: writes the first out.len() (under 16) lanes only.
-                None => unsafe {
-                    simd.avx512f
-                        ._mm512_mask_storeu_epi32(out.as_mut_ptr().cast(), live(out.len()), x)
-                },
-            }
+        unsafe fn compress_store_at(simd: V4, at: *mut Self, m: u16, x: __m512i) {
+            // SAFETY: the caller's.
+            unsafe { simd.avx512f._mm512_mask_compressstoreu_epi32(at.cast(), m, x) }
         }
         #[inline(always)]
         fn sort_vector(simd: V4, x: __m512i) -> __m512i {
@@ -249,18 +294,8 @@ mod avx512 {
     impl Key for u64 {
         const L: usize = 8;
         const MAX: Self = u64::MAX;
-        #[inline(always)]
-        fn key(self) -> Self {
-            if self >> 63 == 1 { !self } else { self | 1 << 63 }
-        }
-        #[inline(always)]
-        fn unkey(self) -> Self {
-            if self >> 63 == 1 { self & !(1 << 63) } else { !self }
-        }
-        #[inline(always)]
-        fn next(self) -> Self {
-            self + 1
-        }
+        const SIGN: Self = 1 << 63;
+        const ONE: Self = 1;
         #[inline(always)]
         fn splat(simd: V4, k: Self) -> __m512i {
             simd.avx512f._mm512_set1_epi64(k as i64)
@@ -296,36 +331,19 @@ mod avx512 {
                 ._mm512_permutexvar_epi64(pulp::bytemuck::cast(const { partners::<u64, 8>(7, U64_LANES) }), x)
         }
         #[inline(always)]
-        fn compress_store(simd: V4, m: u16, x: __m512i, out: &mut [Self]) {
-            assert_eq!(out.len(), m.count_ones() as usize);
-            // SAFETY: writes popcount(m) = out.len() keys at its start.
-            unsafe {
-                simd.avx512f
-                    ._mm512_mask_compressstoreu_epi64(out.as_mut_ptr().cast(), m as u8, x)
-            }
+        unsafe fn masked_load(simd: V4, fill: __m512i, m: u16, at: *const Self) -> __m512i {
+            // SAFETY: the caller's.
+            unsafe { simd.avx512f._mm512_mask_loadu_epi64(fill, m as u8, at.cast()) }
         }
         #[inline(always)]
-        fn load(simd: V4, v: &[Self]) -> __m512i {
-            match v.first_chunk::<8>() {
-                Some(&whole) => pulp::bytemuck::cast(whole),
-                // SAFETY: reads the first v.len() (under 8) lanes only.
-                None => unsafe {
-                    let fill = Self::splat(simd, Self::MAX);
-                    simd.avx512f
-                        ._mm512_mask_loadu_epi64(fill, live(v.len()) as u8, v.as_ptr().cast())
-                },
-            }
+        unsafe fn masked_store(simd: V4, at: *mut Self, m: u16, x: __m512i) {
+            // SAFETY: the caller's.
+            unsafe { simd.avx512f._mm512_mask_storeu_epi64(at.cast(), m as u8, x) }
         }
         #[inline(always)]
-        fn store(simd: V4, x: __m512i, out: &mut [Self]) {
-            match out.first_chunk_mut::<8>() {
-                Some(whole) => *whole = pulp::bytemuck::cast(x),
-                // SAFETY: writes the first out.len() (under 8) lanes only.
-                None => unsafe {
-                    simd.avx512f
-                        ._mm512_mask_storeu_epi64(out.as_mut_ptr().cast(), live(out.len()) as u8, x)
-                },
-            }
+        unsafe fn compress_store_at(simd: V4, at: *mut Self, m: u16, x: __m512i) {
+            // SAFETY: the caller's.
+            unsafe { simd.avx512f._mm512_mask_compressstoreu_epi64(at.cast(), m as u8, x) }
         }
         #[inline(always)]
         fn sort_vector(simd: V4, x: __m512i) -> __m512i {
@@ -372,6 +390,10 @@ mod avx512 {
     /// Sort `keys` ascending.
     #[inline(always)]
     fn sort_keys<K: Key>(simd: V4, keys: &mut [K], depth: u32) {
+        if keys.len() <= 8 * K::L {
+            // Sorted in registers: no spare buffer.
+            return small(simd, None, keys);
+        }
         let mut spare = vec![K::default(); keys.len()];
         // The larger part of each partition waits here while the smaller is sorted, so
         // at most log2(n) ranges wait.
