@@ -111,7 +111,13 @@ typedef enum {
     /**
      * A bug in qtvpr (a Rust panic, caught at the boundary); please report the message.
      */
-    QTVPR_ERR_PANIC = 7
+    QTVPR_ERR_PANIC = 7,
+    /**
+     * Memory for a buffer that a file or a parameter sizes cannot be allocated (a
+     * calibration file whose arrays do not fit in memory); the message names the file
+     * and member, or the buffer.
+     */
+    QTVPR_ERR_MEMORY = 8
 } qtvpr_status;
 
 /**

@@ -20,6 +20,10 @@
         A hostile calibration file: bzip2, an s.npy of 1 GiB of zeros in a few kB (its
         shape agrees with nothing, but it has to be decompressed to find out); deflate,
         40 MB of zeros in about 40 kB whose shape 5000x1000 disagrees with gt's 1x1.
+    capi_check.py hostile-set CAL.npz OUT_DIR
+        The hostile set of tests/hostile_npz.py made from CAL.npz (OUT_DIR/NNN.npz, and
+        OUT_DIR/manifest.tsv: each file and a part of its error), and OUT_DIR/big.npz, a
+        valid calibration too large for a 1 GB address-space cap.
 """
 
 from __future__ import annotations
@@ -29,12 +33,17 @@ import json
 import struct
 import sys
 import zipfile
+from pathlib import Path
 
 
 def read_npy(path: str) -> tuple[dict, bytes]:
     """The header dictionary and the data of a .npy file."""
     with open(path, "rb") as f:
-        raw = f.read()
+        return read_npy_bytes(f.read(), path)
+
+
+def read_npy_bytes(raw: bytes, path: str = "member") -> tuple[dict, bytes]:
+    """The header dictionary and the data of the bytes of a .npy file."""
     if raw[:6] != b"\x93NUMPY":
         sys.exit(f"{path}: not a .npy file")
     if raw[6] == 1:
@@ -154,8 +163,35 @@ def bomb(out: str, method: str) -> None:
         z.writestr("meta.npy", npy_header(f"<U{len(META)}", ()) + META.encode("utf-32-le"))
 
 
+def hostile_set(source: str, out_dir: str) -> None:
+    """The hostile set of tests/hostile_npz.py made from calibration file ``source``:
+    ``out_dir``/NNN.npz, and ``out_dir``/manifest.tsv with each file's path and a part of
+    the error it must get; and ``out_dir``/big.npz, a valid calibration of 60 x 1,000,000
+    float64 zeros (0.5 MB deflated) that does not fit under a 1 GB address-space cap."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from hostile_npz import hostile, members_of
+
+    with open(source, "rb") as f:
+        members = members_of(f.read())
+    shape = tuple(read_npy_bytes(members[0][1])[0]["shape"])
+    lines = []
+    for i, (_, data, error) in enumerate(hostile(members, "<f8", shape, 30)):
+        path = f"{out_dir}/{i:03}.npz"
+        with open(path, "wb") as f:
+            f.write(data)
+        lines.append(f"{path}\t{error}\n")
+    with open(f"{out_dir}/manifest.tsv", "w") as f:
+        f.writelines(lines)
+    db, queries = 1_000_000, 60
+    with zipfile.ZipFile(f"{out_dir}/big.npz", "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("s.npy", npy_header("<f8", (db, queries)) + bytes(db * queries * 8))
+        z.writestr("gt.npy", npy_header("|b1", (db, queries)) + bytes(db * queries))
+        z.writestr("meta.npy", npy_header(f"<U{len(META)}", ()) + META.encode("utf-32-le"))
+
+
 if __name__ == "__main__":
-    commands = {"split": split, "raw": raw, "compare": compare, "small": small, "flip": flip, "bomb": bomb}
+    commands = {"split": split, "raw": raw, "compare": compare, "small": small, "flip": flip, "bomb": bomb,
+                "hostile-set": hostile_set}
     if len(sys.argv) < 2 or sys.argv[1] not in commands:
         sys.exit(__doc__)
     commands[sys.argv[1]](*sys.argv[2:])

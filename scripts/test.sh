@@ -26,6 +26,15 @@ step "cargo fmt --check"
 cargo fmt --all -- --check
 step "cargo clippy"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+step "no AES, bzip2, zstd or LZMA crate in the build"
+# Semantics §12: an .npz holds stored or deflated members, and its zip layer (rawzip,
+# which decompresses nothing, and flate2's deflate) compiles no other codec.
+banned=$(cargo tree --workspace --locked -e normal,build --prefix none | sed 's/ .*//' | sort -u |
+    grep -xiE 'zip|aes|bzip2|bzip2-sys|libbz2-rs-sys|zstd|zstd-sys|zstd-safe|lzma-rs|lzma-sys|liblzma|xz2|deflate64|pbkdf2|hmac|sha1|constant_time_eq' || true)
+if [ -n "$banned" ]; then
+    echo "crates the zip layer must not bring: $banned" >&2
+    exit 1
+fi
 step "rustdoc"
 # Broken or private intra-doc links fail. The C library's crate is named `qtvpr` too
 # (libqtvpr.so), so its docs would overwrite the core's: include/qtvpr.h documents it.
@@ -35,9 +44,13 @@ cargo test --workspace --locked
 step "C interface"
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
-step "fuzz targets compile"
+step "fuzz targets compile; the zip layer's fixed fuzzing budget"
 # Not a workspace member (libFuzzer needs a sanitizer build to run); stable can check it.
 cargo check --manifest-path fuzz/Cargo.toml --locked
+# The zip layer's budget: 3000 structured mutations of each of ~45 seed archives
+# (valid and hostile) through the target's function, in the test build already made.
+QTVPR_FUZZ_ITERATIONS=3000 cargo test --workspace --locked --lib -- --exact \
+    npy::archive::tests::the_zip_layer_survives_a_fixed_fuzzing_budget
 
 step "wheel into a virtualenv"
 venv="$target/test-venv"

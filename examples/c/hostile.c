@@ -4,12 +4,17 @@
  * and a message naming the file (and the member) instead of hanging, aborting or
  * loading other values. Run by scripts/capi.sh, under `ulimit -v 1000000`.
  *
- *     hostile SCRATCH_DIR SMALL.npz CRC.npz BZIP2_BOMB.npz DEFLATE_BOMB.npz
+ *     hostile SCRATCH_DIR SMALL.npz CRC.npz BZIP2_BOMB.npz DEFLATE_BOMB.npz MANIFEST BIG.npz
  *
  * SMALL.npz is a valid calibration file that sets a window; CRC.npz is it with one bit
  * of its s member's data flipped; the bombs are made by scripts/capi_check.py (a few kB
  * whose s.npy expands to 1 GiB with bzip2; 40 MB deflated, its shape disagreeing with
- * gt). SCRATCH_DIR is a writable directory for a FIFO and the flipped files.
+ * gt). MANIFEST lists the hostile set of tests/hostile_npz.py (a file and a part of its
+ * error a line, tab-separated: AES with and without its flag, other methods, ZipCrypto,
+ * duplicates, bad CRCs, bombs, 1-D and 3-D shapes); BIG.npz is a valid calibration too
+ * large for the address-space cap (left out under valgrind, which the cap does not
+ * bind). SCRATCH_DIR is a writable directory for a FIFO and
+ * the flipped files.
  *
  * Checks:
  * - a FIFO with no writer: NULL and QTVPR_ERR_IO at once (an alarm kills a hang);
@@ -18,7 +23,10 @@
  *   QTVPR_ERR_FILE and the file's name, or a calibration whose decisions are
  *   bit-identical to SMALL.npz's;
  * - the bombs: NULL with QTVPR_ERR_FILE naming the member, in under a second, with
- *   less than 100 MB of peak RSS.
+ *   less than 100 MB of peak RSS;
+ * - every file of MANIFEST: NULL, QTVPR_ERR_FILE, and its message names the file and
+ *   holds the manifest's part;
+ * - BIG.npz: NULL and QTVPR_ERR_MEMORY ("cannot allocate"), never an abort.
  * Prints each failed check and exits 1 if there is any.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -175,13 +183,43 @@ static void bomb(const char *path, const char *words) {
     qtvpr_calibration_free(cal); /* NULL, unless a check above failed */
 }
 
+/* Every file of the manifest (a path, a tab, a part of its error, a line): refused with
+ * QTVPR_ERR_FILE and a message naming the file and holding the part. */
+static void hostile_set(const char *manifest) {
+    char line[8192];
+    int n = 0;
+    FILE *f = fopen(manifest, "r");
+    CHECK(f != NULL);
+    while (f && fgets(line, sizeof line, f)) {
+        char *tab = strchr(line, '\t'), *end = strchr(line, '\n');
+        qtvpr_calibration *cal;
+        if (!tab || !end) {
+            CHECK(!"a manifest line is a path, a tab and an error");
+            break;
+        }
+        *tab = *end = '\0';
+        cal = qtvpr_calibration_load(line);
+        CHECK(cal == NULL);
+        if (!EXPECT_ERROR(QTVPR_ERR_FILE, line, tab + 1, NULL)) {
+            fprintf(stderr, "  %s: %s\n", line, qtvpr_last_error() ? qtvpr_last_error() : "(no error)");
+        }
+        qtvpr_calibration_free(cal);
+        n++;
+    }
+    if (f) {
+        fclose(f);
+    }
+    CHECK(n > 40);
+}
+
 int main(int argc, char **argv) {
     char fifo[4096];
     double start;
     qtvpr_calibration *cal;
 
-    if (argc != 6) {
-        fprintf(stderr, "usage: %s SCRATCH_DIR SMALL.npz CRC.npz BZIP2_BOMB.npz DEFLATE_BOMB.npz\n", argv[0]);
+    if (argc < 7 || argc > 8) {
+        fprintf(stderr, "usage: %s SCRATCH_DIR SMALL.npz CRC.npz BZIP2_BOMB.npz DEFLATE_BOMB.npz MANIFEST [BIG.npz]\n",
+                argv[0]);
         return 2;
     }
 
@@ -209,6 +247,13 @@ int main(int argc, char **argv) {
 
     bomb(argv[4], "(array s) cannot be decompressed: compression method 12 (bzip2) is not supported");
     bomb(argv[5], "ground truth shape 1x1 does not match calibration similarity shape 5000x1000");
+    hostile_set(argv[6]);
+    if (argc == 8) {
+        cal = qtvpr_calibration_load(argv[7]);
+        CHECK(cal == NULL);
+        EXPECT_ERROR(QTVPR_ERR_MEMORY, argv[7], "cannot allocate", NULL);
+        qtvpr_calibration_free(cal);
+    }
     alarm(0);
 
     if (failures) {

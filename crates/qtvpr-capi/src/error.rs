@@ -43,6 +43,10 @@ pub enum qtvpr_status {
     QTVPR_ERR_FILE = 6,
     /// A bug in qtvpr (a Rust panic, caught at the boundary); please report the message.
     QTVPR_ERR_PANIC = 7,
+    /// Memory for a buffer that a file or a parameter sizes cannot be allocated (a
+    /// calibration file whose arrays do not fit in memory); the message names the file
+    /// and member, or the buffer.
+    QTVPR_ERR_MEMORY = 8,
 }
 
 use qtvpr_status::*;
@@ -75,6 +79,8 @@ impl From<qtvpr::Error> for Failure {
             E::ColumnLength { .. } | E::DatabaseMismatch { .. } | E::ShapeMismatch { .. } => QTVPR_ERR_SIZE,
             E::InvalidParameter { .. } => QTVPR_ERR_PARAM,
             E::Io { .. } | E::Write { .. } => QTVPR_ERR_IO,
+            E::Allocation { .. } => QTVPR_ERR_MEMORY,
+            E::InFile { error, .. } if matches!(**error, E::Allocation { .. }) => QTVPR_ERR_MEMORY,
             E::File { .. } | E::Dtype { .. } | E::InFile { .. } => QTVPR_ERR_FILE,
             _ => QTVPR_ERR_INPUT,
         };

@@ -335,21 +335,14 @@ fn broken_files() {
 
 #[test]
 fn npz_ground_truth() {
-    use npyz::WriterBuilder;
     let case = Case::new();
     let write_npz = |path: &Path, names: &[&str]| {
-        let mut npz = npyz::npz::NpzWriter::create(path).unwrap();
-        for name in names {
-            let mut w = npz
-                .array::<bool>(name, Default::default())
-                .unwrap()
-                .default_dtype()
-                .shape(&[3, 2])
-                .begin_nd()
-                .unwrap();
-            w.extend([true, true, false, true, true, false]).unwrap();
-            w.finish().unwrap();
-        }
+        let labels = ndarray::array![[true, true], [false, true], [true, false]];
+        let arrays: Vec<_> = names
+            .iter()
+            .map(|&n| (n, qtvpr::npy::NpyArray::Bool(labels.view())))
+            .collect();
+        qtvpr::npy::write_npz(path, &arrays).unwrap();
     };
     write_npz(&case.path("gt.npz"), &["GThard", "GTsoft"]);
     let out = case.run(

@@ -302,9 +302,8 @@ fn ground_truth_by_tolerance() {
         "-o",
         "gt.npz",
     ]);
-    let mut npz = npyz::npz::NpzArchive::open(dir.path("gt.npz")).unwrap();
-    let hard: Vec<bool> = npz.by_name("GThard").unwrap().unwrap().into_vec().unwrap();
-    let gt_soft: Vec<bool> = npz.by_name("GTsoft").unwrap().unwrap().into_vec().unwrap();
+    let hard = common::npz_bools(&dir.path("gt.npz"), "GThard");
+    let gt_soft = common::npz_bools(&dir.path("gt.npz"), "GTsoft");
     assert_eq!((hard, gt_soft), (want, soft));
 }
 
@@ -329,9 +328,8 @@ fn ground_truth_by_positions_is_inclusive() {
         "-o",
         "gt.npz",
     ]);
-    let mut npz = npyz::npz::NpzArchive::open(dir.path("gt.npz")).unwrap();
-    let hard: Vec<bool> = npz.by_name("GThard").unwrap().unwrap().into_vec().unwrap();
-    let soft: Vec<bool> = npz.by_name("GTsoft").unwrap().unwrap().into_vec().unwrap();
+    let hard = common::npz_bools(&dir.path("gt.npz"), "GThard");
+    let soft = common::npz_bools(&dir.path("gt.npz"), "GTsoft");
     assert_eq!(hard, bools(&[&[1, 0], &[0, 1], &[0, 1]]));
     assert_eq!(soft, bools(&[&[1, 0], &[1, 1], &[0, 1]]));
 }

@@ -96,9 +96,8 @@ fn ground_truth_from_names_equals_ground_truth_from_positions() {
     ]
     .concat());
     assert_eq!(f.read("a.npz"), f.read("b.npz"));
-    let mut npz = npyz::npz::NpzArchive::open(f.path("a.npz")).unwrap();
-    let hard: Vec<bool> = npz.by_name("GThard").unwrap().unwrap().into_vec().unwrap();
-    let soft: Vec<bool> = npz.by_name("GTsoft").unwrap().unwrap().into_vec().unwrap();
+    let hard = common::npz_bools(&f.path("a.npz"), "GThard");
+    let soft = common::npz_bools(&f.path("a.npz"), "GTsoft");
     // Rows (10, -5), (3, 4), (7, 0), see small_case.
     let t = true;
     assert_eq!(hard, [!t, t, t, !t, !t, t]);

@@ -732,41 +732,33 @@ fn run_capped(dir: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
-/// A calibration whose `s.npy` is a bzip2 bomb (a few kB expanding to 1 GB), and a
+/// A calibration whose `s.npy` is marked bzip2 (a few kB claiming 128 MiB), and a
 /// `.npy` whose header claims 80 GB that is read unmapped (big-endian): under a 1 GB
 /// address-space cap both are refused with exit 2 and a message, fast, never a signal.
 #[test]
 fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
-    use npyz::zip::{CompressionMethod, ZipWriter, write::FileOptions};
+    use common::zip::{Member, npy_header, zip};
     let dir = tempfile::tempdir().unwrap();
     let path = |name: &str| dir.path().join(name);
-    let n: usize = 1 << 30; // bytes of zeros in s.npy
-    let mut zip = ZipWriter::new(std::fs::File::create(path("bomb.npz")).unwrap());
-    let stored = FileOptions::default().compression_method(CompressionMethod::Stored);
-    zip.start_file("s.npy", stored.compression_method(CompressionMethod::Bzip2))
-        .unwrap();
-    let header = common::npy_header(&format!(
-        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 1024), }}",
-        n / 8 / 1024
-    ));
-    std::io::Write::write_all(&mut zip, &header).unwrap();
-    let zeros = vec![0u8; 1 << 20];
-    for _ in 0..n >> 20 {
-        std::io::Write::write_all(&mut zip, &zeros).unwrap();
-    }
-    zip.start_file("gt.npy", stored).unwrap();
-    let mut gt = common::npy_header("{'descr': '|b1', 'fortran_order': False, 'shape': (1, 1), }");
+    let n: usize = 1 << 27; // bytes of zeros in s.npy
+    // Marked bzip2 (12): its bytes are deflated, since no bzip2 reader is asked to look.
+    let mut s = npy_header("<f8", &format!("({}, 1024)", n / 8 / 1024));
+    s.resize(s.len() + n, 0);
+    let mut gt = npy_header("|b1", "(1, 1)");
     gt.push(1);
-    std::io::Write::write_all(&mut zip, &gt).unwrap();
-    zip.start_file("meta.npy", stored).unwrap();
     let meta = r#"{"format": "qtvpr-calibration", "version": 1, "matching": "single", "params": {"k": 1, "precision": 1.0, "window": null}}"#;
-    let mut m = common::npy_header(&format!(
-        "{{'descr': '<U{}', 'fortran_order': False, 'shape': (), }}",
-        meta.len()
-    ));
+    let mut m = npy_header(&format!("<U{}", meta.len()), "()");
     m.extend(meta.chars().flat_map(|c| (c as u32).to_le_bytes()));
-    std::io::Write::write_all(&mut zip, &m).unwrap();
-    zip.finish().unwrap();
+    let bomb = zip(&[
+        Member {
+            method: 12,
+            ..Member::deflated("s.npy", &s)
+        },
+        Member::stored("gt.npy", &gt),
+        Member::stored("meta.npy", &m),
+    ]);
+    drop(s);
+    std::fs::write(path("bomb.npz"), bomb).unwrap();
     let size = std::fs::metadata(path("bomb.npz")).unwrap().len();
     assert!(size < 1 << 20, "{size}");
     common::npy_f64(&path("val.npy"), &[&[0.5, 0.1], &[0.2, 0.9]]);

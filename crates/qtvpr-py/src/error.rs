@@ -16,7 +16,7 @@
 
 use pyo3::PyErr;
 use pyo3::exceptions::{
-    PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyTypeError, PyValueError,
+    PyFileNotFoundError, PyIsADirectoryError, PyMemoryError, PyOSError, PyPermissionError, PyTypeError, PyValueError,
 };
 use qtvpr::Error;
 use qtvpr::Input;
@@ -124,6 +124,7 @@ fn exception(err: &Error, message: String) -> PyErr {
             _ => PyOSError::new_err(message),
         },
         Error::Dtype { .. } => PyTypeError::new_err(message),
+        Error::Allocation { .. } => PyMemoryError::new_err(message),
         Error::InFile { error, .. } => exception(error, message),
         _ => PyValueError::new_err(message),
     }

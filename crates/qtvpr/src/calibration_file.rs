@@ -33,7 +33,6 @@ pub const VERSION: u64 = 1;
 
 #[cfg(feature = "npy")]
 mod file {
-    use std::io::{Cursor, Read, Seek};
     use std::path::Path;
 
     use ndarray::Array2;
@@ -105,13 +104,13 @@ mod file {
         /// As [`Calibration::save`], but for writing.
         pub fn to_bytes(&self, defaults: &Defaults) -> Result<Vec<u8>> {
             let (meta, gt, soft) = self.file_arrays(defaults)?;
-            let mut out = Cursor::new(Vec::new());
+            let mut out = Vec::new();
             npy::write_npz_to(&mut out, &self.members(&meta, &gt, soft.as_ref())).map_err(|e| Error::Write {
                 path: "memory".into(),
                 kind: e.kind(),
                 message: e.to_string(),
             })?;
-            Ok(out.into_inner())
+            Ok(out)
         }
 
         /// Load a calibration file written by [`Calibration::save`]; its `params` become
@@ -123,7 +122,7 @@ mod file {
         /// or malformed array, shapes that disagree, a non-finite score, non-bool ground
         /// truth, an unknown format or version, bad `meta`).
         pub fn load(path: &Path) -> Result<Calibration> {
-            read(npy::open_npz_file(path)?, path)
+            npy::guarded(path, || read(npy::open_npz_file(path)?, path))
         }
 
         /// [`Calibration::load`] from the bytes of a calibration file; `name` stands for
@@ -133,7 +132,7 @@ mod file {
         /// As [`Calibration::load`].
         pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Calibration> {
             let path = Path::new(name);
-            read(npy::open_npz(Cursor::new(bytes), path)?, path)
+            npy::guarded(path, || read(npy::Archive::new(bytes, bytes.len() as u64, path)?, path))
         }
 
         /// The `meta` JSON and the hard and (if any entry is ignored) soft ground truth,
@@ -190,57 +189,51 @@ mod file {
 
     /// A calibration from an opened archive; `path` names it in errors.
     ///
-    /// Integrity first: every member's `.npy` header is read (and checked against the
-    /// zip directory's size) and the shapes compared before any array data is
-    /// decompressed; each member is then read to its end, so that its CRC-32 is checked,
-    /// and never past its declared size.
-    fn read<R: Read + Seek>(mut npz: npyz::npz::NpzArchive<R>, path: &Path) -> Result<Calibration> {
+    /// Integrity first: the archive's every member was checked when it was opened
+    /// (methods, flags, extra fields, local headers: `npy/archive.rs`); here every
+    /// array's `.npy` header is read (dtype, rank, the size the zip directory declares)
+    /// and the shapes compared before any array data is decompressed; each array is then
+    /// read to its end, so that its CRC-32 is checked, and never past its declared size.
+    fn read<R: rawzip::ReaderAt>(npz: npy::Archive<R>, path: &Path) -> Result<Calibration> {
+        use npy::Kind;
         let missing = |name: &str| {
             file_error(
                 path,
                 format!("has no array {name}; a calibration file holds s, gt and meta (and optionally gt_soft)"),
             )
         };
-        let meta = npy::npz_member_header(&mut npz, "meta", path)?
+        let meta = npy::npz_array(&npz, "meta", Kind::Text)?
             .ok_or_else(|| file_error(path, "has no array meta: it is not a qtvpr calibration file"))?;
-        let s = npy::npz_member_header(&mut npz, "s", path)?.ok_or_else(|| missing("s"))?;
-        let hard = npy::npz_member_header(&mut npz, "gt", path)?.ok_or_else(|| missing("gt"))?;
-        let soft = npy::npz_member_header(&mut npz, "gt_soft", path)?;
+        let s = npy::npz_array(&npz, "s", Kind::Scores)?.ok_or_else(|| missing("s"))?;
+        let hard = npy::npz_array(&npz, "gt", Kind::Bool)?.ok_or_else(|| missing("gt"))?;
+        let soft = npy::npz_array(&npz, "gt_soft", Kind::Bool)?;
         // The shapes agree before any array is decompressed (the same messages as the
         // checks on the arrays themselves).
-        let dims = |m: &npy::MemberHeader| match m.shape[..] {
-            [r, c] => Some((r as usize, c as usize)),
-            _ => None,
-        };
         let pairs = [
             (Some(&hard), &s, Input::GroundTruth, Input::CalSimilarity),
             (soft.as_ref(), &hard, Input::SoftGroundTruth, Input::GroundTruth),
         ];
         for (member, other, what, other_what) in pairs {
             if let Some(member) = member
-                && let (Some(shape), Some(other_shape)) = (dims(member), dims(other))
-                && shape != other_shape
+                && member.dims() != other.dims()
             {
                 return Err(in_file(
                     path,
                     Error::ShapeMismatch {
                         what,
-                        shape,
+                        shape: member.dims(),
                         other: other_what,
-                        other_shape,
+                        other_shape: other.dims(),
                     },
                 ));
             }
         }
-        let (matching, defaults) = {
-            let npy = npy::npz_member_data(&mut npz, "meta", &meta)?;
-            read_meta(&npy::read_string(npy, &meta.label)?, path)?
-        };
-        let scores = npy::read_owned_scores(npy::npz_member_data(&mut npz, "s", &s)?, &s.label)?;
-        let hard_gt = npy::read_bool_matrix(npy::npz_member_data(&mut npz, "gt", &hard)?, &hard.label)?;
+        let (matching, defaults) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
+        let scores = npy::read_owned_scores(s.npy, &s.label)?;
+        let hard_gt = npy::read_bool_matrix(hard.npy, &hard.label)?;
         let mut gt = GroundTruth::new(hard_gt.view()).map_err(|e| in_file(path, e))?;
-        if let Some(soft) = &soft {
-            let soft_gt = npy::read_bool_matrix(npy::npz_member_data(&mut npz, "gt_soft", soft)?, &soft.label)?;
+        if let Some(soft) = soft {
+            let soft_gt = npy::read_bool_matrix(soft.npy, &soft.label)?;
             gt = gt.with_soft(soft_gt.view()).map_err(|e| in_file(path, e))?;
         }
         let calibration =
@@ -298,7 +291,9 @@ mod file {
 
 #[cfg(all(test, feature = "npy"))]
 mod tests {
-    use std::io::{Cursor, Read};
+    use std::io::Read;
+
+    use crate::npy::{self, test_zip::Member};
     use std::path::{Path, PathBuf};
     use std::sync::Arc;
 
@@ -372,17 +367,11 @@ mod tests {
 
     /// Member names of an archive, and each member's header text.
     fn members(bytes: &[u8]) -> Vec<(String, String)> {
-        let mut zip = npyz::zip::ZipArchive::new(Cursor::new(bytes)).unwrap();
-        (0..zip.len())
-            .map(|i| {
-                let mut f = zip.by_index(i).unwrap();
-                let mut data = Vec::new();
-                f.read_to_end(&mut data).unwrap();
+        npy::test_zip::unzip(bytes)
+            .into_iter()
+            .map(|(name, data)| {
                 let len = u16::from_le_bytes([data[8], data[9]]) as usize;
-                (
-                    f.name().to_string(),
-                    String::from_utf8(data[10..10 + len].to_vec()).unwrap(),
-                )
+                (name, String::from_utf8(data[10..10 + len].to_vec()).unwrap())
             })
             .collect()
     }
@@ -438,9 +427,7 @@ mod tests {
         );
         assert!(m[3].1.contains(&format!("'<U{}'", meta.len())), "{}", m[3].1);
         // The meta payload is UTF-32LE of the JSON.
-        let mut zip = npyz::zip::ZipArchive::new(Cursor::new(&bytes[..])).unwrap();
-        let mut data = Vec::new();
-        zip.by_name("meta.npy").unwrap().read_to_end(&mut data).unwrap();
+        let data = npy::test_zip::unzip(&bytes).pop().unwrap().1;
         let payload: Vec<u8> = meta.chars().flat_map(|c| u32::from(c).to_le_bytes()).collect();
         assert!(data.ends_with(&payload));
         // Hard GT only: no gt_soft member.
@@ -717,25 +704,24 @@ mod tests {
         // Ground truth of uint8 (0/1 is fine as input, but the file format says bool).
         let path = p.join("gt_u8.npz");
         {
-            let file = std::fs::File::create(&path).unwrap();
-            let mut zip = npyz::zip::ZipWriter::new(file);
-            let opts =
-                npyz::zip::write::FileOptions::default().compression_method(npyz::zip::CompressionMethod::Stored);
-            zip.start_file("s.npy", opts).unwrap();
-            sv.write_to(&mut zip).unwrap();
-            zip.start_file("gt.npy", opts).unwrap();
             use npyz::WriterBuilder;
+            let (mut s_npy, mut gt_npy, mut meta_npy) = (Vec::new(), Vec::new(), Vec::new());
+            sv.write_to(&mut s_npy).unwrap();
             let mut w = npyz::WriteOptions::<u8>::new()
                 .default_dtype()
                 .shape(&[2, 2])
-                .writer(&mut zip)
+                .writer(&mut gt_npy)
                 .begin_nd()
                 .unwrap();
             w.extend([1u8, 0, 0, 1]).unwrap();
             w.finish().unwrap();
-            zip.start_file("meta.npy", opts).unwrap();
-            m(&good).write_to(&mut zip).unwrap();
-            zip.finish().unwrap();
+            m(&good).write_to(&mut meta_npy).unwrap();
+            let members = [
+                Member::stored("s.npy", &s_npy),
+                Member::stored("gt.npy", &gt_npy),
+                Member::stored("meta.npy", &meta_npy),
+            ];
+            std::fs::write(&path, npy::test_zip::zip(&members)).unwrap();
         }
         let e = Calibration::load(&path).err().unwrap().to_string();
         assert_eq!(e, format!("{} (array gt) has dtype |u1; expected bool", f("gt_u8.npz")));
@@ -797,28 +783,20 @@ mod tests {
         assert!(refused > 8 * bytes.len() * 3 / 4, "{refused} refused, {loaded} loaded");
     }
 
-    /// A calibration archive of `s.npy` (its raw bytes, written with `method`), a 1x1
-    /// `gt` and a good `meta`.
-    fn archive(s: &[u8], method: npyz::zip::CompressionMethod) -> Vec<u8> {
-        let mut out = Cursor::new(Vec::new());
-        let mut zip = npyz::zip::ZipWriter::new(&mut out);
-        let stored = npyz::zip::write::FileOptions::default().compression_method(npyz::zip::CompressionMethod::Stored);
-        zip.start_file(
-            "s.npy",
-            stored
-                .compression_method(method)
-                .large_file(s.len() > u32::MAX as usize),
-        )
-        .unwrap();
-        std::io::Write::write_all(&mut zip, s).unwrap();
-        zip.start_file("gt.npy", stored).unwrap();
-        NpyArray::Bool(array![[true]].view()).write_to(&mut zip).unwrap();
-        zip.start_file("meta.npy", stored).unwrap();
+    /// A calibration archive of `s.npy` (its raw bytes, deflated or not), a 1x1 `gt` and
+    /// a good `meta`.
+    fn archive(s: &[u8], deflate: bool) -> Vec<u8> {
+        let mut gt = Vec::new();
+        NpyArray::Bool(array![[true]].view()).write_to(&mut gt).unwrap();
         let meta = r#"{"format": "qtvpr-calibration", "version": 1, "matching": "single", "params": {"k": 1, "precision": 1.0, "window": null}}"#;
-        NpyArray::Str(meta).write_to(&mut zip).unwrap();
-        zip.finish().unwrap();
-        drop(zip);
-        out.into_inner()
+        let mut m = Vec::new();
+        NpyArray::Str(meta).write_to(&mut m).unwrap();
+        let s = if deflate {
+            Member::deflated("s.npy", s)
+        } else {
+            Member::stored("s.npy", s)
+        };
+        npy::test_zip::zip(&[s, Member::stored("gt.npy", &gt), Member::stored("meta.npy", &m)])
     }
 
     /// A `.npy` header for a float64 matrix of `shape`, followed by `zeros` zero bytes.
@@ -847,26 +825,25 @@ mod tests {
                 e,
                 format!(
                     "c.npz (array s) cannot be decompressed: compression method {name} is not supported; \
-                     a calibration file holds stored or deflated members"
+                     an .npz holds stored or deflated members"
                 )
             );
         };
-        refused(&archive(&s, npyz::zip::CompressionMethod::Bzip2), "12 (bzip2)");
-        refused(&archive(&s, npyz::zip::CompressionMethod::Zstd), "93 (zstd)");
-        // Stored members marked with another method in the local header and the
-        // directory: zstd (known to the zip reader, which would try to decompress the
-        // raw .npy as zstd) and LZMA (unknown to it, which refused it in its own words).
-        for (method, name) in [(93u16, "93 (zstd)"), (14, "14 (LZMA)"), (95, "95 (XZ)")] {
-            let mut b = archive(&s, npyz::zip::CompressionMethod::Stored);
-            assert_eq!(&b[..4], b"PK\x03\x04");
-            b[8..10].copy_from_slice(&method.to_le_bytes()); // s.npy is the first member
-            let cd = b.windows(4).position(|w| w == b"PK\x01\x02").unwrap();
-            assert_eq!(&b[cd + 46..cd + 51], b"s.npy");
-            b[cd + 10..cd + 12].copy_from_slice(&method.to_le_bytes());
+        // Members marked with another method in the local header and the directory.
+        for (method, name) in [
+            (12u16, "12 (bzip2)"),
+            (93, "93 (zstd)"),
+            (14, "14 (LZMA)"),
+            (95, "95 (XZ)"),
+        ] {
+            let mut b = archive(&s, false);
+            let o = npy::test_zip::offsets(&b, "s.npy");
+            b[o.local + 8..o.local + 10].copy_from_slice(&method.to_le_bytes());
+            b[o.central + 10..o.central + 12].copy_from_slice(&method.to_le_bytes());
             refused(&b, name);
         }
         // Deflated is read.
-        let e = Calibration::from_bytes(&archive(&s, npyz::zip::CompressionMethod::Deflated), "c.npz");
+        let e = Calibration::from_bytes(&archive(&s, true), "c.npz");
         assert!(e.is_ok(), "{:?}", e.err().map(|e| e.to_string()));
     }
 
@@ -876,7 +853,7 @@ mod tests {
     #[test]
     fn bombs_are_refused_before_decompressing() {
         let s = npy_bytes((5000, 1000), 5000 * 1000 * 8);
-        let bomb = archive(&s, npyz::zip::CompressionMethod::Deflated);
+        let bomb = archive(&s, true);
         assert!(bomb.len() < 200_000, "{}", bomb.len());
         let start = std::time::Instant::now();
         let e = Calibration::from_bytes(&bomb, "bomb.npz").err().unwrap().to_string();
@@ -891,7 +868,7 @@ mod tests {
         );
         // A header claiming 80 GB over 8 bytes of data.
         let mut claim = npy_bytes((100_000, 100_000), 8);
-        let e = Calibration::from_bytes(&archive(&claim, npyz::zip::CompressionMethod::Deflated), "c.npz")
+        let e = Calibration::from_bytes(&archive(&claim, true), "c.npz")
             .err()
             .unwrap()
             .to_string();
@@ -901,7 +878,7 @@ mod tests {
              declares 80000000128"
         );
         claim = npy_bytes((1, 2), 8);
-        let e = Calibration::from_bytes(&archive(&claim, npyz::zip::CompressionMethod::Deflated), "c.npz")
+        let e = Calibration::from_bytes(&archive(&claim, true), "c.npz")
             .err()
             .unwrap()
             .to_string();
@@ -1053,23 +1030,14 @@ mod tests {
     fn a_truncated_member_is_named() {
         let cal = calibration(Matching::Single, false);
         let bytes = cal.to_bytes(&DEFAULTS).unwrap();
-        // Shrink s.npy's sizes in the central directory by 8: its data ends early.
-        let mut zip = npyz::zip::ZipArchive::new(Cursor::new(&bytes[..])).unwrap();
-        let size = zip.by_name("s.npy").unwrap().size() as u32;
-        drop(zip);
-        let cd = bytes.windows(4).rposition(|w| w == b"PK\x01\x02").unwrap();
-        let first_cd = bytes.windows(4).position(|w| w == b"PK\x01\x02").unwrap();
-        assert!(first_cd <= cd);
+        // Shrink s.npy's size in the directory and its data descriptor by 8: its .npy
+        // header then claims more than the directory.
+        let size = npy::test_zip::unzip(&bytes)[0].1.len() as u32;
         let mut b = bytes.clone();
-        let at = first_cd; // s.npy is the first member
-        assert_eq!(&b[at + 46..at + 51], b"s.npy");
-        for field in [at + 20, at + 24] {
-            assert_eq!(u32::from_le_bytes(b[field..field + 4].try_into().unwrap()), size);
-            b[field..field + 4].copy_from_slice(&(size - 8).to_le_bytes());
-        }
+        npy::test_zip::declare_size(&mut b, "s.npy", size - 8);
         let e = Calibration::from_bytes(&b, "t.npz").err().unwrap().to_string();
         assert!(
-            e.starts_with("t.npz (array s) is corrupt: the zip directory says it holds"),
+            e.starts_with("t.npz (array s) is corrupt: it is stored, yet the zip directory gives it"),
             "{e}"
         );
     }

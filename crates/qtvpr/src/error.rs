@@ -123,6 +123,15 @@ pub enum Error {
         /// What is wrong, phrased to follow the file name.
         message: String,
     },
+    /// Memory for a buffer whose size a file or a parameter decides cannot be allocated
+    /// (semantics §10: never an abort).
+    #[error("cannot allocate {bytes} bytes for {what}")]
+    Allocation {
+        /// How many bytes were asked for.
+        bytes: u128,
+        /// What they were for: a file and its member, or a named buffer.
+        what: String,
+    },
     /// A file holds an array of a dtype this input does not take.
     #[error("{path} has dtype {dtype}; {expected}")]
     Dtype {
@@ -389,6 +398,19 @@ impl fmt::Display for NameAt {
             NameAt::Directory(dir) => write!(f, "{dir}"),
         }
     }
+}
+
+/// Room for `more` further elements in `v`, reserved fallibly (semantics §10: a buffer
+/// a file or a parameter sizes is an error when memory runs out, never an abort);
+/// `what` names the buffer for [`Error::Allocation`].
+///
+/// # Errors
+/// [`Error::Allocation`].
+pub(crate) fn try_reserve<T>(v: &mut Vec<T>, more: usize, what: impl FnOnce() -> String) -> Result<()> {
+    v.try_reserve_exact(more).map_err(|_| Error::Allocation {
+        bytes: (v.len() as u128 + more as u128) * size_of::<T>() as u128,
+        what: what(),
+    })
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 use ndarray::{Array2, ArrayView2, Zip};
 use rayon::prelude::*;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_reserve};
 use crate::names::Input;
 use crate::threads;
 
@@ -222,7 +222,17 @@ impl GroundTruth {
     /// [`Error::Empty`] for an empty matrix, [`Error::BadLabel`] for a value other than 0/1.
     pub fn new<L: Label>(hard: ArrayView2<'_, L>) -> Result<Self> {
         check_nonempty(Input::GroundTruth, hard.dim())?;
-        let labels = labels_of(Input::GroundTruth, hard)?.mapv(|h| if h { Truth::True } else { Truth::False });
+        check_labels(Input::GroundTruth, hard)?;
+        let (rows, cols) = hard.dim();
+        let mut labels = Vec::new();
+        try_reserve(&mut labels, hard.len(), || {
+            format!("the {} ({rows}x{cols})", Input::GroundTruth)
+        })?;
+        labels.extend(
+            hard.iter()
+                .map(|h| if h.to_i128() == 1 { Truth::True } else { Truth::False }),
+        );
+        let labels = Array2::from_shape_vec(hard.dim(), labels).expect("one label per entry, in logical order");
         Ok(Self { labels })
     }
 
@@ -239,9 +249,9 @@ impl GroundTruth {
                 other_shape: self.labels.dim(),
             });
         }
-        let soft = labels_of(Input::SoftGroundTruth, soft)?;
-        Zip::from(&mut self.labels).and(&soft).for_each(|t, &s| {
-            if s && *t == Truth::False {
+        check_labels(Input::SoftGroundTruth, soft)?;
+        Zip::from(&mut self.labels).and(&soft).for_each(|t, s| {
+            if s.to_i128() == 1 && *t == Truth::False {
                 *t = Truth::Ignored;
             }
         });
@@ -278,7 +288,8 @@ impl GroundTruth {
     }
 }
 
-fn labels_of<L: Label>(what: Input, m: ArrayView2<'_, L>) -> Result<Array2<bool>> {
+/// Every label of `m` is 0 or 1 (the first other one is named).
+fn check_labels<L: Label>(what: Input, m: ArrayView2<'_, L>) -> Result<()> {
     if let Some(((row, col), v)) = m.indexed_iter().find(|(_, v)| !matches!(v.to_i128(), 0 | 1)) {
         return Err(Error::BadLabel {
             what,
@@ -287,10 +298,19 @@ fn labels_of<L: Label>(what: Input, m: ArrayView2<'_, L>) -> Result<Array2<bool>
             value: v.to_i128(),
         });
     }
-    Ok(m.mapv(|v| v.to_i128() == 1))
+    Ok(())
 }
 
-pub(crate) fn check_nonempty(what: Input, (rows, cols): (usize, usize)) -> Result<()> {
+/// A matrix of shape (`rows`, `cols`) that `what` names has at least one row and one
+/// column: what a front end asks of a whole input (a deployment traverse of no query is
+/// refused by `qtvpr-cli stream` as by `threshold`, while [`Online::push_many`] of no
+/// column is no decision).
+///
+/// # Errors
+/// [`Error::Empty`].
+///
+/// [`Online::push_many`]: crate::Online::push_many
+pub fn check_nonempty(what: Input, (rows, cols): (usize, usize)) -> Result<()> {
     if rows == 0 || cols == 0 {
         return Err(Error::Empty { what, rows, cols });
     }

@@ -108,7 +108,7 @@
 use ndarray::{Array2, ArrayView2, ArrayViewMut1, ShapeBuilder, s};
 use rayon::prelude::*;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_reserve};
 use crate::input::{Score, check_nonempty};
 use crate::names::Input;
 use crate::threads;
@@ -128,6 +128,11 @@ const EDGE_PROFILES: usize = 16;
 const EDGE_SCORES: usize = 1 << 20;
 /// The most split points tried per block when fitting edges (evenly spaced).
 const EDGE_TRIALS: usize = 512;
+
+/// What an allocation failure names: the sorted profiles of `n` columns of `n_db` scores.
+fn profiles(what: Input, n_db: usize, n: usize) -> String {
+    format!("the sorted profiles of the {what} ({n_db}x{n})")
+}
 
 /// A block of columns, each sorted ascending, column-major, in the input's type; with
 /// each column's standardisation.
@@ -175,19 +180,27 @@ impl<T: Score> Ranked<T> {
         fill: impl FnOnce(&mut [T]),
     ) -> Result<()> {
         self.n_db = n_db;
-        self.sorted.resize(n_db * n, T::default());
+        let len = n_db.saturating_mul(n);
+        let more = len.saturating_sub(self.sorted.len());
+        try_reserve(&mut self.sorted, more, || profiles(what, n_db, n))?;
+        self.sorted.resize(len, T::default());
         self.standard.clear();
         self.rank_from(what, first_col, fill)
     }
 
     /// No columns yet, room for `n` columns of `n_db` scores, to be added by
     /// [`Ranked::extend_with`] (a calibration built a few columns at a time).
-    pub(crate) fn with_capacity(n_db: usize, n: usize) -> Self {
-        Self {
+    ///
+    /// # Errors
+    /// [`Error::Allocation`] when memory for them cannot be had.
+    pub(crate) fn with_capacity(what: Input, n_db: usize, n: usize) -> Result<Self> {
+        let mut sorted = Vec::new();
+        try_reserve(&mut sorted, n_db.saturating_mul(n), || profiles(what, n_db, n))?;
+        Ok(Self {
             n_db,
-            sorted: Vec::with_capacity(n_db * n),
+            sorted,
             standard: Vec::with_capacity(n),
-        }
+        })
     }
 
     /// Append `n` columns, written by `fill` as by [`Ranked::refill_with`]; `first_col`
@@ -202,7 +215,9 @@ impl<T: Score> Ranked<T> {
         first_col: usize,
         fill: impl FnOnce(&mut [T]),
     ) -> Result<()> {
-        self.sorted.resize(self.sorted.len() + self.n_db * n, T::default());
+        let more = self.n_db.saturating_mul(n);
+        try_reserve(&mut self.sorted, more, || profiles(what, self.n_db, n))?;
+        self.sorted.resize(self.sorted.len() + more, T::default());
         self.rank_from(what, first_col, fill)
     }
 

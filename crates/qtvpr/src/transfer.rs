@@ -215,7 +215,7 @@ impl Calibration {
                     candidates.append(Candidates::new(group.view(), labels, matching));
                 }
                 drop(gt);
-                let mut ranked = Ranked::with_capacity(n_db, queries.len());
+                let mut ranked = Ranked::with_capacity(Input::CalSimilarity, n_db, queries.len())?;
                 let mut columns = DescriptorColumns::new(d, queries.start);
                 for r in groups {
                     let (n, first) = (r.len(), r.start);

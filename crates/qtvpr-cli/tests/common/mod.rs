@@ -5,6 +5,23 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+/// Zip archives, hostile ones among them: the core's own test writer.
+#[path = "../../../qtvpr/src/npy/test_zip.rs"]
+pub mod zip;
+
+/// The members of the `.npz` at `path`, by name.
+pub fn npz_member(path: &Path, name: &str) -> Vec<u8> {
+    let bytes = std::fs::read(path).unwrap();
+    zip::unzip(&bytes).into_iter().find(|(n, _)| n == name).unwrap().1
+}
+
+/// The bool values of `.npz` member `name` (a `.npy` of `|b1`), in C order.
+pub fn npz_bools(path: &Path, name: &str) -> Vec<bool> {
+    let npy = npz_member(path, &format!("{name}.npy"));
+    let header = 10 + usize::from(u16::from_le_bytes([npy[8], npy[9]]));
+    npy[header..].iter().map(|&b| b == 1).collect()
+}
+
 /// Run `qtvpr-cli` with `args` inside `dir` (a bare file name in `args` is a file
 /// there), with backtraces on so that a panic could not pass for a clean error.
 pub fn run_in(dir: &Path, args: &[&str]) -> Output {

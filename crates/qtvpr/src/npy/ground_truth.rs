@@ -4,41 +4,34 @@
 use std::io::{self, Read};
 use std::path::Path;
 
-use npyz::npz::NpzArchive;
 use npyz::{NpyFile, TypeChar};
 
+use rawzip::ReaderAt;
+
+use super::archive::{Archive, open_npz_file};
+use super::guard::guarded;
 use super::header::{MATRIX, dtype_name, parse, plain_dtype};
-use super::npz::{NpzInput, open_npz_file};
-use super::open::{file_error, open_file};
+use super::npz::{Kind, npz_array};
+use super::open::{ZIP_LOCAL_HEADER, file_error, open_file};
 use super::read::read_matrix;
 use crate::error::{Error, Result};
 use crate::input::GroundTruth;
 
-/// Array `name` of an `.npz` archive, if it has one, read through [`parse`].
-fn npz_array<'a, R: Read + io::Seek>(
-    npz: &'a mut NpzArchive<R>,
-    name: &str,
-    path: &Path,
-) -> Result<Option<NpyFile<impl Read + 'a>>> {
-    let zip = npz.zip_archive();
-    let member = format!("{name}.npy");
-    if !zip.file_names().any(|n| n == member) {
-        return Ok(None);
-    }
-    let file = zip
-        .by_name(&member)
-        .map_err(|e| file_error(path, format!("cannot read {name}: {e}")))?;
-    parse(file, path).map(Some)
-}
-
-/// Read hard ground truth from the bytes of a `.npy` file, as
-/// [`scores_from_bytes`](crate::npy::scores_from_bytes).
+/// Read ground truth from the bytes of a `.npy` file (hard ground truth), or of an
+/// `.npz` archive in the VPR_Tutorial convention (`GThard`, and `GTsoft` if it has one),
+/// as [`scores_from_bytes`](crate::npy::scores_from_bytes); `name` names it in errors.
 ///
 /// # Errors
-/// As [`read_hard_ground_truth`].
+/// As [`read_ground_truth`].
 pub fn ground_truth_from_bytes(bytes: &[u8], name: &str) -> Result<GroundTruth> {
     let path = Path::new(name);
-    ground_truth_of(parse(bytes, path)?, path, None)
+    guarded(path, || {
+        if bytes.starts_with(ZIP_LOCAL_HEADER) {
+            archive_ground_truth(&Archive::new(bytes, bytes.len() as u64, path)?, true)
+        } else {
+            ground_truth_of(parse(bytes, path)?, path, None)
+        }
+    })
 }
 
 /// Labels of one ground-truth array, added to `hard` as soft ground truth if given.
@@ -89,13 +82,7 @@ fn ground_truth_of<R: Read>(npy: NpyFile<R>, path: &Path, hard: Option<GroundTru
 /// [`Error::ShapeMismatch`] for the labels.
 pub fn read_ground_truth(hard: &Path, soft: Option<&Path>) -> Result<GroundTruth> {
     let gt = if is_npz(hard) {
-        let (gt, mut npz) = read_gthard(hard)?;
-        if soft.is_none()
-            && let Some(npy) = npz_array(&mut npz, "GTsoft", hard)?
-        {
-            return ground_truth_of(npy, hard, Some(gt));
-        }
-        gt
+        guarded(hard, || archive_ground_truth(&open_npz_file(hard)?, soft.is_none()))?
     } else {
         read_hard_ground_truth(hard)?
     };
@@ -111,11 +98,13 @@ pub fn read_ground_truth(hard: &Path, soft: Option<&Path>) -> Result<GroundTruth
 /// # Errors
 /// As [`read_ground_truth`].
 pub fn read_hard_ground_truth(path: &Path) -> Result<GroundTruth> {
-    if is_npz(path) {
-        Ok(read_gthard(path)?.0)
-    } else {
-        ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, None)
-    }
+    guarded(path, || {
+        if is_npz(path) {
+            archive_ground_truth(&open_npz_file(path)?, false)
+        } else {
+            ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, None)
+        }
+    })
 }
 
 /// Add the soft ground truth of `.npy` file `path` to `hard` (entries soft but not hard
@@ -125,18 +114,39 @@ pub fn read_hard_ground_truth(path: &Path) -> Result<GroundTruth> {
 /// As [`read_ground_truth`]; a shape other than `hard`'s is an [`Error::InFile`] around
 /// [`Error::ShapeMismatch`].
 pub fn add_soft_ground_truth(hard: GroundTruth, path: &Path) -> Result<GroundTruth> {
-    ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(hard))
+    guarded(path, || {
+        ground_truth_of(parse(io::BufReader::new(open_file(path)?), path)?, path, Some(hard))
+    })
 }
 
 fn is_npz(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"))
 }
 
-/// `GThard` of an `.npz` archive, and the archive (for its `GTsoft`).
-fn read_gthard(path: &Path) -> Result<(GroundTruth, NpzArchive<NpzInput>)> {
-    let mut npz = open_npz_file(path)?;
-    let npy = npz_array(&mut npz, "GThard", path)?
+/// The ground truth of a VPR_Tutorial archive: `GThard`, with `GTsoft` added if
+/// `with_soft` and the archive has it. Both arrays' headers are read, and their shapes
+/// compared, before either's data is decompressed.
+fn archive_ground_truth<R: ReaderAt>(npz: &Archive<R>, with_soft: bool) -> Result<GroundTruth> {
+    let path = npz.path();
+    let hard = npz_array(npz, "GThard", Kind::Labels)?
         .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
-    let gt = ground_truth_of(npy, path, None)?;
-    Ok((gt, npz))
+    let soft = npz_array(npz, "GTsoft", Kind::Labels)?;
+    if let Some(soft) = &soft
+        && soft.dims() != hard.dims()
+    {
+        return Err(Error::InFile {
+            path: path.display().to_string(),
+            error: Box::new(Error::ShapeMismatch {
+                what: crate::Input::SoftGroundTruth,
+                shape: soft.dims(),
+                other: crate::Input::GroundTruth,
+                other_shape: hard.dims(),
+            }),
+        });
+    }
+    let gt = ground_truth_of(hard.npy, &hard.label, None)?;
+    match soft {
+        Some(soft) if with_soft => ground_truth_of(soft.npy, &soft.label, Some(gt)),
+        _ => Ok(gt),
+    }
 }

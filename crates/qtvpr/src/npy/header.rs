@@ -32,6 +32,10 @@ pub struct Header {
 /// [`Error::Io`] (missing file, a directory, ...) and [`Error::File`] (not `.npy`, a
 /// hostile or corrupt header).
 pub fn inspect(path: &Path) -> Result<Header> {
+    super::guard::guarded(path, || inspect_unguarded(path))
+}
+
+fn inspect_unguarded(path: &Path) -> Result<Header> {
     let npy = parse(io::BufReader::new(open_file(path)?), path)?;
     let bytes = npy.dtype().num_bytes().unwrap_or(1) as u64;
     let mut total = Some(bytes);
@@ -90,6 +94,15 @@ const MAX_NESTING: usize = 6;
 /// nesting), then handed to npyz, followed by the rest of `reader`.
 pub(super) fn parse<R: Read>(mut reader: R, path: &Path) -> Result<NpyFile<io::Chain<Cursor<Vec<u8>>, R>>> {
     let header = read_header(&mut reader, path)?;
+    parse_header(header, reader, path)
+}
+
+/// Parse `header` (from [`read_header`]), followed by the rest of `reader`.
+pub(super) fn parse_header<R: Read>(
+    header: Vec<u8>,
+    reader: R,
+    path: &Path,
+) -> Result<NpyFile<io::Chain<Cursor<Vec<u8>>, R>>> {
     NpyFile::new(Cursor::new(header).chain(reader)).map_err(|e| {
         // Header parse errors span several lines; the first says what is wrong.
         let e = e.to_string();
@@ -107,10 +120,15 @@ pub(super) fn parse<R: Read>(mut reader: R, path: &Path) -> Result<NpyFile<io::C
 /// nesting.
 pub(super) fn read_header<R: Read>(mut reader: R, path: &Path) -> Result<Vec<u8>> {
     let invalid = |what: &str| file_error(path, format!("is not a valid .npy file: {what}"));
+    // A member of a corrupt archive says so (a bad CRC, a deflate stream that breaks).
+    let cut_short = |e: io::Error, what: &str| match e.kind() {
+        io::ErrorKind::InvalidData => file_error(path, format!("is corrupt: {e}")),
+        _ => invalid(what),
+    };
     let mut header = vec![0u8; 8];
     reader
         .read_exact(&mut header)
-        .map_err(|_| invalid("it is shorter than the magic string"))?;
+        .map_err(|e| cut_short(e, "it is shorter than the magic string"))?;
     if &header[..6] != NPY_MAGIC {
         return Err(invalid("it does not start with the magic string \\x93NUMPY"));
     }
@@ -119,7 +137,7 @@ pub(super) fn read_header<R: Read>(mut reader: R, path: &Path) -> Result<Vec<u8>
             let mut b = [0u8; 2];
             reader
                 .read_exact(&mut b)
-                .map_err(|_| invalid("its header is cut short"))?;
+                .map_err(|e| cut_short(e, "its header is cut short"))?;
             header.extend(b);
             usize::from(u16::from_le_bytes(b))
         }
@@ -127,7 +145,7 @@ pub(super) fn read_header<R: Read>(mut reader: R, path: &Path) -> Result<Vec<u8>
             let mut b = [0u8; 4];
             reader
                 .read_exact(&mut b)
-                .map_err(|_| invalid("its header is cut short"))?;
+                .map_err(|e| cut_short(e, "its header is cut short"))?;
             header.extend(b);
             u32::from_le_bytes(b) as usize
         }
@@ -142,7 +160,7 @@ pub(super) fn read_header<R: Read>(mut reader: R, path: &Path) -> Result<Vec<u8>
     header.resize(start + len, 0);
     reader
         .read_exact(&mut header[start..])
-        .map_err(|_| invalid("its header is cut short"))?;
+        .map_err(|e| cut_short(e, "its header is cut short"))?;
     let (mut depth, mut deepest) = (0usize, 0usize);
     for &b in &header[start..] {
         match b {

@@ -20,11 +20,15 @@
 //!
 //! [`GroundTruth`]: crate::input::GroundTruth
 
+mod archive;
 mod ground_truth;
+mod guard;
 mod header;
 mod npz;
 mod open;
 mod read;
+#[cfg(test)]
+pub(crate) mod test_zip;
 mod write;
 
 pub use ground_truth::{add_soft_ground_truth, ground_truth_from_bytes, read_ground_truth, read_hard_ground_truth};
@@ -33,12 +37,9 @@ pub use open::{is_zip_archive, open_input};
 pub use read::{FloatMatrix, Matrix, MatrixFile, read_float_matrix, read_scores, scores_from_bytes};
 pub use write::{NpyArray, write_atomically, write_npy, write_npz};
 
-pub(crate) use npz::{
-    MemberHeader, npz_member_data, npz_member_header, open_npz, open_npz_file, read_bool_matrix, read_owned_scores,
-    read_string,
-};
-// The archive type `open_npz_file` returns, kept at its path although no module outside
-// this one names it.
-#[allow(unused_imports)]
-pub(crate) use npz::NpzInput;
+#[doc(hidden)]
+pub use archive::read_every_member;
+pub(crate) use archive::{Archive, open_npz_file};
+pub(crate) use guard::guarded;
+pub(crate) use npz::{Kind, npz_array, read_bool_matrix, read_owned_scores, read_string};
 pub(crate) use write::write_npz_to;

@@ -192,19 +192,17 @@ pub(super) fn read_matrix<T: npyz::Deserialize, R: Read>(
     for value in values {
         if data.len() == data.capacity() {
             let more = (n - data.len()).min(data.capacity().max(FIRST));
-            data.try_reserve_exact(more).map_err(|_| {
-                file_error(
-                    path,
-                    format!(
-                        "declares a {}x{} matrix, more memory than can be allocated",
-                        dim.0, dim.1
-                    ),
-                )
+            data.try_reserve_exact(more).map_err(|_| Error::Allocation {
+                bytes: (data.len() + more) as u128 * size_of::<T>() as u128,
+                what: format!("{} (a {}x{} matrix)", path.display(), dim.0, dim.1),
             })?;
         }
         match value {
             Ok(v) => data.push(v),
             Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Err(truncated(data.len())),
+            Err(e) if e.kind() == io::ErrorKind::InvalidData => {
+                return Err(file_error(path, format!("is corrupt: {e}")));
+            }
             Err(e) => return Err(file_error(path, format!("cannot be read: {e}"))),
         }
     }
@@ -245,6 +243,10 @@ pub fn read_scores(path: &Path) -> Result<MatrixFile> {
 /// [`Error::Io`] (missing file, a directory, ...), [`Error::File`] (not `.npy`,
 /// truncated, not 2-D), [`Error::Dtype`] (not float32/float64).
 pub fn read_float_matrix(path: &Path, what: FloatMatrix) -> Result<MatrixFile> {
+    super::guard::guarded(path, || read_float_matrix_unguarded(path, what))
+}
+
+fn read_float_matrix_unguarded(path: &Path, what: FloatMatrix) -> Result<MatrixFile> {
     let file = open_file(path)?;
     if !is_regular(&file) {
         // A device or a pipe: read as a stream, never mapped (/dev/zero maps as empty).
@@ -325,7 +327,8 @@ fn read_unmapped<R: Read>(reader: R, path: &Path, what: FloatMatrix) -> Result<M
 /// # Errors
 /// As [`read_scores`].
 pub fn scores_from_bytes(bytes: &[u8], name: &str) -> Result<MatrixFile> {
-    read_unmapped(bytes, Path::new(name), FloatMatrix::Similarity)
+    let path = Path::new(name);
+    super::guard::guarded(path, || read_unmapped(bytes, path, FloatMatrix::Similarity))
 }
 
 #[cfg(test)]

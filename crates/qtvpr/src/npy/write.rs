@@ -60,16 +60,6 @@ impl<'a> From<ScoresView<'a>> for NpyArray<'a> {
 }
 
 impl NpyArray<'_> {
-    /// Bytes of data (for the zip64 decision).
-    fn data_bytes(&self) -> u64 {
-        match self {
-            NpyArray::F32(m) => 4 * m.len() as u64,
-            NpyArray::F64(m) => 8 * m.len() as u64,
-            NpyArray::Bool(m) => m.len() as u64,
-            NpyArray::Str(s) => 4 * s.chars().count() as u64,
-        }
-    }
-
     /// The array as one `.npy` stream: header, then data in C order.
     pub(crate) fn write_to(&self, w: &mut impl Write) -> io::Result<()> {
         match *self {
@@ -133,19 +123,31 @@ fn write_matrix<T: NpyElement>(w: &mut impl Write, m: ArrayView2<'_, T>) -> io::
 }
 
 /// An uncompressed `.npz` archive of `arrays` (as `numpy.savez` writes) into `w`.
-pub(crate) fn write_npz_to<W: Write + Seek>(w: W, arrays: &[(&str, NpyArray<'_>)]) -> io::Result<()> {
-    let mut zip = npyz::zip::ZipWriter::new(w);
-    for (name, array) in arrays {
-        // A fixed time stamp (zip's earliest, 1980-01-01), not the clock's: the same
-        // arrays give the same bytes, so a calibration file is reproducible.
-        let options = npyz::zip::write::FileOptions::default()
-            .last_modified_time(npyz::zip::DateTime::default())
-            .compression_method(npyz::zip::CompressionMethod::Stored)
-            .large_file(array.data_bytes() >= u64::from(u32::MAX) / 2);
-        zip.start_file(npyz::npz::file_name_from_array_name(name), options)?;
-        array.write_to(&mut zip)?;
+///
+/// rawzip writes each member's CRC-32 and sizes in a data descriptor after its data
+/// (so `w` need not seek), with no time stamp, so that the same arrays give the same
+/// bytes and a calibration file is reproducible; zip64 records where a member needs them.
+pub(crate) fn write_npz_to<W: Write>(w: W, arrays: &[(&str, NpyArray<'_>)]) -> io::Result<()> {
+    fn zip_error(e: rawzip::Error) -> io::Error {
+        match e.into_kind() {
+            rawzip::ErrorKind::IO(e) => e,
+            kind => io::Error::other(rawzip::Error::from(kind)),
+        }
     }
-    zip.finish()?;
+    let mut zip = rawzip::ZipArchiveWriter::new(w);
+    for (name, array) in arrays {
+        let member = format!("{name}.npy");
+        let (mut entry, config) = zip
+            .new_file(member.as_str())
+            .compression_method(rawzip::CompressionMethod::STORE)
+            .start()
+            .map_err(zip_error)?;
+        let mut data = config.wrap(&mut entry);
+        array.write_to(&mut data)?;
+        let (_, descriptor) = data.finish().map_err(zip_error)?;
+        entry.finish(descriptor).map_err(zip_error)?;
+    }
+    zip.finish().map_err(zip_error)?;
     Ok(())
 }
 
@@ -168,8 +170,8 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File
     let target = resolve_output(path)?;
     if let Some(mut file) = open_in_place(path, &target)? {
         // A device or FIFO: written in place, never replaced by a regular file. The
-        // content is made in an anonymous temporary file first (the `.npz` writer
-        // seeks, a FIFO cannot), then streamed; a failure to make it sends nothing.
+        // content is made in an anonymous temporary file first, then streamed, so that
+        // a failure to make it sends nothing.
         let mut tmp = tempfile::tempfile().map_err(|e| write_error(path, &e))?;
         {
             let mut w = BufWriter::with_capacity(1 << 20, &mut tmp);
@@ -195,6 +197,7 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
     let mut tmp = builder.tempfile_in(dir).map_err(|e| write_error(path, &e))?;
+    keep_owner_and_mode(&target, tmp.as_file()).map_err(|e| write_error(path, &e))?;
     {
         let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
         write(&mut w)
@@ -203,6 +206,30 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<&mut File
     }
     tmp.persist(&target).map_err(|e| write_error(path, &e.error))?;
     Ok(())
+}
+
+/// Give `tmp`, about to replace the regular file `target`, that file's owner, group and
+/// mode, so that overwriting a private (0600) file or one shared with a group keeps it
+/// so. A new file keeps the plain-create mode. Where the owner cannot be given (a user
+/// other than root overwriting another user's file in a directory it may write), the
+/// file becomes the writer's, as any replaced file does; its mode is kept all the same.
+fn keep_owner_and_mode(target: &Path, tmp: &File) -> io::Result<()> {
+    let Ok(existing) = std::fs::metadata(target) else {
+        return Ok(());
+    };
+    if !existing.is_file() {
+        return Ok(());
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        // Before the mode: a change of owner clears the set-user-ID and set-group-ID bits.
+        match std::os::unix::fs::fchown(tmp, Some(existing.uid()), Some(existing.gid())) {
+            Err(e) if e.kind() != io::ErrorKind::PermissionDenied => return Err(e),
+            _ => {}
+        }
+    }
+    tmp.set_permissions(existing.permissions())
 }
 
 /// Follow `path` through any chain of symbolic links to the file really written: the
