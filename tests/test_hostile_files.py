@@ -293,7 +293,7 @@ def test_members_neither_stored_nor_deflated_are_refused_by_name(tmp_path, saved
     # Not "is shorter than the magic string", nor a decompressor's own words.
     assert str(info.value) == (
         f"{path} (array {member}) cannot be decompressed: compression method {name} is not supported; "
-        "a calibration file holds stored or deflated members"
+        "an .npz holds stored or deflated members"
     )
 
 
@@ -546,3 +546,99 @@ def test_save_to_a_character_device_writes_into_it(tmp_path):
     assert stat.S_ISCHR(mode), "the device was replaced by a regular file"
     assert os.major(null.stat().st_rdev) == 1 and os.minor(null.stat().st_rdev) == 3
     assert os.listdir(tmp_path) == ["null"]
+
+
+# ---------------------------------------------------------------------------------------
+# Issue 35: the hostile set as calibration and as ground truth, memory, arguments
+# ---------------------------------------------------------------------------------------
+
+from hostile_npz import hostile, members_of  # noqa: E402
+
+
+def tutorial_gt(path: Path) -> Path:
+    np.savez(path, GThard=GT, GTsoft=SOFT)
+    return path
+
+
+def test_every_hostile_npz_is_one_error_as_calibration_and_as_ground_truth(tmp_path, saved):
+    """The same set as the core's and the CLI's tests: ``Calibration.load`` and a
+    ``gt=`` path each raise one ``ValueError`` naming the file and the member (never a
+    ``PanicException``, which ``except Exception`` would not catch)."""
+    cal = members_of(saved.read_bytes())
+    gt = members_of(tutorial_gt(tmp_path / "gt.npz").read_bytes())
+    qtvpr.quantile_transfer(S, tmp_path / "gt.npz", DEP, k=3)  # the good file is read
+    n = 0
+    path = tmp_path / "h.npz"
+    for members, descr, prefix, load in (
+        (cal, "<f8", f"{path}", qtvpr.Calibration.load),
+        (gt, "|b1", f"gt_cal: {path}", lambda p: qtvpr.quantile_transfer(S, p, DEP, k=3)),
+    ):
+        for case, data, error in hostile(members, descr, (6, 9), 30):
+            path.write_bytes(data)
+            with pytest.raises(ValueError) as info:
+                load(path)
+            message = str(info.value)
+            assert message.startswith(prefix) and error in message, (case, message)
+            n += 1
+    assert n == 2 * 52, n
+
+
+def test_a_refused_shape_costs_no_more_than_its_header(tmp_path, saved):
+    """A member whose header cannot be this calibration's (3-D, 10^13 values; or a
+    40 MB deflate bomb of the wrong shape) is refused from its header: fast, and the
+    process's peak RSS grows by less than 200 MiB."""
+    cases = {case: data for case, data, _ in hostile(members_of(saved.read_bytes()), "<f8", (6, 9))}
+    for case in ("a 3-D array of 10^13 values", "a deflate bomb with its true size"):
+        path = tmp_path / "refused.npz"
+        path.write_bytes(cases[case])
+        out = run_child("qtvpr.Calibration.load(sys.argv[1])", str(path))
+        assert out["error"] == "ValueError", (case, out)
+        assert out["rss_kib"] - out["rss_before_kib"] < 200 * 1024, (case, out)
+        assert out["seconds"] < 2, (case, out)
+
+
+def test_a_calibration_too_large_for_the_address_space_raises_memory_error(tmp_path):
+    """A valid calibration of 60 x 1,000,000 float64 zeros (480 MB, 0.5 MB deflated):
+    under a 1 GB address-space cap, loading it raises ``MemoryError`` naming the file,
+    never aborts the interpreter."""
+    from hostile_npz import npy_header
+
+    db, queries = 1_000_000, 60
+    path = tmp_path / "big.npz"
+    meta = json.dumps({"format": "qtvpr-calibration", "version": 1, "matching": "single",
+                       "params": {"k": 1, "precision": 1.0, "window": None}})
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("s.npy", npy_header("<f8", (db, queries)) + bytes(db * queries * 8))
+        z.writestr("gt.npy", npy_header("|b1", (db, queries)) + bytes(db * queries))
+        z.writestr("meta.npy", npy_header(f"<U{len(meta)}", ()) + meta.encode("utf-32-le"))
+    assert path.stat().st_size < 1 << 20
+    out = run_child("qtvpr.Calibration.load(sys.argv[1])", str(path), address_space=ADDRESS_SPACE, timeout=60)
+    assert out["error"] == "MemoryError", out
+    assert out["message"].startswith(str(path)) and "cannot allocate" in out["message"], out
+
+
+@pytest.mark.parametrize("value", [2**70, -(2**70), -1])
+@pytest.mark.parametrize(
+    ("name", "call"),
+    [
+        ("k", lambda v: qtvpr.Online(calibration(), k=v, window=2)),
+        ("window", lambda v: qtvpr.Online(calibration(), window=v)),
+        ("min_window", lambda v: qtvpr.Online(calibration(), window=2, min_window=v)),
+        ("segment_size", lambda v: calibration().transfer(DEP, segment_size=v)),
+        ("k", lambda v: qtvpr.quantile_transfer(S, GT, DEP, k=v)),
+        ("cal_queries", lambda v: qtvpr.quantile_transfer(S, GT, cal_queries=v)),
+        ("tolerance", lambda v: qtvpr.ground_truth_tolerance(3, 3, v)),
+        ("n_db", lambda v: qtvpr.ground_truth_tolerance(v, 3, 1)),
+        ("threads", lambda v: qtvpr.set_threads(v)),
+        ("start", lambda v: qtvpr.Descriptors(np.eye(3), np.eye(3), start=v)),
+        ("stop", lambda v: qtvpr.Descriptors(np.eye(3), np.eye(3), stop=v)),
+        ("sequence length", lambda v: qtvpr.sequence_match(S, v)),
+    ],
+)
+def test_integer_arguments_out_of_range_name_the_argument(name, call, value):
+    """A huge or negative int is a ``ValueError`` that names the argument, not pyo3's
+    ``OverflowError`` that names nothing."""
+    with pytest.raises(ValueError) as info:
+        call(value)
+    assert str(info.value).startswith(f"{name} must be"), str(info.value)
+    assert str(abs(value)) in str(info.value)

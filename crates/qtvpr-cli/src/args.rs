@@ -71,7 +71,7 @@ impl SplitArgs {
             _ => None,
         };
         if let Some((split, flag)) = split {
-            split.calibration_size(usize::MAX).context(flag)?;
+            split.validate().context(flag)?;
         }
         Ok(split)
     }

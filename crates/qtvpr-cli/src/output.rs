@@ -23,12 +23,50 @@ pub enum Format {
 /// How errors name standard output, the output when no `--output` is given.
 pub const STDOUT: &str = "standard output";
 
+/// Standard output, locked, once it is known not to be closed.
+///
+/// A program started with descriptor 1 closed (`>&-`) finds `/dev/null` there: Rust's
+/// runtime opens it, read-write, in place of a closed standard descriptor, so every
+/// line would be lost and the command exit 0. A shell's `>/dev/null` opens it
+/// write-only, so that the runtime's is told apart by its read-write mode (written by
+/// hand, there being no crate for it; `libc` for `fstat` and `fcntl`).
+pub fn stdout() -> Result<io::StdoutLock<'static>> {
+    if replaces_a_closed_descriptor() {
+        anyhow::bail!("{STDOUT}: is closed; redirect it to a file, or to /dev/null to discard the results");
+    }
+    Ok(io::stdout().lock())
+}
+
+#[cfg(unix)]
+fn replaces_a_closed_descriptor() -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(null) = std::fs::metadata("/dev/null") else {
+        return false;
+    };
+    // SAFETY: fstat and fcntl on descriptor 1 read into a zeroed stat and return a flag word.
+    let (stat, flags) = unsafe {
+        let mut stat: libc::stat = std::mem::zeroed();
+        (
+            (libc::fstat(1, &raw mut stat) == 0).then_some(stat),
+            libc::fcntl(1, libc::F_GETFL),
+        )
+    };
+    stat.is_some_and(|s| (s.st_mode & libc::S_IFMT) == libc::S_IFCHR && s.st_rdev == null.rdev())
+        && flags >= 0
+        && flags & libc::O_ACCMODE == libc::O_RDWR
+}
+
+#[cfg(not(unix))]
+fn replaces_a_closed_descriptor() -> bool {
+    false
+}
+
 /// Write `text` to `path` atomically (with the mode a plain create gives), or to stdout
 /// when `path` is `None`.
 pub fn emit(text: &str, path: Option<&Path>) -> Result<()> {
     match path {
         None => {
-            let mut out = io::stdout().lock();
+            let mut out = stdout()?;
             out.write_all(text.as_bytes())
                 .and_then(|()| out.flush())
                 .context(STDOUT)

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use clap::Args;
 use ndarray::ArrayView2;
-use qtvpr::{Calibration, Decision, Online, OnlineParams, Score};
+use qtvpr::{Calibration, Decision, Input, Online, OnlineParams, Score};
 
 use crate::args::gate_parser;
 use crate::output::{self, emit};
@@ -111,12 +111,13 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let mut online = Online::new(Arc::new(cal), params)?;
     let file = read_scores(&args.val).context("--val")?;
     let s_val = file.view().oriented(args.query_major);
+    qtvpr::input::check_nonempty(Input::DeploymentSimilarity, s_val.dim())
+        .with_context(|| format!("--val {}", args.val.display()))?;
 
     // Lines go to stdout as queries are decided, or to memory for an atomic --output.
     let mut buffer = Vec::new();
-    let stdout = io::stdout();
     let mut out: Box<dyn Write> = match &args.output {
-        None => Box::new(BufWriter::new(stdout.lock())),
+        None => Box::new(BufWriter::new(output::stdout()?)),
         Some(_) => Box::new(&mut buffer),
     };
     let n_val = s_val.dim().1;

@@ -298,6 +298,17 @@ fn bad_descriptors_and_options_exit_2_naming_the_file() {
         &args(&base, &["--cal-queries", "600", "--cal-gt-tolerance", "1"]),
         &["--cal-queries", "between 1 and 599 of the 600 queries"],
     );
+    // A fraction too small for any query: the real count, no sentinel.
+    let tiny = args(&base, &["--cal-fraction", "1e-300", "--cal-gt-tolerance", "1"]);
+    fail(
+        &tiny,
+        &["--cal-fraction", "between 1 and 599 of the 600 queries, got 0"],
+    );
+    let calibrate = args(&["calibrate"], &DESCRIPTORS);
+    fail(
+        &args(&calibrate, &["--cal-fraction", "1e-300", "--cal-gt-tolerance", "1"]),
+        &["--cal-fraction", "between 1 and 599 of the 600 queries, got 0"],
+    );
     fail(
         &args(&base, &["--cal-queries", "137", "--cal-gt", "gt_cal.npy"]),
         &["--cal-gt gt_cal.npy", "3576x137", "3576x600", "labels every query"],

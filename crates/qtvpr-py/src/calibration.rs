@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use qtvpr::{Matching, Params, QuerySplit, Split};
 
-use crate::convert::{self, GroundTruthArgs, count};
+use crate::convert::{self, GroundTruthArgs, Int, count, non_negative};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -124,9 +124,9 @@ impl PyCalibration {
     /// defaults.
     fn params(
         &self,
-        k: Option<i64>,
+        k: Option<Int>,
         precision: Option<f64>,
-        segment_size: Option<i64>,
+        segment_size: Option<Int>,
         gate: Option<&str>,
         args: Args,
     ) -> PyResult<Params> {
@@ -143,7 +143,7 @@ impl PyCalibration {
 /// ``cal_queries`` / ``cal_fraction``: how many of the first queries calibrate, as a
 /// [`Split`] (checked by the core once the number of queries is known); `None` for
 /// neither.
-pub(crate) fn split_arg(cal_queries: Option<i64>, cal_fraction: Option<f64>) -> PyResult<Option<Split>> {
+pub(crate) fn split_arg(cal_queries: Option<Int>, cal_fraction: Option<f64>) -> PyResult<Option<Split>> {
     match (cal_queries, cal_fraction) {
         (Some(_), Some(_)) => Err(PyValueError::new_err("give cal_queries or cal_fraction, not both")),
         (Some(n), None) => Ok(Some(Split::Count(count("cal_queries", n)?))),
@@ -179,7 +179,7 @@ impl PyCalibration {
         gt_soft: Option<&Bound<'_, PyAny>>,
         matching: &str,
         query_major: bool,
-        cal_queries: Option<i64>,
+        cal_queries: Option<Int>,
         cal_fraction: Option<f64>,
     ) -> PyResult<Self> {
         let split = split_arg(cal_queries, cal_fraction)?;
@@ -213,9 +213,9 @@ impl PyCalibration {
         &self,
         py: Python<'_>,
         path: PathBuf,
-        k: Option<i64>,
+        k: Option<Int>,
         precision: Option<f64>,
-        window: Option<i64>,
+        window: Option<Int>,
         gate: Option<&str>,
     ) -> PyResult<()> {
         let (k, window) = (
@@ -311,14 +311,14 @@ impl PyCalibration {
         &self,
         py: Python<'_>,
         s_val: &Bound<'_, PyAny>,
-        k: Option<i64>,
+        k: Option<Int>,
         precision: Option<f64>,
-        segment_size: Option<i64>,
+        segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
     ) -> PyResult<TransferResult> {
         // The transfer of a whole set is that of a block starting at query 0.
-        self._transfer_at(py, s_val, 0, k, precision, segment_size, gate, query_major)
+        self._transfer_at(py, s_val, Int::Small(0), k, precision, segment_size, gate, query_major)
     }
 
     /// Check, from its shape alone, a transfer of a deployment similarity of shape
@@ -330,9 +330,9 @@ impl PyCalibration {
     fn _check_transfer(
         &self,
         shape: (usize, usize),
-        k: Option<i64>,
+        k: Option<Int>,
         precision: Option<f64>,
-        segment_size: Option<i64>,
+        segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
     ) -> PyResult<()> {
@@ -356,10 +356,10 @@ impl PyCalibration {
         &self,
         py: Python<'_>,
         s_val: &Bound<'_, PyAny>,
-        first_query: usize,
-        k: Option<i64>,
+        first_query: Int,
+        k: Option<Int>,
         precision: Option<f64>,
-        segment_size: Option<i64>,
+        segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
     ) -> PyResult<TransferResult> {
@@ -367,6 +367,7 @@ impl PyCalibration {
             gt: "gt_cal",
             query_major,
         };
+        let first_query = non_negative("first_query", first_query)?;
         let params = self.params(k, precision, segment_size, gate, args)?;
         let s = SourceArg::extract("s_val", s_val, query_major)?;
         let out = s

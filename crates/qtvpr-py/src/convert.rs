@@ -395,18 +395,77 @@ impl GroundTruthView<'_> {
     }
 }
 
-/// A count argument (`k`, `segment_size`) as the core's `usize`.
-///
-/// A negative value is rejected here with the core's wording, since it does not fit
-/// the core's type; 0 and values too large are left to the core.
-///
-/// # Errors
-/// `ValueError` for a negative value.
 /// A ``gate=`` argument, parsed by the core: ``None`` leaves the calibration's default.
 pub(crate) fn gate(gate: Option<&str>) -> qtvpr::Result<Option<qtvpr::Gate>> {
     gate.map(str::parse).transpose()
 }
 
-pub(crate) fn count(name: &str, value: i64) -> PyResult<usize> {
-    usize::try_from(value).map_err(|_| PyValueError::new_err(format!("{name} must be >= 1, got {value}")))
+/// An integer argument as Python gave it, however large. pyo3 names the argument of a
+/// failed conversion only in a `TypeError`, so that `window=2**70` or `start=-1` into a
+/// Rust integer would raise an `OverflowError` that names nothing; taken as this, every
+/// int converts, and its check ([`count`], [`non_negative`]) names the argument.
+#[derive(Debug, Clone)]
+pub(crate) enum Int {
+    /// Fits an `i64`.
+    Small(i64),
+    /// Does not: its decimal digits, for the message.
+    Large(String),
+}
+
+impl From<usize> for Int {
+    fn from(n: usize) -> Self {
+        i64::try_from(n).map_or_else(|_| Int::Large(n.to_string()), Int::Small)
+    }
+}
+
+impl FromPyObject<'_, '_> for Int {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'_, '_, PyAny>) -> PyResult<Self> {
+        match obj.extract::<i64>() {
+            Ok(n) => Ok(Int::Small(n)),
+            Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(obj.py()) => {
+                Ok(Int::Large(obj.str()?.to_string()))
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
+
+impl Int {
+    /// As a `usize` of at least `min` (0 or 1), or a `ValueError` naming `name` that
+    /// says what it must be (`rule`, e.g. ">= 1").
+    pub(crate) fn at_least(&self, name: &str, min: usize, rule: &str) -> PyResult<usize> {
+        let bad = |shown: &dyn std::fmt::Display| PyValueError::new_err(format!("{name} must be {rule}, got {shown}"));
+        match self {
+            Int::Small(n) => match usize::try_from(*n) {
+                Ok(n) if n >= min => Ok(n),
+                _ => Err(bad(n)),
+            },
+            Int::Large(digits) if digits.starts_with('-') => Err(bad(digits)),
+            Int::Large(digits) => Err(PyValueError::new_err(format!(
+                "{name} must be at most {}, got {digits}",
+                usize::MAX
+            ))),
+        }
+    }
+}
+
+/// A count argument (`k`, `window`, `segment_size`) as the core's `usize`.
+///
+/// A negative value or one too large for a `usize` is refused here, since it does not
+/// fit the core's type; 0 is left to the core, whose wording it then gets.
+///
+/// # Errors
+/// `ValueError` naming the argument.
+pub(crate) fn count(name: &str, value: Int) -> PyResult<usize> {
+    value.at_least(name, 0, ">= 1")
+}
+
+/// A non-negative integer argument (an index, a tolerance).
+///
+/// # Errors
+/// `ValueError` naming the argument.
+pub(crate) fn non_negative(name: &str, value: Int) -> PyResult<usize> {
+    value.at_least(name, 0, ">= 0")
 }

@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use qtvpr::ScoreSource;
 use qtvpr::npy::FloatMatrix;
 
-use crate::convert::MatrixArg;
+use crate::convert::{Int, MatrixArg, non_negative};
 use crate::error::named_error;
 
 /// Database and query descriptors, accepted wherever a similarity matrix is:
@@ -39,16 +39,17 @@ pub(crate) struct PyDescriptors {
 #[pymethods]
 impl PyDescriptors {
     #[new]
-    #[pyo3(signature = (db, queries, *, start = 0, stop = None))]
+    #[pyo3(signature = (db, queries, *, start = Int::Small(0), stop = None), text_signature = "(db, queries, *, start=0, stop=None)")]
     fn new(
         py: Python<'_>,
         db: &Bound<'_, PyAny>,
         queries: &Bound<'_, PyAny>,
-        start: usize,
-        stop: Option<usize>,
+        start: Int,
+        stop: Option<Int>,
     ) -> PyResult<Self> {
         let (n_db, n_q) = with_arrays(py, db, queries, |d| Ok(d.shape()))?.map_err(named_error)?;
-        let stop = stop.unwrap_or(n_q);
+        let start = non_negative("start", start)?;
+        let stop = stop.map(|s| non_negative("stop", s)).transpose()?.unwrap_or(n_q);
         if start >= stop || stop > n_q {
             return Err(PyValueError::new_err(format!(
                 "start and stop must select at least one of the {n_q} queries, got start={start}, stop={stop}"

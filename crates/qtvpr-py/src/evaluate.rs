@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use qtvpr::report::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
-use crate::convert::{GroundTruthArgs, count};
+use crate::convert::{GroundTruthArgs, Int, count};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -51,7 +51,7 @@ fn setup(
     matching: &str,
     calibration: Option<Split>,
     segment_fraction: Option<f64>,
-    segment_size: Option<i64>,
+    segment_size: Option<Int>,
     deploy_fraction: Option<f64>,
     query_major: bool,
 ) -> PyResult<Setup> {
@@ -79,7 +79,7 @@ fn setup(
 }
 
 /// ``cal_queries`` or ``cal_fraction``, `None` for neither.
-fn calibration(cal_fraction: Option<f64>, cal_queries: Option<i64>) -> PyResult<Option<Split>> {
+fn calibration(cal_fraction: Option<f64>, cal_queries: Option<Int>) -> PyResult<Option<Split>> {
     Ok(match cal_queries {
         Some(n) => Some(Split::Count(count("cal_queries", n)?)),
         None => cal_fraction.map(Split::Fraction),
@@ -159,13 +159,13 @@ pub(crate) fn evaluate<'py>(
     gt: &Bound<'py, PyAny>,
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
-    k: Option<i64>,
+    k: Option<Int>,
     precision: Option<f64>,
     matching: &str,
     cal_fraction: Option<f64>,
-    cal_queries: Option<i64>,
+    cal_queries: Option<Int>,
     segment_fraction: Option<f64>,
-    segment_size: Option<i64>,
+    segment_size: Option<Int>,
     deploy_fraction: Option<f64>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -230,13 +230,13 @@ pub(crate) fn ablation<'py>(
     gt: &Bound<'py, PyAny>,
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
-    k: Option<OneOrMany<i64>>,
+    k: Option<OneOrMany<Int>>,
     precision: Option<f64>,
     matching: &str,
     cal_fraction: Option<OneOrMany<f64>>,
-    cal_queries: Option<OneOrMany<i64>>,
+    cal_queries: Option<OneOrMany<Int>>,
     segment_fraction: Option<f64>,
-    segment_size: Option<i64>,
+    segment_size: Option<Int>,
     deploy_fraction: Option<f64>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {

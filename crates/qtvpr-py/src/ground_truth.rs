@@ -1,18 +1,12 @@
 //! `ground_truth_tolerance` and `ground_truth_positions`: ground truth without a matrix.
 
 use numpy::{IntoPyArray, PyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
 use qtvpr::with_scores;
 
-use crate::convert::MatrixArg;
+use crate::convert::{Int, MatrixArg, non_negative};
 use crate::error::{Args, named_error};
-
-/// A non-negative integer argument.
-fn non_negative(name: &str, value: i64) -> PyResult<usize> {
-    usize::try_from(value).map_err(|_| PyValueError::new_err(format!("{name} must be >= 0, got {value}")))
-}
 
 /// Ground truth of frame-aligned traverses: ``GT[i, j] = |i - j| <= tolerance``.
 ///
@@ -30,9 +24,9 @@ fn non_negative(name: &str, value: i64) -> PyResult<usize> {
 #[pyo3(signature = (n_db, n_queries, tolerance))]
 pub(crate) fn ground_truth_tolerance<'py>(
     py: Python<'py>,
-    n_db: i64,
-    n_queries: i64,
-    tolerance: i64,
+    n_db: Int,
+    n_queries: Int,
+    tolerance: Int,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
     let (n_db, n_queries) = (non_negative("n_db", n_db)?, non_negative("n_queries", n_queries)?);
     let tolerance = non_negative("tolerance", tolerance)?;

@@ -28,7 +28,7 @@ use pyo3::prelude::*;
 use qtvpr::Matching;
 
 use crate::calibration::{PyCalibration, TransferResult};
-use crate::convert::{GroundTruthArgs, MatrixArg};
+use crate::convert::{GroundTruthArgs, Int, MatrixArg};
 use crate::error::Args;
 use qtvpr::with_scores;
 
@@ -56,9 +56,10 @@ use qtvpr::with_scores;
 /// positions in the whole matrix.
 #[pyfunction]
 #[pyo3(signature = (
-    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = 10, precision = 1.0, matching = "single",
+    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = Int::Small(10), precision = 1.0, matching = "single",
     segment_size = None, gate = "none", query_major = false, cal_queries = None, cal_fraction = None,
-))]
+), text_signature = "(s_cal, gt_cal, s_val=None, *, gt_soft=None, k=10, precision=1.0, matching='single', \
+    segment_size=None, gate='none', query_major=False, cal_queries=None, cal_fraction=None)")]
 #[allow(clippy::too_many_arguments)] // the Python signature
 fn quantile_transfer(
     py: Python<'_>,
@@ -66,13 +67,13 @@ fn quantile_transfer(
     gt_cal: &Bound<'_, PyAny>,
     s_val: Option<&Bound<'_, PyAny>>,
     gt_soft: Option<&Bound<'_, PyAny>>,
-    k: i64,
+    k: Int,
     precision: f64,
     matching: &str,
-    segment_size: Option<i64>,
+    segment_size: Option<Int>,
     gate: &str,
     query_major: bool,
-    cal_queries: Option<i64>,
+    cal_queries: Option<Int>,
     cal_fraction: Option<f64>,
 ) -> PyResult<TransferResult> {
     let (k, precision) = (Some(convert::count("k", k)?), Some(precision));
@@ -93,9 +94,9 @@ fn quantile_transfer(
             cal.transfer(
                 py,
                 s_val,
-                k.map(|k| k as i64),
+                k.map(Int::from),
                 precision,
-                segment_size.map(|m| m as i64),
+                segment_size.map(Int::from),
                 gate.map(qtvpr::Gate::as_str),
                 query_major,
             )
@@ -269,7 +270,7 @@ fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
 /// its own, of the same size. Raises ``ValueError`` for ``n < 1``.
 #[pyfunction]
 #[pyo3(signature = (n))]
-fn set_threads(py: Python<'_>, n: i64) -> PyResult<()> {
+fn set_threads(py: Python<'_>, n: Int) -> PyResult<()> {
     let args = Args {
         gt: "gt",
         query_major: false,

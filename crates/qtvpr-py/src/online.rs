@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use qtvpr::{Decision, Error, OnlineParams};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{self, Column, MatrixArg, count};
+use crate::convert::{self, Column, Int, MatrixArg, count, non_negative};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
 
@@ -53,13 +53,16 @@ pub(crate) struct PyOnline {
 #[pymethods]
 impl PyOnline {
     #[new]
-    #[pyo3(signature = (calibration, *, k = None, precision = None, window = None, min_window = 1, gate = None))]
+    #[pyo3(
+        signature = (calibration, *, k = None, precision = None, window = None, min_window = Int::Small(1), gate = None),
+        text_signature = "(calibration, *, k=None, precision=None, window=None, min_window=1, gate=None)"
+    )]
     fn new(
         calibration: Bound<'_, PyCalibration>,
-        k: Option<i64>,
+        k: Option<Int>,
         precision: Option<f64>,
-        window: Option<i64>,
-        min_window: i64,
+        window: Option<Int>,
+        min_window: Int,
         gate: Option<&str>,
     ) -> PyResult<Self> {
         let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
@@ -125,14 +128,15 @@ impl PyOnline {
     fn _resume(
         &mut self,
         py: Python<'_>,
-        first_query: usize,
+        first_query: Int,
         s_before: &Bound<'_, PyAny>,
         query_major: bool,
     ) -> PyResult<()> {
+        let first = non_negative("first_query", first_query)?;
         let s = MatrixArg::extract("s_val", s_before)?;
         let view = s.view(query_major);
         let online = &mut self.inner;
-        py.detach(|| with_scores!(view, |s| online.resume(first_query, s)))
+        py.detach(|| with_scores!(view, |s| online.resume(first, s)))
             .map_err(|e| matrix_error(e, 0, query_major))
     }
 

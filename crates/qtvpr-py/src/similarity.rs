@@ -6,13 +6,13 @@ use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
 use qtvpr::{Sequence, with_scores};
 
+use crate::convert::Int;
 use crate::convert::MatrixArg;
 use crate::error::named_error;
 
 /// A sequence window from Python arguments: a negative length gets the core's message.
-fn sequence(length: i64, causal: bool) -> PyResult<Sequence> {
-    let length = usize::try_from(length)
-        .map_err(|_| PyValueError::new_err(format!("sequence length must be odd and >= 1, got {length}")))?;
+fn sequence(length: Int, causal: bool) -> PyResult<Sequence> {
+    let length = length.at_least("sequence length", 0, "odd and >= 1")?;
     let sequence = Sequence { length, causal };
     sequence.validate().map_err(named_error)?;
     Ok(sequence)
@@ -40,7 +40,7 @@ pub(crate) fn cosine_similarity<'py>(
     py: Python<'py>,
     db: &Bound<'py, PyAny>,
     queries: &Bound<'py, PyAny>,
-    sequence: Option<i64>,
+    sequence: Option<Int>,
     causal: bool,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let window = match sequence {
@@ -82,7 +82,7 @@ pub(crate) fn cosine_similarity<'py>(
 pub(crate) fn sequence_match<'py>(
     py: Python<'py>,
     s: &Bound<'py, PyAny>,
-    length: i64,
+    length: Int,
     causal: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let window = sequence(length, causal)?;

@@ -189,6 +189,19 @@ fn count(name: &'static str, n: usize) -> Result<usize> {
 }
 
 impl Split {
+    /// Check the split's own parameter, before the number of queries is known (a front
+    /// end checks it before reading any file): a fraction in (0, 1), a count of at
+    /// least 1.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a fraction outside (0, 1) or a count of 0.
+    pub fn validate(self) -> Result<()> {
+        match self {
+            Split::Fraction(f) => fraction("cal fraction", f).map(drop),
+            Split::Count(n) => count("cal queries", n).map(drop),
+        }
+    }
+
     /// The number of calibration queries, the first ones, this split names among `n_q`
     /// queries: `floor(f n_q)` for a fraction `f`, `n` for a count. The same rule for
     /// [`Protocol::layout`] and for a front end that splits one matrix (or one set of
