@@ -122,12 +122,24 @@ if command -v pkg-config > /dev/null; then
     mkdir -p "$prefix/include" "$prefix/lib/pkgconfig"
     cp include/qtvpr.h "$prefix/include/"
     cp "$work/lib/libqtvpr.so" "$work/lib/libqtvpr.a" "$prefix/lib/"
-    sed -e "s|@PREFIX@|$prefix|" -e "s|@VERSION@|$version|" crates/qtvpr-capi/qtvpr.pc.in > "$prefix/lib/pkgconfig/qtvpr.pc"
+    for pc in qtvpr qtvpr-static; do
+        sed -e "s|@PREFIX@|$prefix|" -e "s|@VERSION@|$version|" "crates/qtvpr-capi/$pc.pc.in" > "$prefix/lib/pkgconfig/$pc.pc"
+    done
     export PKG_CONFIG_PATH="$prefix/lib/pkgconfig"
     [ "$(pkg-config --modversion qtvpr)" = "$version" ]
+    # Linked with pkg-config's flags alone: the shared one runs with no LD_LIBRARY_PATH
+    # (its run-time path is in qtvpr.pc), the static one has no libqtvpr.so at all.
     # shellcheck disable=SC2046 # pkg-config's flags are words
-    cc -std=c99 examples/c/minimal.c $(pkg-config --cflags --libs qtvpr) -Wl,-rpath,"$prefix/lib" -o "$work/minimal-pc"
-    "$work/minimal-pc" "$work/corridor-single.npz" < "$work/corridor-deploy.f32" | cmp - "$work/minimal.txt"
+    cc -std=c99 examples/c/minimal.c $(pkg-config --cflags --libs qtvpr) -o "$work/minimal-pc"
+    # shellcheck disable=SC2046
+    cc -std=c99 examples/c/minimal.c $(pkg-config --cflags --libs qtvpr-static) -o "$work/minimal-pc-static"
+    if ldd "$work/minimal-pc-static" | grep -q libqtvpr; then
+        echo "minimal-pc-static links libqtvpr.so" >&2
+        exit 1
+    fi
+    for app in minimal-pc minimal-pc-static; do
+        env -u LD_LIBRARY_PATH "$work/$app" "$work/corridor-single.npz" < "$work/corridor-deploy.f32" | cmp - "$work/minimal.txt"
+    done
     echo "cc app.c \$(pkg-config --cflags --libs qtvpr): $(pkg-config --cflags --libs qtvpr)"
 else
     echo "(no pkg-config: skipped)"

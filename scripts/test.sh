@@ -73,4 +73,6 @@ step "stubtest and ruff"
 step "pytest"
 # Run from tests/ so that the installed wheel, not the source tree, is imported.
 cd tests
-QTVPR_CLI="$target/debug/qtvpr-cli" "$venv/bin/python" -m pytest -q -p no:cacheprovider .
+# Then the Python examples of README.md and docs/*.md (Sybil, ../conftest.py); -rs prints
+# why each skipped test was skipped (most: ../shared/data is absent).
+QTVPR_CLI="$target/debug/qtvpr-cli" "$venv/bin/python" -m pytest -q -rs -p no:cacheprovider . ../README.md ../docs

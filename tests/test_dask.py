@@ -11,7 +11,7 @@ elsewhere and the result is still exact.
 
 The cluster (``LocalCluster(n_workers=2, threads_per_worker=1, processes=True)``) is
 started once for the module. Skipped when Dask is not installed (``pip install
-"qtvpr[dask]"``).
+".[dask]"``).
 """
 
 from __future__ import annotations
@@ -421,7 +421,7 @@ def test_import_qtvpr_does_not_import_dask_and_the_extra_is_named_when_missing()
         "try:\n    import qtvpr.dask\nexcept ImportError as e:\n    print(e)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == 'qtvpr.dask needs Dask: pip install "qtvpr[dask]" (dask[array] and distributed)'
+    assert out.strip() == 'qtvpr.dask needs Dask: pip install "dask[array]" distributed (the dask extra of qtvpr)'
 
 
 CORRIDOR = Path(__file__).resolve().parent.parent / "data" / "corridor"

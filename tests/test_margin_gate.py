@@ -63,6 +63,18 @@ def test_gate_by_hand():
         assert cal.defaults["gate"] == "none"
 
 
+def test_a_gated_decision_shows_its_margin_and_gate():
+    s = np.array([[0.9, 0.5, 0.6, 0.8], [0.1, 0.1, 0.5, 0.1], [0.1, 0.2, 0.4, 0.3]])
+    gt = np.array([[1, 0, 1, 0], [0, 1, 0, 1], [0, 0, 0, 0]], dtype=bool)
+    cal = qtvpr.Calibration(s, gt)
+    gated = qtvpr.Online(cal, window=2, gate="margin").push(s[:, 0])
+    m = ref.margins(s)
+    assert (gated.margin, gated.gate) == (pytest.approx(m[0], rel=1e-15), pytest.approx(cal.gate(1.0), rel=1e-15))
+    assert f", accepted={gated.accepted}, margin={gated.margin!r}, gate={gated.gate!r}, accept=" in repr(gated)
+    plain = qtvpr.Online(cal, window=2).push(s[:, 0])
+    assert plain.margin is None and "margin=" not in repr(plain)
+
+
 # ---------------------------------------------------------------------------------------
 # The wheel against the reference on real data
 # ---------------------------------------------------------------------------------------

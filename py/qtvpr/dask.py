@@ -26,7 +26,8 @@ choose the query chunks accordingly (``s_val.rechunk({1: n})``).
 Computation runs on the current Dask scheduler (the active ``Client``, if any) and blocks
 until the result is assembled on the caller's machine.
 
-Needs the ``dask`` extra: ``pip install "qtvpr[dask]"``.
+Needs the ``dask`` extra: ``pip install ".[dask]"`` from a clone of the repository (qtvpr
+is on no package index), or Dask itself: ``pip install "dask[array]" distributed``.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ try:
     import dask.array as da
 except ImportError as err:  # pragma: no cover - exercised only without the extra
     raise ImportError(
-        'qtvpr.dask needs Dask: pip install "qtvpr[dask]" (dask[array] and distributed)'
+        'qtvpr.dask needs Dask: pip install "dask[array]" distributed (the dask extra of qtvpr)'
     ) from err
 
 import numpy as np

@@ -342,8 +342,13 @@ impl OnlineDecision {
 #[pymethods]
 impl OnlineDecision {
     fn __repr__(&self) -> String {
+        // With the margin gate, what the decision also rested on.
+        let gated = match (self.margin, self.gate) {
+            (Some(margin), Some(gate)) => format!(", margin={margin:?}, gate={gate:?}"),
+            _ => String::new(),
+        };
         format!(
-            "OnlineDecision(query={}, quantile={:?}, threshold={:?}, best={}, score={:?}, accepted={}, accept={})",
+            "OnlineDecision(query={}, quantile={:?}, threshold={:?}, best={}, score={:?}, accepted={}{gated}, accept={})",
             self.query,
             self.quantile,
             self.threshold,

@@ -48,6 +48,8 @@ const FN_COLOUR: RGBColor = RGBColor(170, 170, 170);
 const NOTE_COLOUR: RGBColor = RGBColor(90, 90, 90);
 /// Dash and gap of the oracle's threshold line, in pixels (and of its legend swatch).
 const ORACLE_DASH: (u32, u32) = (7, 4);
+/// Dash and gap of a gated method's threshold line, which lies on quantile transfer's.
+const GATED_DASH: (u32, u32) = (3, 5);
 /// Dash and gap of the target-precision line of the precision-recall figure.
 const TARGET_DASH: (u32, u32) = (6, 5);
 

@@ -129,12 +129,27 @@ pub(super) fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result
     let mut entries: Vec<(Swatch, String)> = vec![];
     for m in &methods {
         let c = colour(m.method);
+        // A gated method's thresholds are quantile transfer's (the gate acts on the
+        // margin, not the score): dashed, so that the line beneath stays visible.
+        let gated = m.method.is_gated();
         for pts in finite_runs(m.segments.iter().map(|g| (g.start as f64, g.end as f64, g.threshold))) {
-            chart
-                .draw_series(LineSeries::new(pts, c.stroke_width(2)))
-                .map_err(err)?;
+            if gated {
+                let style = ShapeStyle::from(&c).stroke_width(2);
+                chart
+                    .draw_series(DashedLineSeries::new(pts, GATED_DASH.0, GATED_DASH.1, style))
+                    .map_err(err)?;
+            } else {
+                chart
+                    .draw_series(LineSeries::new(pts, c.stroke_width(2)))
+                    .map_err(err)?;
+            }
         }
-        entries.push((Swatch::Line(c, 2), m.method.as_str().to_string()));
+        let swatch = if gated {
+            Swatch::Dashed(c, 2, GATED_DASH)
+        } else {
+            Swatch::Line(c, 2)
+        };
+        entries.push((swatch, m.method.as_str().to_string()));
     }
     if let Some(first) = oracle_of {
         let style = ShapeStyle::from(&BLACK).stroke_width(2);

@@ -57,6 +57,20 @@ impl Method {
             Method::Oracle => "oracle",
         }
     }
+
+    /// What the method is, in one line: the legend of a results table (the README's).
+    pub fn caption(self) -> &'static str {
+        match self {
+            Method::QuantileTransfer => "quantile transfer, one threshold per segment of deployment queries",
+            Method::QuantileTransferOnline => "quantile transfer on a causal window of the last queries (online)",
+            Method::QuantileTransferMargin => "quantile transfer, a match also kept only if its margin clears m*",
+            Method::Margin => "the margin gate alone: the best match kept when its margin clears m*",
+            Method::Schubert => "Schubert et al.'s threshold, fitted to each segment's raw scores",
+            Method::SchubertCalibrated => "Schubert et al.'s threshold, fitted once to the calibration scores",
+            Method::CalibrationThreshold => "the calibration's own best threshold, kept fixed (tuned once, offline)",
+            Method::Oracle => "each segment's best threshold under its own ground truth: the bound, not deployable",
+        }
+    }
 }
 
 impl Method {
