@@ -62,6 +62,7 @@ fn args<'a>(a: &[&'a str], b: &[&'a str]) -> Vec<&'a str> {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn threshold_and_calibrate_from_descriptors_equal_the_matrix_path() {
     let Some((dir, _)) = case() else {
         return;
@@ -157,6 +158,7 @@ fn without_dataset(json: &str) -> String {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn evaluate_from_descriptors_equals_the_matrix_path() {
     let Some((dir, _)) = case() else {
         return;
@@ -193,6 +195,7 @@ fn evaluate_from_descriptors_equals_the_matrix_path() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn bad_descriptors_and_options_exit_2_naming_the_file() {
     let Some((dir, q)) = case() else {
         return;

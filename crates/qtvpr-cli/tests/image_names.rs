@@ -414,6 +414,7 @@ fn nordland_folder() -> Option<Folder> {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn vpr_methods_evaluation_folder_to_the_evaluate_table() {
     let Some(f) = nordland_folder() else {
         return;
@@ -454,6 +455,7 @@ fn vpr_methods_evaluation_folder_to_the_evaluate_table() {
 /// The on-ramp in one command: descriptors and image names to the evaluation table, the
 /// table of `similarity` followed by `evaluate --similarity` with the dataset's truth.
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn vpr_methods_evaluation_folder_in_one_command() {
     let Some(f) = nordland_folder() else {
         return;

@@ -154,6 +154,7 @@ fn assert_csv_equals(csv: &str, expected: &[Decision]) {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn single_matching_stream_equals_online() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -243,6 +244,7 @@ fn single_matching_stream_equals_online() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn multi_matching_query_major_soft_ground_truth() {
     // float32 scores, stored query-major; soft ground truth |i - j| <= 3 around the hard
     // |i - j| <= 2 (by tolerance, from the calibration's own columns 0..11).
@@ -336,6 +338,7 @@ fn multi_matching_query_major_soft_ground_truth() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn threshold_takes_a_calibration_file() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -456,6 +459,7 @@ fn threshold_takes_a_calibration_file() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn bad_calibration_files_name_the_file() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -623,6 +627,7 @@ fn array2(rows: &[&[f64]]) -> Array2<f64> {
 
 #[cfg(unix)]
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn written_files_get_the_mode_of_a_plain_create() {
     use std::os::unix::fs::PermissionsExt;
     let Some(case) = Case::new("NetVLAD") else {
@@ -676,6 +681,7 @@ fn written_files_get_the_mode_of_a_plain_create() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn evaluate_reports_the_online_method() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -801,6 +807,7 @@ fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
 /// every line carries `margin` and `gate` equal to `qtvpr::Online`'s, `evaluate` has
 /// both gated methods, and multi matching with the gate exits 2 naming `--gate`.
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
     let Some(case) = Case::new("AlexNet_VPR") else {
         return;

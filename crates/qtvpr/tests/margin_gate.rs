@@ -182,6 +182,7 @@ fn run(dir: &str, technique: &str, n_cal: usize) -> usize {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn corridor_and_spedtest() {
     let rejected = run("vprbench-corridor", "NetVLAD", 11)
         + run("vprbench-corridor", "CoHOG", 11)
@@ -193,6 +194,7 @@ fn corridor_and_spedtest() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn multi_matching_has_no_gate() {
     let Some(path) = data::shared("vprbench-corridor/S_HOG.npy") else {
         return;

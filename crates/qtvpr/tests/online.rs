@@ -73,16 +73,19 @@ fn run(dir: &str, technique: &str, n_cal: usize) {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn corridor_float64() {
     run("vprbench-corridor", "NetVLAD", 11);
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn corridor_float32() {
     run("vprbench-corridor", "CoHOG", 11);
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn spedtest_float32() {
     run("vprbench-spedtest", "CALC", 60);
 }

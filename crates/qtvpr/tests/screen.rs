@@ -37,6 +37,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, n_cal: usize) {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn nordland_hog() {
     // 357 calibration and 643 deployment queries.
     let Some((db, q)) = data::nordland(1000) else {
@@ -47,6 +48,7 @@ fn nordland_hog() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
 fn vprbench() {
     if data::shared("").is_none() {
         return;

@@ -1,10 +1,11 @@
-//! The real data of `../shared/data` for the Rust tests, and a visible skip without it.
+//! The real data of `../shared/data` for the Rust tests.
 //!
-//! One module for the core's and the CLI's tests (the CLI's include it by path), so that
-//! a clone without `../shared/data` beside it passes `cargo test --workspace`: a test
-//! that needs the data asks for it here and returns at once when it is absent, after a
-//! note on standard error naming the test. The note is written to the stream itself,
-//! which the test harness does not capture, so it shows in every run.
+//! One module for the core's and the CLI's tests (the CLI's include it by path). A test
+//! that needs the data is `#[ignore = "needs ../shared/data; ..."]`, so that `cargo test`
+//! reports it ignored, not passed, where the data may be absent; `scripts/test.sh` runs
+//! them with `--include-ignored` when `../shared/data` is there. Run by hand without the
+//! data, such a test returns at once after a note on standard error naming it (written
+//! to the stream itself, which the harness does not capture).
 #![allow(dead_code)] // each test crate uses what it needs
 
 use std::io::Write as _;
