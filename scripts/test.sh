@@ -70,6 +70,13 @@ wheel=$(ls "$target"/test-wheels/qtvpr-*.whl)
 pip=("$venv/bin/python" -m pip install --quiet --disable-pip-version-check)
 "${pip[@]}" "$wheel[test,lint,dask]"              # the test, lint and Dask (qtvpr.dask) dependencies
 "${pip[@]}" --force-reinstall --no-deps "$wheel"   # this build, even if the version is unchanged
+# qtvpr.ros's ROS 2 Jazzy packages have wheels for CPython 3.11 only; elsewhere
+# tests/test_ros.py skips and says why (pytest -rs).
+if "$venv/bin/python" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then
+    "${pip[@]}" "$wheel[ros]"
+else
+    echo "not CPython 3.11: no ROS 2 Jazzy wheels, tests/test_ros.py will skip"
+fi
 
 step "stubtest and ruff"
 # The stubs against the installed compiled module (from the repository root, where

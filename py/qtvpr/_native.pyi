@@ -6,7 +6,7 @@ Checked against the compiled module by ``python -m mypy.stubtest qtvpr._native``
 
 import os
 from collections.abc import Iterable, Sequence
-from typing import Literal, NotRequired, TypedDict, TypeVar, final, overload
+from typing import ClassVar, Literal, NotRequired, TypedDict, TypeVar, final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -251,6 +251,8 @@ _Column = ArrayLike
 
 @final
 class OnlineDecision:
+    FIELDS: ClassVar[tuple[str, ...]]
+    GATE_FIELDS: ClassVar[tuple[str, ...]]
     @property
     def query(self) -> int: ...
     @property

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use numpy::{PyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyTuple;
 use qtvpr::{Decision, Error, OnlineParams};
 
 use crate::calibration::PyCalibration;
@@ -341,6 +342,23 @@ impl OnlineDecision {
 
 #[pymethods]
 impl OnlineDecision {
+    /// The names of the decision record's fields, in order (the core's, semantics §11):
+    /// the keys of a ``qtvpr-cli stream`` line, the columns of its CSV, and attributes
+    /// of this class. A front end lays a record out by these names, never its own.
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn FIELDS(py: Python<'_>) -> PyResult<Py<PyTuple>> {
+        Ok(PyTuple::new(py, Decision::FIELDS)?.unbind())
+    }
+
+    /// The fields a record decided with the margin gate has after :attr:`FIELDS`
+    /// (``margin`` and ``gate``, semantics §13; ``None`` on a record without the gate).
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn GATE_FIELDS(py: Python<'_>) -> PyResult<Py<PyTuple>> {
+        Ok(PyTuple::new(py, Decision::GATE_FIELDS)?.unbind())
+    }
+
     fn __repr__(&self) -> String {
         // With the margin gate, what the decision also rested on.
         let gated = match (self.margin, self.gate) {

@@ -1,0 +1,193 @@
+"""A ROS 2 node that decides every deployment query: ``python -m qtvpr.ros``.
+
+The node (named ``qtvpr``) is :class:`qtvpr.Online` on a ROS 2 graph, and nothing else:
+it converts each message of scores into a column, pushes it, and converts the decision
+back into messages. Its decisions are therefore those of ``qtvpr-cli stream`` for the
+same columns, bit for bit, float32 or float64.
+
+Parameters (``--ros-args -p name:=value``):
+
+- ``calibration`` (string, required): the calibration file (``qtvpr-cli calibrate``,
+  :meth:`qtvpr.Calibration.save`).
+- ``k``, ``precision``, ``window``, ``min_window``, ``gate``: as :class:`qtvpr.Online`
+  (docs/semantics.md §11-§13); left unset, each takes the file's value (the core's
+  resolution, as ``stream``). Invalid values are refused at start-up.
+- ``qos_depth`` (integer, default :data:`QOS_DEPTH`): the keep-last depth of every topic
+  (all reliable), the backlog of messages the node holds while it decides.
+
+Topics (relative to the node: ``/qtvpr/...`` by default; remap them as any ROS topic):
+
+- subscribes ``~/scores`` (``std_msgs/Float32MultiArray``) and ``~/scores64``
+  (``std_msgs/Float64MultiArray``): one query's |DB| scores in ``data``, in the
+  matcher's own type (float64 scores rounded to float32 are other scores). Both feed
+  the one stream, in arrival order.
+- publishes ``~/decision`` (``std_msgs/Float64MultiArray``): the decision record, its
+  ``data`` in the order of :data:`DECISION_FIELDS`, and ``~/accept`` (``std_msgs/Bool``):
+  its ``accept``.
+
+A decision as float64: ``query``, ``best`` and ``accepted`` are integers below 2**53,
+exact as float64; ``accept`` is 1.0 or 0.0; ``margin`` and ``gate`` are NaN when the
+stream has no margin gate. The layout has one dimension, labelled with the field names
+joined by commas (``layout.dim[0].label``), of size ``len(DECISION_FIELDS)``.
+
+A message the core refuses (another length than |DB|, a NaN or infinite score, an
+empty array) is logged as one error line naming the message, the queries decided so
+far and the problem; it gets no decision, the window is unchanged, and the node goes
+on. A missing, unreadable or corrupt calibration file, or invalid parameters, are
+logged and the process exits with status 1 at start-up.
+
+Needs ROS 2 Jazzy's Python client and messages, from PyPI (wheels for CPython 3.11):
+``pip install ".[ros]"`` from a clone, or ``pip install "ros-jazzy-rclpy[fastrtps]"
+ros-jazzy-std-msgs``.
+"""
+
+from __future__ import annotations
+
+import array
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+from qtvpr._native import Calibration, Online, OnlineDecision
+
+_NEEDS = (
+    "qtvpr.ros needs ROS 2 Jazzy's rclpy and std_msgs: pip install "
+    '"ros-jazzy-rclpy[fastrtps]" ros-jazzy-std-msgs (the ros extra of qtvpr; wheels for CPython 3.11 only)'
+)
+
+try:
+    import rclpy
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Bool, Float32MultiArray, Float64MultiArray, MultiArrayDimension
+except ImportError as err:  # pragma: no cover - exercised only without the extra
+    if __name__ == "__main__":
+        print(f"error: {_NEEDS} ({err})", file=sys.stderr)
+        sys.exit(2)
+    raise ImportError(_NEEDS) from err
+
+__all__ = ["DECISION_FIELDS", "NODE_NAME", "ONLINE_PARAMETERS", "QOS_DEPTH", "QtvprNode", "main"]
+
+#: The fields of a ``~/decision`` message's ``data``, in order: the core's record
+#: (:attr:`qtvpr.OnlineDecision.FIELDS`), then its margin-gate fields
+#: (:attr:`qtvpr.OnlineDecision.GATE_FIELDS`), NaN without the gate.
+DECISION_FIELDS: tuple[str, ...] = OnlineDecision.FIELDS + OnlineDecision.GATE_FIELDS
+
+#: The node's name.
+NODE_NAME = "qtvpr"
+
+#: The ROS parameters passed to :class:`qtvpr.Online` when set (unset: the file's).
+ONLINE_PARAMETERS: tuple[str, ...] = ("k", "precision", "window", "min_window", "gate")
+
+#: The default keep-last depth of the node's topics (parameter ``qos_depth``): at 30
+#: queries a second, about three seconds of backlog.
+QOS_DEPTH = 100
+
+
+class StartupError(Exception):
+    """A calibration or parameter the node cannot start with; its message says which."""
+
+
+def decision_array(decision: OnlineDecision) -> list[float]:
+    """The values of ``decision`` in the order of :data:`DECISION_FIELDS`, as float64
+    (``None``, a field of the margin gate without it, is NaN)."""
+    values = (getattr(decision, name) for name in DECISION_FIELDS)
+    return [math.nan if v is None else float(v) for v in values]
+
+
+class QtvprNode(Node):  # type: ignore[misc]
+    """The ``qtvpr`` node: reads its parameters, loads the calibration and builds the
+    :class:`qtvpr.Online` state. Raises :class:`StartupError` when it cannot."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        untyped = ParameterDescriptor(dynamic_typing=True)
+        # Declared without a value: unset means "the file's", decided by the core.
+        self.declare_parameter("calibration", None, untyped)
+        for name in ONLINE_PARAMETERS:
+            self.declare_parameter(name, None, untyped)
+        self.declare_parameter("qos_depth", QOS_DEPTH, untyped)
+
+        path = self.get_parameter("calibration").value
+        if not isinstance(path, str) or not path:
+            raise StartupError("parameter calibration (a calibration file, .npz) is required: -p calibration:=cal.npz")
+        try:
+            calibration = Calibration.load(path)
+        except (OSError, ValueError) as err:
+            raise StartupError(f"calibration {path}: {err}") from err
+        given = {name: self.get_parameter(name).value for name in ONLINE_PARAMETERS}
+        given = {name: value for name, value in given.items() if value is not None}
+        try:
+            self.online = Online(calibration, **given)
+        except (TypeError, ValueError) as err:
+            raise StartupError(f"parameters {given}: {err}") from err
+        depth = self.get_parameter("qos_depth").value
+        if not isinstance(depth, int) or depth < 1:
+            raise StartupError(f"parameter qos_depth must be an integer of at least 1, not {depth!r}")
+
+        qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=depth)
+        self.db_size = calibration.db_size
+        self.messages = 0
+        self._decision = self.create_publisher(Float64MultiArray, "~/decision", qos)
+        self._accept = self.create_publisher(Bool, "~/accept", qos)
+        self._layout = [
+            MultiArrayDimension(label=",".join(DECISION_FIELDS), size=len(DECISION_FIELDS), stride=len(DECISION_FIELDS))
+        ]
+        self.create_subscription(Float32MultiArray, "~/scores", self._on_scores(np.float32), qos)
+        self.create_subscription(Float64MultiArray, "~/scores64", self._on_scores(np.float64), qos)
+        self.get_logger().info(
+            f"deciding {self.get_namespace().rstrip('/')}/{NODE_NAME}/scores and scores64 with {self.online!r} "
+            f"(|DB| = {self.db_size}, calibration {path}, qos_depth {depth})"
+        )
+
+    def _on_scores(self, dtype: type[np.floating[Any]]) -> Any:
+        """The callback of a scores topic whose ``data`` holds ``dtype`` values."""
+
+        def callback(msg: Any) -> None:
+            self.messages += 1
+            # msg.data is an array.array of the message's own type: read in place.
+            column = np.frombuffer(msg.data, dtype=dtype)
+            try:
+                decision = self.online.push(column)
+            except (TypeError, ValueError) as err:
+                self.get_logger().error(
+                    f"scores message {self.messages} ({np.dtype(dtype).name}, {column.size} scores; "
+                    f"{self.online.pushed} queries decided): {err}; not decided, the window is unchanged"
+                )
+                return
+            out = Float64MultiArray()
+            out.layout.dim = self._layout
+            out.data = array.array("d", decision_array(decision))
+            self._decision.publish(out)
+            self._accept.publish(Bool(data=decision.accept))
+
+        return callback
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until it is shut down (Ctrl-C, SIGTERM or the ROS context); the exit
+    status: 0, or 1 when it cannot start."""
+    rclpy.init(args=args)
+    try:
+        try:
+            node = QtvprNode()
+        except StartupError as err:
+            rclpy.logging.get_logger(NODE_NAME).error(f"cannot start: {err}")
+            return 1
+        try:
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            node.destroy_node()
+        return 0
+    finally:
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
