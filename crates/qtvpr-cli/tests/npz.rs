@@ -4,7 +4,7 @@
 //! standard output, an empty deployment input, a file overwritten keeps its mode).
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use ndarray::{Array2, array};
 use qtvpr::npy::{NpyArray, write_npy, write_npz};
@@ -17,17 +17,7 @@ use common::{ok_in, run_in};
 /// A 3x4 calibration's `.npy` members and a VPR_Tutorial ground truth's, and the files
 /// they come from (`cal.npy`, `gt.npz`, `cal.npz`) with a deployment `val.npy`, in `dir`.
 fn valid(dir: &Path) -> (Members, Members) {
-    let s = array![[0.9, 0.1, 0.3, 0.2], [0.2, 0.8, 0.1, 0.4], [0.1, 0.3, 0.7, 0.9]];
-    let hard = array![
-        [true, false, false, false],
-        [false, true, false, false],
-        [false, false, true, true]
-    ];
-    let soft = array![
-        [true, true, false, false],
-        [false, true, false, false],
-        [false, false, true, true]
-    ];
+    let (s, hard, soft) = common::zip::traverse();
     write_npy(&dir.join("cal.npy"), s.view()).unwrap();
     write_npy(&dir.join("val.npy"), array![[0.5, 0.1], [0.2, 0.9], [0.3, 0.3]].view()).unwrap();
     write_npz(
@@ -44,6 +34,17 @@ fn valid(dir: &Path) -> (Members, Members) {
     std::fs::write(dir.join("cal.npz"), &bytes).unwrap();
     (unzip(&bytes), unzip(&std::fs::read(dir.join("gt.npz")).unwrap()))
 }
+
+/// `stream` on `valid`'s calibration file and deployment matrix.
+const STREAM: [&str; 7] = [
+    "stream",
+    "--calibration",
+    "cal.npz",
+    "--val",
+    "val.npy",
+    "--window",
+    "2",
+];
 
 /// Exit 2 with one line that holds every needle, no panic.
 fn refused(out: &Output, needles: &[&str], what: &str) {
@@ -64,18 +65,7 @@ fn every_hostile_npz_exits_2_as_calibration_and_as_ground_truth() {
     let d = dir.path();
     let (cal, tutorial) = valid(d);
     // The files are good to begin with.
-    ok_in(
-        d,
-        &[
-            "stream",
-            "--calibration",
-            "cal.npz",
-            "--val",
-            "val.npy",
-            "--window",
-            "2",
-        ],
-    );
+    ok_in(d, &STREAM);
     ok_in(
         d,
         &[
@@ -128,19 +118,10 @@ fn every_hostile_npz_exits_2_as_calibration_and_as_ground_truth() {
     }
 }
 
-/// `ulimit -v 1000000` (1 GB of address space), then `qtvpr-cli` with `args` in `dir`;
-/// `redirect` is appended to the command (e.g. `>&-`).
+/// `qtvpr-cli` with `args` in `dir`, under `ulimit -v 1000000` (1 GB of address space)
+/// when `cap`, its standard output redirected as `redirect` says (e.g. `>&-`).
 fn run_shell(dir: &Path, cap: bool, redirect: &str, args: &[&str]) -> Output {
-    let ulimit = if cap { "ulimit -v 1000000; " } else { "" };
-    Command::new("sh")
-        .current_dir(dir)
-        .env("RUST_BACKTRACE", "1")
-        .arg("-c")
-        .arg(format!("{ulimit}exec \"$0\" \"$@\" {redirect}"))
-        .arg(env!("CARGO_BIN_EXE_qtvpr-cli"))
-        .args(args)
-        .output()
-        .unwrap()
+    common::run_in_shell(dir, if cap { common::CAP } else { "" }, redirect, args)
 }
 
 /// A calibration of 60 x 1,000,000 float64 zeros (480 MB; 0.5 MB deflated) whose
@@ -197,18 +178,7 @@ fn a_closed_standard_output_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     valid(d);
-    for args in [
-        &[
-            "stream",
-            "--calibration",
-            "cal.npz",
-            "--val",
-            "val.npy",
-            "--window",
-            "2",
-        ][..],
-        &["threshold", "--cal", "cal.npz", "--val", "val.npy"][..],
-    ] {
+    for args in [&STREAM[..], &["threshold", "--cal", "cal.npz", "--val", "val.npy"][..]] {
         let out = run_shell(d, false, ">&-", args);
         refused(&out, &["standard output: is closed"], &format!("{args:?}"));
         // Redirected to a file: exit 0, every line there.

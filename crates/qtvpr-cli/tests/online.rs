@@ -727,15 +727,7 @@ fn evaluate_reports_the_online_method() {
 
 /// Run `qtvpr-cli` in `dir` under `ulimit -v 1000000` (1 GB of address space).
 fn run_capped(dir: &Path, args: &[&str]) -> Output {
-    std::process::Command::new("sh")
-        .current_dir(dir)
-        .env("RUST_BACKTRACE", "1")
-        .arg("-c")
-        .arg("ulimit -v 1000000; exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_qtvpr-cli"))
-        .args(args)
-        .output()
-        .unwrap()
+    common::run_in_shell(dir, common::CAP, "", args)
 }
 
 /// A calibration whose `s.npy` is marked bzip2 (a few kB claiming 128 MiB), and a

@@ -801,17 +801,7 @@ mod tests {
 
     /// A `.npy` header for a float64 matrix of `shape`, followed by `zeros` zero bytes.
     fn npy_bytes(shape: (u64, u64), zeros: usize) -> Vec<u8> {
-        let mut h = format!(
-            "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, {}), }}",
-            shape.0, shape.1
-        );
-        while (h.len() + 11) % 64 != 0 {
-            h.push(' ');
-        }
-        h.push('\n');
-        let mut b = b"\x93NUMPY\x01\x00".to_vec();
-        b.extend((h.len() as u16).to_le_bytes());
-        b.extend(h.as_bytes());
+        let mut b = npy::test_zip::npy_header("<f8", &format!("({}, {})", shape.0, shape.1));
         b.resize(b.len() + zeros, 0);
         b
     }

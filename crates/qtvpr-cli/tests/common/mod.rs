@@ -33,6 +33,23 @@ pub fn run_in(dir: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// `ulimit -v 1000000`: 1 GB of address space, for [`run_in_shell`].
+pub const CAP: &str = "ulimit -v 1000000; ";
+
+/// Run `qtvpr-cli` with `args` inside `dir` from `sh`, after the shell commands `before`
+/// (e.g. [`CAP`]) and with `redirect` after the command (e.g. `>&-`).
+pub fn run_in_shell(dir: &Path, before: &str, redirect: &str, args: &[&str]) -> Output {
+    Command::new("sh")
+        .current_dir(dir)
+        .env("RUST_BACKTRACE", "1")
+        .arg("-c")
+        .arg(format!("{before}exec \"$0\" \"$@\" {redirect}"))
+        .arg(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 /// Run `qtvpr-cli` with `args` inside `dir`, assert that it succeeded, and return its
 /// standard output.
 pub fn ok_in(dir: &Path, args: &[&str]) -> String {

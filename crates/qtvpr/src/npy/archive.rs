@@ -424,7 +424,6 @@ fn read_stream(mut file: File, path: &Path) -> Result<Vec<u8>> {
 
 #[cfg(test)]
 mod tests {
-    use ndarray::array;
 
     use super::super::test_zip::{self, Members, hostile, unzip};
     use crate::npy::{NpyArray, ground_truth_from_bytes, read_ground_truth, write_npz_to};
@@ -432,17 +431,7 @@ mod tests {
 
     /// A valid 3x4 calibration file's members, and a VPR_Tutorial ground truth's.
     fn valid() -> (Members, Members) {
-        let s = array![[0.9, 0.1, 0.3, 0.2], [0.2, 0.8, 0.1, 0.4], [0.1, 0.3, 0.7, 0.9]];
-        let hard = array![
-            [true, false, false, false],
-            [false, true, false, false],
-            [false, false, true, true]
-        ];
-        let soft = array![
-            [true, true, false, false],
-            [false, true, false, false],
-            [false, false, true, true]
-        ];
+        let (s, hard, soft) = test_zip::traverse();
         let gt = GroundTruth::new(hard.view()).unwrap().with_soft(soft.view()).unwrap();
         let cal = Calibration::new(s.view(), &gt, Matching::Single).unwrap();
         let mut tutorial = Vec::new();

@@ -2,7 +2,7 @@
 //! (which writes any method number, encryption flag or extra field it is told to, and
 //! compresses nothing itself), then patched where a field must lie.
 //!
-//! It depends on rawzip and flate2 alone, so that the CLI's tests use this same file
+//! It depends on rawzip, flate2 and ndarray alone, so that the CLI's tests use this same file
 //! (`#[path]`) and every front end is tested on the same hostile set ([`hostile`]).
 
 #![allow(dead_code)] // each test crate that includes it uses part of it
@@ -11,6 +11,22 @@ use std::io::{Read, Write};
 
 use rawzip::extra_fields::ExtraFieldId;
 use rawzip::{CompressionMethod, Crc32Option, Header, ZipArchiveWriter};
+
+/// A small traverse for the valid archive the hostile set is made from: a 3 x 4
+/// similarity, its hard ground truth and its soft ground truth (query 0 has a soft-only
+/// second match).
+pub(crate) fn traverse() -> (ndarray::Array2<f64>, ndarray::Array2<bool>, ndarray::Array2<bool>) {
+    use ndarray::array;
+    let s = array![[0.9, 0.1, 0.3, 0.2], [0.2, 0.8, 0.1, 0.4], [0.1, 0.3, 0.7, 0.9]];
+    let hard = array![
+        [true, false, false, false],
+        [false, true, false, false],
+        [false, false, true, true]
+    ];
+    let mut soft = hard.clone();
+    soft[[0, 1]] = true;
+    (s, hard, soft)
+}
 
 /// One member to write.
 #[derive(Clone)]
