@@ -48,6 +48,8 @@ else
     echo "../shared/data is absent: the tests that need it are reported ignored"
     cargo test --workspace --locked
 fi
+step "the README's Rust example, from the repository root"
+cargo run --locked --quiet -p qtvpr --features npy --example readme
 step "C interface"
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
