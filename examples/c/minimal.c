@@ -1,4 +1,4 @@
-/* The README's example: decide each query read from stdin, its n_db float32 scores after
+/* The example of docs/deployment.md and crates/qtvpr-capi/README.md: decide each query read from stdin, its n_db float32 scores after
  * the previous query's (raw, little-endian).  Usage: minimal cal.npz < scores.f32 */
 #include <stdio.h>
 #include <stdlib.h>
