@@ -1,5 +1,6 @@
-/* The example of docs/deployment.md and crates/qtvpr-capi/README.md: decide each query read from stdin, its n_db float32 scores after
- * the previous query's (raw, little-endian).  Usage: minimal cal.npz < scores.f32 */
+/* The example of docs/deployment.md and crates/qtvpr-capi/README.md: decide each query
+ * read from stdin, its n_db float32 scores after the previous query's (raw,
+ * little-endian).  Usage: minimal cal.npz < scores.f32 */
 #include <stdio.h>
 #include <stdlib.h>
 #include "qtvpr.h"
