@@ -49,7 +49,8 @@ else
     cargo test --workspace --locked
 fi
 step "the README's Rust example, from the repository root"
-cargo run --locked --quiet -p qtvpr --features npy --example readme
+# Built by cargo test above (the workspace's features include npy), run as a reader would.
+"$target/debug/examples/readme"
 step "C interface"
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
