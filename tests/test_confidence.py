@@ -197,3 +197,43 @@ def test_cli_stream_equals_the_wheel(cli, tmp_path):
     assert first["confidence"] is None and first["confidence_lower95"] is None
     out = run_cli(cli, "stream", "--calibration", str(cal_path), "--val", str(val), "--format", "csv")
     assert out.stdout.splitlines()[1].endswith(",NaN,NaN")
+
+
+# ---------------------------------------------------------------------------------------
+# evaluate's signals
+# ---------------------------------------------------------------------------------------
+
+
+def assert_same_signals(got, want):
+    assert list(got) == ["signals"] and list(got["signals"]) == ["score", "margin", "confidence"]
+    for signal, figures in want["signals"].items():
+        assert list(got["signals"][signal]) == list(figures)
+        for key, w in figures.items():
+            g = got["signals"][signal][key]
+            assert (g is None and w is None) or abs(g - w) <= 1e-9, (signal, key, g, w)
+
+
+def test_evaluate_signals_on_the_embedded_corridor(cli):
+    # The 11 calibration queries' best matches are all right: one block, every
+    # confidence 1; 83 of the 100 deployment decisions are right, so the Brier score is
+    # 17/100, the ECE |1 - 0.83| and the confidence's AUROC 1/2 (all tied).
+    s = np.concatenate([np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "deploy_S.npy")], axis=1)
+    gt = np.concatenate([np.load(CORRIDOR / "cal_GT.npy"), np.load(CORRIDOR / "deploy_GT.npy")], axis=1)
+    got, want = qtvpr.evaluate(s, gt)["confidence"], ref.evaluate(s, gt)["confidence"]
+    assert_same_signals(got, want)
+    c = want["signals"]["confidence"]
+    assert c["auroc"] == 0.5 and c["brier"] == pytest.approx(0.17, abs=1e-12) and c["ece"] == pytest.approx(0.17)
+    out = run_cli(cli, "evaluate", "--format", "json")  # the embedded demo data
+    assert_same_signals(json.loads(out.stdout)["confidence"], want)
+    # Multi matching: no signals.
+    assert "confidence" not in qtvpr.evaluate(s, gt, matching="multi")
+    assert "confidence" not in ref.evaluate(s, gt, matching="multi")
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("dataset", DATASETS)
+def test_evaluate_signals_equal_the_reference(shared_data, dataset, technique):
+    d = shared_data / DATASETS[dataset]
+    s, gt = np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+    assert_same_signals(qtvpr.evaluate(s, gt, methods=["oracle"])["confidence"],
+                        ref.evaluate(s, gt, methods=["oracle"])["confidence"])

@@ -109,10 +109,28 @@ class _Params(TypedDict):
     segment_size: int
     segments: int
 
+class _Auroc(TypedDict):
+    auroc: float | None
+
+class _Calibrated(TypedDict):
+    auroc: float | None
+    brier: float | None
+    ece: float | None
+
+class _SignalSet(TypedDict):
+    score: _Auroc
+    margin: _Auroc
+    confidence: _Calibrated
+
+class _Signals(TypedDict):
+    signals: _SignalSet
+
 class _Run(TypedDict):
     params: _Params
     recall_at_1: float | None
     methods: dict[_Method, _MethodResult]
+    # Semantics §14, in single matching only.
+    confidence: NotRequired[_Signals]
 
 class _Evaluation(_Run):
     dataset: str | None

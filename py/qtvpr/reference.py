@@ -750,6 +750,54 @@ def confidence_blocks(s_cal, gt_cal, *, gt_soft=None, query_major=False) -> list
     return _confidence_blocks(s64, gt, ignored)
 
 
+def _auroc(x: np.ndarray, c: np.ndarray) -> float | None:
+    """P(x of a right decision > x of a wrong one), ties one half, over every pair;
+    None without both kinds."""
+    right, wrong = x[c], x[~c]
+    if len(right) == 0 or len(wrong) == 0:
+        return None
+    above = int(np.count_nonzero(right[:, None] > wrong[None, :]))
+    ties = int(np.count_nonzero(right[:, None] == wrong[None, :]))
+    return (above + ties / 2) / (len(right) * len(wrong))
+
+
+def _ece(p: np.ndarray, c: np.ndarray) -> float:
+    """Expected calibration error over 10 equal-width bins of [0, 1] (the last holds
+    1.0): each bin's |mean p - mean c| weighted by its share of the decisions."""
+    total = 0.0
+    bins = np.array([min(math.floor(v * 10), 9) for v in p])
+    for b in range(10):
+        here = bins == b
+        if here.any():
+            total += abs(p[here].mean() - c[here].mean()) * np.count_nonzero(here) / len(p)
+    return total
+
+
+def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
+    """Section 14's evaluation signals over the deployment columns given (soft-only best
+    matches left out): AUROC of s1, margin, confidence; the confidence's Brier and ECE."""
+    blocks = _confidence_blocks(s_cal, gt_cal, ign_cal)
+    best = np.argmax(s_dep, axis=0)
+    cols = np.arange(s_dep.shape[1])
+    kept = ~ign_dep[best, cols]
+    c = gt_dep[best, cols][kept]
+    s1 = s_dep[best, cols][kept]
+    m = _margins(s_dep)[kept]
+    p = np.array([_confidence_of(blocks, float(v))[0] for v in m], dtype=np.float64)
+    calibrated = len(p) > 0 and len(blocks) > 0
+    return {
+        "signals": {
+            "score": {"auroc": _auroc(s1, c)},
+            "margin": {"auroc": _auroc(m, c)},
+            "confidence": {
+                "auroc": _auroc(p, c) if calibrated else None,
+                "brier": float(np.mean((p - c) ** 2)) if calibrated else None,
+                "ece": _ece(p, c) if calibrated else None,
+            },
+        }
+    }
+
+
 # ---------------------------------------------------------------------------------------
 # Section 7: baselines
 # ---------------------------------------------------------------------------------------
@@ -1022,11 +1070,16 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
         "matching": matching,
         **{key: value for key, value in layout.items() if key not in ("calibration", "deploy_fraction", "segment")},
     }
-    return {
+    out = {
         "params": params,
         "recall_at_1": _recall_at_1(s[:, dep_start:end], gt[:, dep_start:end]),
         "methods": report,
     }
+    if matching == "single" and s.shape[0] >= 2:  # section 14's signals
+        out["confidence"] = _confidence_signals(
+            s_cal, gt_cal, ign_cal, s[:, dep_start:end], gt[:, dep_start:end], ignored[:, dep_start:end]
+        )
+    return out
 
 
 def _check_methods(methods, matching: str) -> list:

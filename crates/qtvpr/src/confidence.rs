@@ -148,6 +148,136 @@ impl ConfidenceMap {
     }
 }
 
+/// The evaluation signals of semantics §14 over the protocol's deployment decisions:
+/// how well each signal ranks right above wrong best matches, and how well the
+/// confidence is calibrated. Serialised as
+/// `{"signals": {"score": {"auroc"}, "margin": {"auroc"}, "confidence": {"auroc",
+/// "brier", "ece"}}}`; a figure without the decisions it needs is `null`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Signals {
+    /// AUROC of the best score `s1`.
+    pub score_auroc: Option<f64>,
+    /// AUROC of the margin.
+    pub margin_auroc: Option<f64>,
+    /// AUROC of the confidence.
+    pub confidence_auroc: Option<f64>,
+    /// The confidence's Brier score: the mean of `(confidence - c)^2`.
+    pub brier: Option<f64>,
+    /// The confidence's expected calibration error over 10 equal-width bins of [0, 1].
+    pub ece: Option<f64>,
+}
+
+impl Signals {
+    /// The signals of decisions `(score, margin, correct)` under `map`. AUROCs are
+    /// `None` without a right or without a wrong decision; Brier and ECE are `None`
+    /// without a decision or without a confidence (a map without blocks).
+    pub fn of(decisions: &[(f64, f64, bool)], map: &ConfidenceMap) -> Self {
+        let c: Vec<bool> = decisions.iter().map(|d| d.2).collect();
+        let p: Vec<f64> = decisions.iter().map(|d| map.confidence(d.1)).collect();
+        let scores: Vec<f64> = decisions.iter().map(|d| d.0).collect();
+        let margins: Vec<f64> = decisions.iter().map(|d| d.1).collect();
+        let calibrated = !p.is_empty() && !map.blocks().is_empty();
+        Self {
+            score_auroc: auroc(&scores, &c),
+            margin_auroc: auroc(&margins, &c),
+            confidence_auroc: auroc(&p, &c).filter(|_| calibrated),
+            brier: calibrated.then(|| {
+                p.iter()
+                    .zip(&c)
+                    .map(|(p, &c)| (p - f64::from(u8::from(c))).powi(2))
+                    .sum::<f64>()
+                    / p.len() as f64
+            }),
+            ece: calibrated.then(|| ece(&p, &c)),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl serde::Serialize for Signals {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        struct Auroc(Option<f64>);
+        impl serde::Serialize for Auroc {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+                let mut m = serializer.serialize_map(Some(1))?;
+                m.serialize_entry("auroc", &self.0)?;
+                m.end()
+            }
+        }
+        struct Calibrated<'a>(&'a Signals);
+        impl serde::Serialize for Calibrated<'_> {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+                let mut m = serializer.serialize_map(Some(3))?;
+                m.serialize_entry("auroc", &self.0.confidence_auroc)?;
+                m.serialize_entry("brier", &self.0.brier)?;
+                m.serialize_entry("ece", &self.0.ece)?;
+                m.end()
+            }
+        }
+        struct All<'a>(&'a Signals);
+        impl serde::Serialize for All<'_> {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+                let mut m = serializer.serialize_map(Some(3))?;
+                m.serialize_entry("score", &Auroc(self.0.score_auroc))?;
+                m.serialize_entry("margin", &Auroc(self.0.margin_auroc))?;
+                m.serialize_entry("confidence", &Calibrated(self.0))?;
+                m.end()
+            }
+        }
+        let mut m = serializer.serialize_map(Some(1))?;
+        m.serialize_entry("signals", &All(self))?;
+        m.end()
+    }
+}
+
+/// The probability that a right decision's `x` is above a wrong one's, ties one half
+/// (the Mann-Whitney statistic, from mid-ranks); `None` without both kinds.
+fn auroc(x: &[f64], c: &[bool]) -> Option<f64> {
+    let right = c.iter().filter(|&&c| c).count();
+    let wrong = c.len() - right;
+    if right == 0 || wrong == 0 {
+        return None;
+    }
+    let mut order: Vec<usize> = (0..x.len()).collect();
+    order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
+    // Twice the rank sum of the right decisions, with a group of ties at ranks
+    // a + 1 ..= b sharing (a + 1 + b) / 2: integers throughout.
+    let mut twice_ranks = 0u128;
+    let mut a = 0;
+    while a < order.len() {
+        let mut b = a + 1;
+        while b < order.len() && x[order[b]] == x[order[a]] {
+            b += 1;
+        }
+        let right_here = order[a..b].iter().filter(|&&i| c[i]).count() as u128;
+        twice_ranks += right_here * (a as u128 + 1 + b as u128);
+        a = b;
+    }
+    let (right, wrong) = (right as u128, wrong as u128);
+    // U = rank sum - right (right + 1) / 2, doubled.
+    let twice_u = twice_ranks - right * (right + 1);
+    Some(twice_u as f64 / (2 * right * wrong) as f64)
+}
+
+/// Expected calibration error: over 10 equal-width bins of [0, 1] (bin
+/// `min(floor(10 p), 9)`, so the last holds 1.0), `|mean p - mean c|` weighted by the
+/// bin's share of decisions.
+fn ece(p: &[f64], c: &[bool]) -> f64 {
+    let mut bins = [(0usize, 0.0f64, 0usize); 10];
+    for (&p, &c) in p.iter().zip(c) {
+        let bin = &mut bins[((p * 10.0).floor() as usize).min(9)];
+        bin.0 += 1;
+        bin.1 += p;
+        bin.2 += usize::from(c);
+    }
+    let n = p.len() as f64;
+    bins.iter()
+        .filter(|b| b.0 > 0)
+        .map(|&(count, sum, right)| (sum / count as f64 - right as f64 / count as f64).abs() * count as f64 / n)
+        .sum()
+}
+
 /// Check that decisions in `matching` mode over a database of `n_db` images have a
 /// confidence.
 ///
@@ -289,6 +419,39 @@ mod tests {
             "confidence needs at least 2 database images (a best and a second-best score), got 1"
         );
         assert!(check(Matching::Single, 2).is_ok());
+    }
+
+    #[test]
+    fn signals_by_hand() {
+        // One block below margin 2 (0 of 2) and one from 2 (2 of 2): confidences 0 or 1.
+        let map = ConfidenceMap::fit([(1.0, false), (1.5, false), (2.0, true), (3.0, true)]);
+        // (score, margin, correct): scores 0.9 (right), 0.8 (wrong), 0.8 (right), 0.5
+        // (wrong); margins 3, 1, 2.5, 0.5.
+        let d = [(0.9, 3.0, true), (0.8, 1.0, false), (0.8, 2.5, true), (0.5, 0.5, false)];
+        let s = Signals::of(&d, &map);
+        // Score: right {0.9, 0.8} against wrong {0.8, 0.5}: pairs 0.9>0.8, 0.9>0.5,
+        // 0.8=0.8 (a half), 0.8>0.5: 3.5 / 4.
+        assert_eq!(s.score_auroc, Some(0.875));
+        // Margin: right {3, 2.5} above wrong {1, 0.5}: 1. Confidence: 1, 1 against 0, 0.
+        assert_eq!((s.margin_auroc, s.confidence_auroc), (Some(1.0), Some(1.0)));
+        assert_eq!((s.brier, s.ece), (Some(0.0), Some(0.0)));
+        // A map of one block 1 of 2 (right at 1, wrong at 2: a violator, pooled): every
+        // confidence 0.5; AUROC 0.5 (all tied), Brier 0.25, ECE: one bin (5),
+        // |0.5 - 2/4| = 0.
+        let half = ConfidenceMap::fit([(1.0, true), (2.0, false)]);
+        let s = Signals::of(&d, &half);
+        assert_eq!((s.confidence_auroc, s.brier, s.ece), (Some(0.5), Some(0.25), Some(0.0)));
+        // Bins: p = 0.25 (bin 2, wrong) and 1.0 (bin 9, the last, right), 0.95 (bin 9,
+        // wrong): ECE = 1/3 |0.25 - 0| + 2/3 |0.975 - 1/2| = 0.083333 + 0.316667 = 0.4.
+        assert!((ece(&[0.25, 1.0, 0.95], &[false, true, false]) - 0.4).abs() < 1e-12);
+        // Without a wrong decision, no AUROC; without blocks, no calibration figure.
+        let all_right = Signals::of(&[(0.9, 3.0, true)], &map);
+        assert_eq!((all_right.score_auroc, all_right.brier), (None, Some(0.0)));
+        let none = Signals::of(&d, &ConfidenceMap::fit([]));
+        assert_eq!(
+            (none.score_auroc, none.confidence_auroc, none.brier, none.ece),
+            (Some(0.875), None, None, None)
+        );
     }
 
     proptest! {
