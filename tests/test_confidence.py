@@ -177,6 +177,9 @@ def test_cli_stream_equals_the_wheel(cli, tmp_path):
     cal_path = tmp_path / "cal.npz"
     s_cal, gt_cal = np.load(CORRIDOR / "deploy_S.npy"), np.load(CORRIDOR / "deploy_GT.npy")
     qtvpr.Calibration(s_cal, gt_cal).save(cal_path, window=4)
+    # The file stores no map: loading rebuilds it from s and gt, bit for bit (§12).
+    assert qtvpr.Calibration.load(cal_path).confidence_blocks() == qtvpr.Calibration(s_cal, gt_cal).confidence_blocks()
+    assert ref.Calibration.load(cal_path).confidence_blocks() == ref.Calibration(s_cal, gt_cal).confidence_blocks()
     val = CORRIDOR / "cal_S.npy"
     d = ref.Online(ref.Calibration(s_cal, gt_cal), window=4).push_many(np.load(val))
     out = run_cli(cli, "stream", "--calibration", str(cal_path), "--val", str(val))
