@@ -54,6 +54,9 @@
  * library in the child: the child builds a pool of its own, of the same size, on its
  * first call.
  *
+ * ABI: qtvpr_decision gained confidence and confidence_lower95 (at its end) after
+ * 0.1.0, so it is larger; a program compiled against an older header must be rebuilt.
+ *
  * Link with -lqtvpr (shared), or libqtvpr.a -lpthread -ldl -lm (static).
  */
 
@@ -160,7 +163,8 @@ typedef struct qtvpr_online qtvpr_online;
  * own choice) in both modes. accepted is the number of accepted database entries: in
  * single matching 1 if the best match is accepted (score >= threshold), else 0; in
  * multi matching every entry with a score >= threshold (qtvpr_online_accepted lists
- * them). accept == (accepted > 0).
+ * them). accept == (accepted > 0). confidence and confidence_lower95 (semantics §14)
+ * were added after 0.1.0: the struct is larger, an ABI change.
  */
 typedef struct {
     /**
@@ -211,6 +215,16 @@ typedef struct {
      * threshold (accepted is 1 only with both). NaN without it.
      */
     double gate;
+    /**
+     * The probability that the best match is right: the calibration's hit rate at the
+     * query's margin, whatever the gate. NaN in multi matching (or for a calibration
+     * without a decision).
+     */
+    double confidence;
+    /**
+     * The one-sided 95% Clopper-Pearson lower bound on confidence. NaN where it is.
+     */
+    double confidence_lower95;
 } qtvpr_decision;
 
 #ifdef __cplusplus

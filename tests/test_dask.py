@@ -43,7 +43,7 @@ cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
 TRANSFER_FIELDS = ("thresholds", "quantiles", "query_quantiles", "query_thresholds", "query_weights", "neighbours")
 ONLINE_FIELDS = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accepted",
-                 "accept")
+                 "accept", "confidences", "confidences_lower95")
 
 
 @pytest.fixture(scope="module")
@@ -65,6 +65,9 @@ def assert_same_transfer(got, want):
     for name in TRANSFER_FIELDS:
         a, b = getattr(got, name), getattr(want, name)
         assert a.dtype == b.dtype and np.array_equal(a, b), name
+    for name in ("query_confidences", "query_confidences_lower95"):  # None in multi matching
+        a, b = getattr(got, name), getattr(want, name)
+        assert (a is None and b is None) or np.array_equal(a, b, equal_nan=True), name
 
 
 def assert_same_online(got, want):
@@ -72,7 +75,8 @@ def assert_same_online(got, want):
     assert len(got) == len(want)
     for name in ONLINE_FIELDS:
         a, b = getattr(got, name), getattr(want, name)
-        assert a.dtype == b.dtype and np.array_equal(a, b), name
+        # NaN confidences in multi matching.
+        assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
 
 
 def spedtest(root: Path, technique: str):
@@ -343,10 +347,18 @@ def test_parts_of_different_lengths_are_refused():
     with pytest.raises(ValueError, match="differ in length"):
         qtvpr.TransferResult._from_parts(f, f, [(0, 1), (1, 3)], np.zeros(3), np.zeros(3), np.zeros(2), i)
     q, b = i[:, 0], np.zeros(3, bool)
-    with pytest.raises(ValueError, match=r"differ in length: queries 3, the others \[3, 3, 3, 3, 3, 2, 3, 3, 3, 3\]"):
-        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(2), q, b)
+    c = np.zeros(3)
+    lengths = r"differ in length: queries 3, the others \[3, 3, 3, 3, 3, 2, 3, 3, 3, 3, 3, 3\]"
+    with pytest.raises(ValueError, match=lengths):
+        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(2), q, b, c, c)
+    with pytest.raises(ValueError, match=r"the others \[3, 3, 3, 3, 3, 3, 3, 3, 3, 2, 3, 3\]"):
+        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(3), q, b, c, np.zeros(2))
     with pytest.raises(TypeError):  # every field in both matching modes
-        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(3), None, b)
+        qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(3), None, b, c, c)
+    with pytest.raises(ValueError, match="query_confidences"):
+        qtvpr.TransferResult._from_parts(
+            f, f, [(0, 1), (1, 3)], np.zeros(3), np.zeros(3), np.zeros(3), i, query_confidences=np.zeros(2)
+        )
 
 
 # ---------------------------------------------------------------------------------------

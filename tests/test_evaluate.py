@@ -34,6 +34,13 @@ METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped",
                "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
                "pooled_precision_lower95", "segments"]
 RUN_KEYS = ["params", "recall_at_1", "methods"]
+#: Semantics §14's signals: a run's last key, in single matching only.
+SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "confidence": ["auroc", "brier", "ece"]}
+
+
+def run_of(d: dict) -> dict:
+    """The run's keys of an evaluate() dict, the confidence's where there is one."""
+    return {k: d[k] for k in [*RUN_KEYS, "confidence"] if k in d}
 
 
 @functools.cache
@@ -68,8 +75,15 @@ def key_tree(value):
 def assert_same_run(got: dict, want: dict) -> None:
     """One run: the same keys in the same order; parameters and counts exactly,
     thresholds and figures to 1e-9."""
-    assert list(got) == RUN_KEYS
+    assert list(got) == [*RUN_KEYS, *(["confidence"] if "confidence" in want else [])]
     assert key_tree(got) == key_tree(want)
+    if "confidence" in want:
+        signals = want["confidence"]["signals"]
+        assert {k: list(v) for k, v in signals.items()} == SIGNALS
+        for signal, keys in SIGNALS.items():
+            for key in keys:
+                g, w = got["confidence"]["signals"][signal][key], signals[signal][key]
+                assert same_figure(g, w), (signal, key, g, w)
     assert got["params"] == want["params"]
     assert same_figure(got["recall_at_1"], want["recall_at_1"])
     assert list(got["methods"]) == list(want["methods"])
@@ -96,8 +110,8 @@ def assert_same_run(got: dict, want: dict) -> None:
 
 def assert_same_evaluation(got: dict, want: dict) -> None:
     """``evaluate``'s dicts: ``dataset`` (whatever its value) and one run."""
-    assert list(got) == ["dataset", *RUN_KEYS]
-    assert_same_run({k: got[k] for k in RUN_KEYS}, {k: want[k] for k in RUN_KEYS})
+    assert list(got) == ["dataset", *run_of(want)]
+    assert_same_run(run_of(got), run_of(want))
 
 
 def assert_same_ablation(got: dict, want: dict) -> None:
@@ -259,7 +273,7 @@ def test_cli_ablation_rows_equal_reference(cli, shared_data):
         assert run["params"]["deployment_start"] == 111 - 55
         want = ref.evaluate(s, gt, cal_fraction=f, deploy_fraction=0.5,
                             methods=["quantile-transfer", "calibration-threshold"])
-        assert_same_run(from_json(run), {k: want[k] for k in RUN_KEYS})
+        assert_same_run(from_json(run), run_of(want))
 
 
 # ---------------------------------------------------------------------------------------
@@ -327,7 +341,7 @@ def test_ablation_over_k_and_calibration_size_equals_reference(shared_data, tech
     assert {(r["params"]["deployment_start"], r["params"]["deploy_fraction"]) for r in runs} == {(304, 0.5)}
     # Each run is evaluate() with that setting on the last half.
     one = qtvpr.evaluate(s, gt, k=10, cal_fraction=0.3, deploy_fraction=0.5, methods=kwargs["methods"])
-    assert {k: one[k] for k in RUN_KEYS} == runs[4]
+    assert run_of(one) == runs[4]
     # The oracle depends on the deployment set only.
     assert all(r["methods"]["oracle"] == runs[0]["methods"]["oracle"] for r in runs)
 

@@ -163,12 +163,13 @@ def test_one_gated_file_in_python_the_cli_and_dask(shared_data, cli, tmp_path):
     m_star = cal.gate()
     assert np.all(d.gates == m_star)
 
-    # The CLI's stream: the same eleven fields, the same values.
+    # The CLI's stream: the same thirteen fields, the same values.
     out = run_cli(cli, "stream", "--calibration", str(path), "--val", str(tmp_path / "val.npy"))
     assert out.returncode == 0, out.stderr
     lines = [json.loads(line) for line in out.stdout.splitlines()]
     assert list(lines[0]) == ["query", "query_quantile", "weight", "quantile", "threshold", "best", "score",
-                              "accepted", "accept", "margin", "gate"]
+                              "accepted", "accept", "confidence", "confidence_lower95", "margin", "gate"]
+    close([line["confidence"] for line in lines], d.confidences, 1e-15)
     close([line["margin"] for line in lines], d.margins, 1e-15)
     close([line["gate"] for line in lines], d.gates, 1e-15)
     assert [line["accept"] for line in lines] == d.accept.tolist()

@@ -1016,9 +1016,13 @@ def test_cli_stream_equals_reference(stream_cli, shared_data, tmp_path, dataset,
     for key, name in (("threshold", "thresholds"), ("quantile", "quantiles"),
                       ("query_quantile", "query_quantiles"), ("weight", "weights")):
         assert_close([line[key] for line in lines], getattr(want, name), key)
-    # The nine fields of the decision record, in both matching modes.
+    # The eleven fields of the decision record, in both matching modes (the confidence
+    # null in multi matching).
     assert all(list(line) == ["query", "query_quantile", "weight", "quantile", "threshold", "best", "score",
-                              "accepted", "accept"] for line in lines)
+                              "accepted", "accept", "confidence", "confidence_lower95"] for line in lines)
+    confidences = [math.nan if line["confidence"] is None else line["confidence"] for line in lines]
+    np.testing.assert_allclose(confidences, want.confidences, rtol=0, atol=1e-9)
+    assert all((line["confidence"] is None) == (matching == "multi") for line in lines)
     assert [line["best"] for line in lines] == want.best.tolist()
     assert_close([line["score"] for line in lines], want.score, "score")
     assert [line["accepted"] for line in lines] == want.accepted.tolist()

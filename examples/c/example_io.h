@@ -109,8 +109,17 @@ static void npy_column(const npy_matrix *m, size_t j, void *out) {
         memcpy((char *)out + i * m->itemsize, data + (i * m->cols + j) * m->itemsize, m->itemsize);
 }
 
-/* Print d as `qtvpr-cli stream --format jsonl` does: the nine fields of the decision
- * record, the same keys in the same order in both matching modes, then the margin
+/* A double as the CLI's JSON has it, null for NaN (no confidence) or infinite. */
+static void print_number(double x) {
+    if (x != x || x > DBL_MAX || x < -DBL_MAX)
+        printf("null");
+    else
+        printf("%.17g", x);
+}
+
+/* Print d as `qtvpr-cli stream --format jsonl` does: the eleven fields of the decision
+ * record, the same keys in the same order in both matching modes (confidence and
+ * confidence_lower95 null in multi matching, where they are NaN), then the margin
  * gate's margin and gate when it is on (they are NaN when it is off); %.17g gives
  * every double exactly (the CLI writes the shortest form of the same value, and null
  * for an infinite one: a reject-all gate). */
@@ -119,6 +128,10 @@ static void print_decision(const qtvpr_decision *d) {
            "\"threshold\":%.17g,\"best\":%zu,\"score\":%.17g,\"accepted\":%zu,\"accept\":%s",
            d->query, d->query_quantile, d->weight, d->quantile, d->threshold, d->best, d->score, d->accepted,
            d->accept ? "true" : "false");
+    printf(",\"confidence\":");
+    print_number(d->confidence);
+    printf(",\"confidence_lower95\":");
+    print_number(d->confidence_lower95);
     if (d->margin == d->margin) {
         printf(",\"margin\":%.17g,\"gate\":", d->margin);
         if (d->gate > DBL_MAX)

@@ -109,10 +109,28 @@ class _Params(TypedDict):
     segment_size: int
     segments: int
 
+class _Auroc(TypedDict):
+    auroc: float | None
+
+class _Calibrated(TypedDict):
+    auroc: float | None
+    brier: float | None
+    ece: float | None
+
+class _SignalSet(TypedDict):
+    score: _Auroc
+    margin: _Auroc
+    confidence: _Calibrated
+
+class _Signals(TypedDict):
+    signals: _SignalSet
+
 class _Run(TypedDict):
     params: _Params
     recall_at_1: float | None
     methods: dict[_Method, _MethodResult]
+    # Semantics §14, in single matching only.
+    confidence: NotRequired[_Signals]
 
 class _Evaluation(_Run):
     dataset: str | None
@@ -141,6 +159,10 @@ class TransferResult:
     def gate(self) -> float | None: ...
     @property
     def query_margins(self) -> NDArray[np.float64] | None: ...
+    @property
+    def query_confidences(self) -> NDArray[np.float64] | None: ...
+    @property
+    def query_confidences_lower95(self) -> NDArray[np.float64] | None: ...
     @staticmethod
     def _from_parts(
         thresholds: NDArray[np.float64],
@@ -152,6 +174,8 @@ class TransferResult:
         neighbours: NDArray[np.int64],
         gate: float | None = None,
         query_margins: NDArray[np.float64] | None = None,
+        query_confidences: NDArray[np.float64] | None = None,
+        query_confidences_lower95: NDArray[np.float64] | None = None,
     ) -> TransferResult: ...
 
 @final
@@ -218,6 +242,7 @@ class Calibration:
     ) -> TransferResult: ...
     def threshold(self, precision: float | None = None) -> float: ...
     def gate(self, precision: float | None = None) -> float: ...
+    def confidence_blocks(self) -> list[tuple[float, int, int]]: ...
     def save(
         self,
         path: str | os.PathLike[str],
@@ -276,6 +301,10 @@ class OnlineDecision:
     @property
     def gate(self) -> float | None: ...
     @property
+    def confidence(self) -> float: ...
+    @property
+    def confidence_lower95(self) -> float: ...
+    @property
     def accepted_indices(self) -> NDArray[np.int64]: ...
 
 @final
@@ -302,6 +331,10 @@ class OnlineDecisions:
     def margins(self) -> NDArray[np.float64] | None: ...
     @property
     def gates(self) -> NDArray[np.float64] | None: ...
+    @property
+    def confidences(self) -> NDArray[np.float64]: ...
+    @property
+    def confidences_lower95(self) -> NDArray[np.float64]: ...
     @staticmethod
     def _from_parts(
         queries: NDArray[np.int64],
@@ -313,6 +346,8 @@ class OnlineDecisions:
         score: NDArray[np.float64],
         accepted: NDArray[np.int64],
         accept: NDArray[np.bool_],
+        confidences: NDArray[np.float64],
+        confidences_lower95: NDArray[np.float64],
         margins: NDArray[np.float64] | None = None,
         gates: NDArray[np.float64] | None = None,
     ) -> OnlineDecisions: ...

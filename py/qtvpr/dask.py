@@ -111,6 +111,11 @@ def transfer(
         # Every block has the calibration's m* (or none), and its queries' margins.
         parts[0]["gate"],
         None if parts[0]["gate"] is None else np.concatenate([p["query_margins"] for p in parts]),
+        # Every block has confidences in single matching, none in multi.
+        *(
+            None if parts[0][name] is None else np.concatenate([p[name] for p in parts])
+            for name in ("query_confidences", "query_confidences_lower95")
+        ),
     )
 
 
@@ -167,7 +172,7 @@ def online(
         tasks.append(dask.delayed(_online_block)(cal, block, first, start, params, query_major))
     parts = _computed(tasks)
     fields = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accepted",
-              "accept", "margins", "gates")
+              "accept", "confidences", "confidences_lower95", "margins", "gates")
     return OnlineDecisions._from_parts(
         *(None if parts[0][name] is None else np.concatenate([p[name] for p in parts]) for name in fields)
     )
@@ -257,6 +262,8 @@ def _transfer_block(
             "neighbours": r.neighbours,
             "gate": r.gate,
             "query_margins": r.query_margins,
+            "query_confidences": r.query_confidences,
+            "query_confidences_lower95": r.query_confidences_lower95,
         }
 
     return _caught(run)
@@ -284,6 +291,8 @@ def _online_block(
             "score": d.score,
             "accepted": d.accepted,
             "accept": d.accept,
+            "confidences": d.confidences,
+            "confidences_lower95": d.confidences_lower95,
             "margins": d.margins,
             "gates": d.gates,
         }

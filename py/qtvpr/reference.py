@@ -45,6 +45,7 @@ __all__ = [
     "TransferResult",
     "ablation",
     "best_threshold",
+    "confidence_blocks",
     "counts",
     "evaluate",
     "margins",
@@ -501,7 +502,8 @@ class TransferResult:
     ``query_thresholds`` (the subset threshold t_j, inf for reject-all),
     ``query_weights`` (w_j) and ``neighbours`` (the chosen calibration columns, by
     decreasing correlation). With the margin gate (semantics §13): ``gate`` (m*) and
-    ``query_margins``; None without it.
+    ``query_margins``; None without it. In single matching with |DB| >= 2 (semantics
+    §14): ``query_confidences`` and ``query_confidences_lower95``; None otherwise.
     """
 
     thresholds: np.ndarray
@@ -513,6 +515,8 @@ class TransferResult:
     neighbours: np.ndarray
     gate: float | None = None
     query_margins: np.ndarray | None = None
+    query_confidences: np.ndarray | None = None
+    query_confidences_lower95: np.ndarray | None = None
 
 
 def quantile_transfer(
@@ -584,6 +588,13 @@ def quantile_transfer(
     gated = gate == "margin"
     if gated:
         _check_gated(matching, s_cal64.shape[0])
+    confident = matching == "single" and s_cal64.shape[0] >= 2
+    query_confidences = query_lower = None
+    if confident:
+        blocks = _confidence_blocks(s_cal64, gt, ignored)
+        pairs = [_confidence_of(blocks, float(m)) for m in _margins(s_val64)]
+        query_confidences = np.array([p[0] for p in pairs], dtype=np.float64)
+        query_lower = np.array([p[1] for p in pairs], dtype=np.float64)
     return TransferResult(
         thresholds=thresholds,
         quantiles=quantiles,
@@ -594,6 +605,8 @@ def quantile_transfer(
         neighbours=neighbours,
         gate=_gate(s_cal64, gt, ignored, tau) if gated else None,
         query_margins=_margins(s_val64) if gated else None,
+        query_confidences=query_confidences,
+        query_confidences_lower95=query_lower,
     )
 
 
@@ -649,6 +662,140 @@ def _gate(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray, tau: float) -> flo
     kept = ~ignored[best, cols]
     positives = int(gt.any(axis=0).sum())
     return _sweep(_margins(s)[kept], gt[best, cols][kept], positives, tau)
+
+
+# ---------------------------------------------------------------------------------------
+# Section 14: confidence
+# ---------------------------------------------------------------------------------------
+
+
+def _check_confident(matching: str, n_db: int) -> None:
+    """A confidence is that of a best match: single matching, at least 2 database images."""
+    if matching != "single":
+        raise ValueError(
+            "confidence needs single matching: it is the probability that a query's best match is "
+            "right, and multi matching accepts every database entry at or above the threshold"
+        )
+    if n_db < 2:
+        raise ValueError(
+            f"confidence needs at least 2 database images (a best and a second-best score), got {n_db}"
+        )
+
+
+def _confidence_blocks(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray) -> list[tuple[float, int, int]]:
+    """The maximal blocks ``(lowest margin, n, x)`` of the isotonic fit of the
+    calibration pairs: each calibration query's margin and whether its best match is a
+    hard positive (soft-only best matches left out, as for m*). See :func:`_isotonic_blocks`.
+    """
+    best = np.argmax(s, axis=0)  # the first maximum
+    cols = np.arange(s.shape[1])
+    kept = ~ignored[best, cols]
+    return _isotonic_blocks(_margins(s)[kept], gt[best, cols][kept])
+
+
+def _isotonic_blocks(m: np.ndarray, c: np.ndarray) -> list[tuple[float, int, int]]:
+    """The maximal blocks of the isotonic fit of pairs (margin ``m[i]``, 0/1 ``c[i]``).
+
+    Written as the spec says it, in three passes: equal margins become one point; plain
+    pool-adjacent-violators pools a block with the one before while the one before is
+    strictly greater; then adjacent blocks of equal value are merged. Values are
+    compared as fractions (``x1 * n2`` against ``x2 * n1``), exactly.
+    """
+    order = np.argsort(m, kind="stable")
+    points: list[list] = []  # [lowest margin, n, x]
+    for i in order:
+        if points and points[-1][0] == m[i]:
+            points[-1][1] += 1
+            points[-1][2] += int(c[i])
+        else:
+            points.append([float(m[i]), 1, int(c[i])])
+    blocks: list[list] = []
+    for point in points:
+        blocks.append(list(point))
+        # The block before is a violator when its value x/n is greater than the last's.
+        while len(blocks) > 1 and blocks[-2][2] * blocks[-1][1] > blocks[-1][2] * blocks[-2][1]:
+            last = blocks.pop()
+            blocks[-1][1] += last[1]
+            blocks[-1][2] += last[2]
+    merged: list[list] = []
+    for block in blocks:
+        if merged and merged[-1][2] * block[1] == block[2] * merged[-1][1]:
+            merged[-1][1] += block[1]
+            merged[-1][2] += block[2]
+        else:
+            merged.append(block)
+    return [(b[0], b[1], b[2]) for b in merged]
+
+
+def _confidence_of(blocks: list[tuple[float, int, int]], margin: float) -> tuple[float, float]:
+    """``(confidence, confidence_lower95)`` of a margin: the value x/n of the block with
+    the largest lowest margin <= it (the first block when it is below them all), and
+    section 8's Clopper-Pearson lower bound on that block's x of n; NaN without blocks."""
+    if not blocks:
+        return math.nan, math.nan
+    chosen = blocks[0]
+    for block in blocks:
+        if block[0] <= margin:
+            chosen = block
+    _, n, x = chosen
+    lower = precision_lower95(x, n - x)  # x successes of n: Beta(x, n - x + 1); 0 when x = 0
+    return x / n, lower
+
+
+def confidence_blocks(s_cal, gt_cal, *, gt_soft=None, query_major=False) -> list[tuple[float, int, int]]:
+    """The confidence map of a single-matching calibration (semantics §14): its maximal
+    blocks ``(lowest margin, n, x)`` by ascending margin; empty without a decision."""
+    s64, gt, ignored = _inputs("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, query_major)
+    _check_confident("single", s64.shape[0])
+    return _confidence_blocks(s64, gt, ignored)
+
+
+def _auroc(x: np.ndarray, c: np.ndarray) -> float | None:
+    """P(x of a right decision > x of a wrong one), ties one half, over every pair;
+    None without both kinds."""
+    right, wrong = x[c], x[~c]
+    if len(right) == 0 or len(wrong) == 0:
+        return None
+    above = int(np.count_nonzero(right[:, None] > wrong[None, :]))
+    ties = int(np.count_nonzero(right[:, None] == wrong[None, :]))
+    return (above + ties / 2) / (len(right) * len(wrong))
+
+
+def _ece(p: np.ndarray, c: np.ndarray) -> float:
+    """Expected calibration error over 10 equal-width bins of [0, 1] (the last holds
+    1.0): each bin's |mean p - mean c| weighted by its share of the decisions."""
+    total = 0.0
+    bins = np.array([min(math.floor(v * 10), 9) for v in p])
+    for b in range(10):
+        here = bins == b
+        if here.any():
+            total += abs(p[here].mean() - c[here].mean()) * np.count_nonzero(here) / len(p)
+    return total
+
+
+def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
+    """Section 14's evaluation signals over the deployment columns given (soft-only best
+    matches left out): AUROC of s1, margin, confidence; the confidence's Brier and ECE."""
+    blocks = _confidence_blocks(s_cal, gt_cal, ign_cal)
+    best = np.argmax(s_dep, axis=0)
+    cols = np.arange(s_dep.shape[1])
+    kept = ~ign_dep[best, cols]
+    c = gt_dep[best, cols][kept]
+    s1 = s_dep[best, cols][kept]
+    m = _margins(s_dep)[kept]
+    p = np.array([_confidence_of(blocks, float(v))[0] for v in m], dtype=np.float64)
+    calibrated = len(p) > 0 and len(blocks) > 0
+    return {
+        "signals": {
+            "score": {"auroc": _auroc(s1, c)},
+            "margin": {"auroc": _auroc(m, c)},
+            "confidence": {
+                "auroc": _auroc(p, c) if calibrated else None,
+                "brier": float(np.mean((p - c) ** 2)) if calibrated else None,
+                "ece": _ece(p, c) if calibrated else None,
+            },
+        }
+    }
 
 
 # ---------------------------------------------------------------------------------------
@@ -923,11 +1070,16 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
         "matching": matching,
         **{key: value for key, value in layout.items() if key not in ("calibration", "deploy_fraction", "segment")},
     }
-    return {
+    out = {
         "params": params,
         "recall_at_1": _recall_at_1(s[:, dep_start:end], gt[:, dep_start:end]),
         "methods": report,
     }
+    if matching == "single" and s.shape[0] >= 2:  # section 14's signals
+        out["confidence"] = _confidence_signals(
+            s_cal, gt_cal, ign_cal, s[:, dep_start:end], gt[:, dep_start:end], ignored[:, dep_start:end]
+        )
+    return out
 
 
 def _check_methods(methods, matching: str) -> list:
@@ -1109,7 +1261,9 @@ class OnlineDecision:
     is ``accepted > 0``. ``accepted_indices`` are the accepted database indices,
     ascending. With the margin gate (section 13) ``margin`` is the column's margin and
     ``gate`` m*, and single matching accepts only when ``margin >= gate`` too; both are
-    None without it.
+    None without it. ``confidence`` and ``confidence_lower95`` (section 14) are the
+    calibration's hit rate at the column's margin and its lower bound, whatever the
+    gate; NaN in multi matching.
     """
 
     query: int
@@ -1124,6 +1278,8 @@ class OnlineDecision:
     accepted_indices: np.ndarray
     margin: float | None = None
     gate: float | None = None
+    confidence: float = math.nan
+    confidence_lower95: float = math.nan
 
 
 @dataclass
@@ -1131,8 +1287,8 @@ class OnlineDecisions:
     """The decisions of :meth:`Online.push_many`, one entry per pushed query: the
     fields of :class:`OnlineDecision` as arrays (``queries``, ``query_quantiles``,
     ``weights``, ``quantiles``, ``thresholds``, ``best``, ``score``, ``accepted``,
-    ``accept``, and with the margin gate ``margins`` and ``gates``), in both matching
-    modes."""
+    ``accept``, ``confidences``, ``confidences_lower95``, and with the margin gate
+    ``margins`` and ``gates``), in both matching modes."""
 
     queries: np.ndarray
     query_quantiles: np.ndarray
@@ -1143,6 +1299,8 @@ class OnlineDecisions:
     score: np.ndarray
     accepted: np.ndarray
     accept: np.ndarray
+    confidences: np.ndarray
+    confidences_lower95: np.ndarray
     margins: np.ndarray | None = None
     gates: np.ndarray | None = None
 
@@ -1204,6 +1362,9 @@ class Online:
         if self.gate == "margin":
             _check_gated(calibration.matching, calibration.db_size)
             self._m_star = _gate(calibration._s64, calibration._gt, calibration._ignored, self.precision)
+        self._blocks = None  # the confidence map, in single matching with |DB| >= 2
+        if calibration.matching == "single" and calibration.db_size >= 2:
+            self._blocks = _confidence_blocks(calibration._s64, calibration._gt, calibration._ignored)
         self._columns: list[np.ndarray] = []  # the window's raw columns (float64)
         self._q: list[float] = []
         self._w: list[float] = []
@@ -1232,6 +1393,9 @@ class Online:
         self.threshold = threshold
         b = int(np.argmax(column))  # first maximum on ties: the matcher's choice, both modes
         margin = None if self._m_star is None else float(_margins(column[:, None])[0])
+        confidence = lower = math.nan
+        if self._blocks is not None:
+            confidence, lower = _confidence_of(self._blocks, float(_margins(column[:, None])[0]))
         if cal.matching == "single":
             passes = margin is None or margin >= self._m_star
             indices = np.array([b] if column[b] >= threshold and passes else [], dtype=np.int64)
@@ -1241,6 +1405,7 @@ class Online:
             query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
             threshold=threshold, best=b, score=float(column[b]), accepted=len(indices),
             accept=len(indices) > 0, accepted_indices=indices, margin=margin, gate=self._m_star,
+            confidence=confidence, confidence_lower95=lower,
         )
 
     def push(self, column) -> OnlineDecision:
@@ -1291,6 +1456,8 @@ class Online:
             score=field("score", np.float64),
             accepted=field("accepted", np.int64),
             accept=field("accept", bool),
+            confidences=field("confidence", np.float64),
+            confidences_lower95=field("confidence_lower95", np.float64),
             margins=field("margin", np.float64) if self._m_star is not None else None,
             gates=field("gate", np.float64) if self._m_star is not None else None,
         )
@@ -1374,6 +1541,11 @@ class Calibration:
         precision = self.defaults["precision"] if precision is None else precision
         _check_gated(self.matching, self.db_size)
         return _gate(self._s64, self._gt, self._ignored, _check_precision(precision))
+
+    def confidence_blocks(self) -> list[tuple[float, int, int]]:
+        """The confidence map of section 14: its maximal blocks ``(lowest margin, n, x)``."""
+        _check_confident(self.matching, self.db_size)
+        return _confidence_blocks(self._s64, self._gt, self._ignored)
 
     def save(self, path, *, k=None, precision=None, window=None, gate=None) -> None:
         """Write the semantics §12 ``.npz`` to ``path`` (the name is used as given):

@@ -56,7 +56,8 @@ pub struct qtvpr_online {
 /// own choice) in both modes. accepted is the number of accepted database entries: in
 /// single matching 1 if the best match is accepted (score >= threshold), else 0; in
 /// multi matching every entry with a score >= threshold (qtvpr_online_accepted lists
-/// them). accept == (accepted > 0).
+/// them). accept == (accepted > 0). confidence and confidence_lower95 (semantics §14)
+/// were added after 0.1.0: the struct is larger, an ABI change.
 #[repr(C)]
 #[allow(non_camel_case_types)]
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,6 +88,12 @@ pub struct qtvpr_decision {
     /// With the margin gate: m*, the margin a best match needs besides a score >=
     /// threshold (accepted is 1 only with both). NaN without it.
     pub gate: f64,
+    /// The probability that the best match is right: the calibration's hit rate at the
+    /// query's margin, whatever the gate. NaN in multi matching (or for a calibration
+    /// without a decision).
+    pub confidence: f64,
+    /// The one-sided 95% Clopper-Pearson lower bound on confidence. NaN where it is.
+    pub confidence_lower95: f64,
 }
 
 /// How a calibration matches queries, as qtvpr_calibration_matching returns it.
@@ -423,6 +430,8 @@ fn decision(d: &qtvpr::Decision) -> qtvpr_decision {
         weight: d.weight,
         margin: d.margin.unwrap_or(f64::NAN),
         gate: d.gate.unwrap_or(f64::NAN),
+        confidence: d.confidence,
+        confidence_lower95: d.confidence_lower95,
     }
 }
 

@@ -59,6 +59,8 @@ fn no_decision() -> qtvpr_decision {
         weight: -1.0,
         margin: -1.0,
         gate: -1.0,
+        confidence: -1.0,
+        confidence_lower95: -1.0,
     }
 }
 
@@ -270,6 +272,11 @@ fn pushes_are_the_rust_online_decisions() {
                     (bits(want.margin), bits(want.gate))
                 );
                 assert_eq!(d.margin.is_nan(), gate == Gate::None);
+                // The confidence, whatever the gate (NaN in multi matching).
+                assert_eq!(
+                    (d.confidence.to_bits(), d.confidence_lower95.to_bits()),
+                    (want.confidence.to_bits(), want.confidence_lower95.to_bits())
+                );
                 // The accepted indices, in full and cut to a buffer of 1.
                 let all = rust.accepted();
                 let mut out = [usize::MAX; 4];

@@ -360,6 +360,20 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
             )
             .unwrap();
         }
+        // Semantics §14's signals, in single matching.
+        if let Some(c) = &run.eval.confidence {
+            writeln!(t, "\n| signal | AUROC | Brier | ECE |\n|:--|--:|--:|--:|").unwrap();
+            writeln!(t, "| score | {} | | |", recall(c.score_auroc)).unwrap();
+            writeln!(t, "| margin | {} | | |", recall(c.margin_auroc)).unwrap();
+            writeln!(
+                t,
+                "| confidence | {} | {} | {} |",
+                recall(c.confidence_auroc),
+                recall(c.brier),
+                recall(c.ece)
+            )
+            .unwrap();
+        }
         return t;
     }
     writeln!(
@@ -393,11 +407,17 @@ fn opt(x: Option<f64>) -> String {
     x.map_or(String::new(), |v| v.to_string())
 }
 
+/// Semantics §14's signals of a run as CSV cells (empty in multi matching).
+fn signals(c: Option<&qtvpr::confidence::Signals>) -> String {
+    let cells = c.map(|c| [c.score_auroc, c.margin_auroc, c.confidence_auroc, c.brier, c.ece]);
+    cells.unwrap_or_default().map(opt).join(",")
+}
+
 fn csv(runs: &[Run]) -> String {
     let mut t = String::from(
         "k,calibration_queries,deployment_start,deployment_queries,segment_size,segments,method,\
          pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_precision,pooled_recall,\
-         pooled_precision_lower95,recall_at_1\n",
+         pooled_precision_lower95,recall_at_1,auroc_score,auroc_margin,auroc_confidence,brier,ece\n",
     );
     for run in runs {
         let l = run.eval.layout;
@@ -414,7 +434,7 @@ fn csv(runs: &[Run]) -> String {
             let pooled = m.pooled();
             writeln!(
                 t,
-                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{},{},{}",
+                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{},{},{},{}",
                 run.k,
                 l.calibration_queries,
                 l.deployment_start,
@@ -427,7 +447,8 @@ fn csv(runs: &[Run]) -> String {
                 pooled.precision(),
                 pooled.recall(),
                 opt(pooled.precision_lower95()),
-                opt(run.eval.recall_at_1)
+                opt(run.eval.recall_at_1),
+                signals(run.eval.confidence.as_ref())
             )
             .unwrap();
         }

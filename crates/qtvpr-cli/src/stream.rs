@@ -75,7 +75,7 @@ fn write_line(d: &Decision, format: StreamFormat, out: &mut impl Write) -> io::R
         StreamFormat::Csv => {
             write!(
                 out,
-                "{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{}",
                 d.query,
                 d.query_quantile,
                 d.weight,
@@ -84,7 +84,9 @@ fn write_line(d: &Decision, format: StreamFormat, out: &mut impl Write) -> io::R
                 d.best,
                 d.score,
                 d.accepted,
-                d.accept()
+                d.accept(),
+                d.confidence,
+                d.confidence_lower95
             )?;
             if let (Some(margin), Some(gate)) = (d.margin, d.gate) {
                 write!(out, ",{margin},{gate}")?;

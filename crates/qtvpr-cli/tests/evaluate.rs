@@ -244,7 +244,17 @@ fn table_and_csv() {
         lines[5],
         "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 0.000 | 0.000 |"
     );
-    assert_eq!(lines.len(), 6);
+    // Semantics §14's signals. The calibration's best matches: query 0 right (margin
+    // 0.6 / 0.33993 = 1.765), query 1 wrong (0.55 / 0.31710 = 1.734): blocks 0 of 1 from
+    // 1.734, 1 of 1 from 1.765. Deployment queries 2..6: (s1, margin, c) = (0.7, 1.852,
+    // right), (0.6, 0.463, wrong), (0.5, 1.225, wrong), (0.9, 1.967, wrong); confidences
+    // 1, 0, 0, 1. AUROC: score and margin 2 of 3 pairs; confidence (2 + 1/2) / 3; Brier
+    // (0 + 0 + 0 + 1) / 4; ECE: bin 0 |0 - 0|, bin 9 |1 - 1/2| x 2/4 = 0.25.
+    assert_eq!(lines[7], "| signal | AUROC | Brier | ECE |");
+    assert_eq!(lines[9], "| score | 0.667 | | |");
+    assert_eq!(lines[10], "| margin | 0.667 | | |");
+    assert_eq!(lines[11], "| confidence | 0.833 | 0.250 | 0.250 |");
+    assert_eq!(lines.len(), 12);
 
     let csv = case.ok(&["--format", "csv", "--method", "oracle", "--k", "1,2"]);
     let rows: Vec<&str> = csv.lines().collect();
@@ -256,7 +266,9 @@ fn table_and_csv() {
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
     // Nothing accepted (the oracle of a segment without positives is reject-all): no
     // bound; no deployment query with a hard match: no R@1.
-    assert!(rows[1].ends_with(",1,0,,"), "{csv}");
+    // The signals: queries 4 and 5 are both wrong (no AUROC); confidences 0 and 1, so
+    // Brier (0 + 1) / 2 and ECE 1/2 |0 - 0| + 1/2 |1 - 0|.
+    assert!(rows[1].ends_with(",1,0,,,,,,0.5,0.5"), "{csv}");
 }
 
 #[test]
@@ -283,7 +295,7 @@ fn ablation_json() {
         .collect();
     assert_eq!(settings, [(1, 1), (1, 2), (2, 1), (2, 2)]);
     for r in runs {
-        assert_eq!(keys(r), ["methods", "params", "recall_at_1"]);
+        assert_eq!(keys(r), ["confidence", "methods", "params", "recall_at_1"]);
         assert_eq!(
             (&r["params"]["deployment_start"], &r["params"]["deploy_fraction"]),
             (&json!(4), &json!(0.5))
@@ -380,10 +392,14 @@ fn embedded_demo_data_prints_a_table() {
     );
     let rows: Vec<&str> = text
         .lines()
-        .filter(|l| l.starts_with("| ") && !l.starts_with("| method"))
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| method") && !l.starts_with("| signal"))
         .collect();
-    // Every method, the margin gate's two included (single matching).
-    assert_eq!(rows.len(), 8, "{text}");
+    // Every method, the margin gate's two included (single matching); then the three
+    // signals of semantics §14. The 11 calibration queries' best matches are all right:
+    // one block, every confidence 1, so its AUROC is 1/2, and with 83 of the 100
+    // deployment decisions right its Brier score is 17/100 and its ECE |1 - 0.83|.
+    assert_eq!(rows.len(), 11, "{text}");
+    assert_eq!(rows[10], "| confidence | 0.500 | 0.170 | 0.170 |", "{text}");
     assert!(rows[1].starts_with("| quantile-transfer-online | "), "{text}");
     assert!(rows[3].starts_with("| margin | "), "{text}");
     assert!(rows[7].starts_with("| oracle | 100.0 |"), "{text}");

@@ -118,12 +118,13 @@ impl Case {
 }
 
 /// Parse `stream --format csv` and compare every field with `expected`, bit for bit:
-/// the nine fields of the decision record in both matching modes.
+/// the eleven fields of the decision record in both matching modes (a confidence of
+/// multi matching is NaN).
 fn assert_csv_equals(csv: &str, expected: &[Decision]) {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next(),
-        Some("query,query_quantile,weight,quantile,threshold,best,score,accepted,accept")
+        Some("query,query_quantile,weight,quantile,threshold,best,score,accepted,accept,confidence,confidence_lower95")
     );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), expected.len());
@@ -147,6 +148,12 @@ fn assert_csv_equals(csv: &str, expected: &[Decision]) {
                 v[8]
             ),
             (d.best, d.score.to_bits(), d.accepted, &*d.accept().to_string()),
+            "query {}: {row}",
+            d.query
+        );
+        assert_eq!(
+            (f(v[9]), f(v[10])),
+            (d.confidence.to_bits(), d.confidence_lower95.to_bits()),
             "query {}: {row}",
             d.query
         );
@@ -210,7 +217,12 @@ fn single_matching_stream_equals_online() {
                 "{key}: {l}"
             );
         }
-        assert_eq!(l.as_object().unwrap().len(), 9, "the nine fields of the record: {l}");
+        // The confidence, a probability in single matching.
+        assert_eq!(l["confidence"].as_f64(), Some(d.confidence));
+        assert!((0.0..=1.0).contains(&d.confidence), "{l}");
+        let lower = l["confidence_lower95"].as_f64().unwrap();
+        assert!((lower - d.confidence_lower95).abs() <= 1e-15, "{l}");
+        assert_eq!(l.as_object().unwrap().len(), 11, "the eleven fields of the record: {l}");
     }
 
     // Options override the file: k, precision, window, min-window.
@@ -869,11 +881,11 @@ fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
         let v: Vec<&str> = row.split(',').collect();
         let f = |x: &str| x.parse::<f64>().unwrap().to_bits();
         assert_eq!(
-            (f(v[9]), f(v[10])),
+            (f(v[11]), f(v[12])),
             (d.margin.unwrap().to_bits(), d.gate.unwrap().to_bits())
         );
     }
-    // --gate none overrides the file: the nine fields, the ungated decisions.
+    // --gate none overrides the file: the eleven fields, the ungated decisions.
     let csv = case.ok(&[
         "stream",
         "--calibration",

@@ -400,6 +400,18 @@ impl PyCalibration {
         self.inner.gate(precision).map_err(|e| CAL_ARGS.error(e))
     }
 
+    /// The confidence map (semantics §14): the maximal blocks of the isotonic fit of
+    /// the calibration's single-match decisions (soft-only best matches left out) on
+    /// their margins, by ascending margin, each ``(lowest margin, n, x)``: a margin in
+    /// the block has confidence ``x / n``. Empty for a calibration without a decision.
+    /// Raises ``ValueError`` for a multi-matching calibration, which has no confidence.
+    fn confidence_blocks(&self, py: Python<'_>) -> PyResult<Vec<(f64, usize, usize)>> {
+        let map = py
+            .detach(|| self.inner.confidence_map())
+            .map_err(|e| CAL_ARGS.error(e))?;
+        Ok(map.blocks().iter().map(|b| (b.margin, b.n, b.x)).collect())
+    }
+
     /// The number of calibration queries.
     fn __len__(&self) -> usize {
         self.inner.len()
@@ -429,7 +441,10 @@ impl PyCalibration {
 /// its calibration neighbours, ``inf`` for reject-all), ``query_weights`` and
 /// ``neighbours`` (|Qval| x min(k, |Qcal|) calibration indices, most correlated first).
 /// With the margin gate: ``gate`` (m*, the margin a best match needs) and
-/// ``query_margins`` (every query's margin); both ``None`` without it.
+/// ``query_margins`` (every query's margin); both ``None`` without it. In single
+/// matching: ``query_confidences`` (every query's probability that its best match is
+/// right, semantics §14, whatever the gate) and ``query_confidences_lower95`` (their
+/// one-sided 95% Clopper-Pearson lower bounds); both ``None`` in multi matching.
 #[pyclass(frozen, module = "qtvpr", name = "TransferResult")]
 pub(crate) struct TransferResult {
     /// One threshold per segment (float64).
@@ -461,6 +476,14 @@ pub(crate) struct TransferResult {
     /// without it).
     #[pyo3(get)]
     query_margins: Option<Py<PyArray1<f64>>>,
+    /// In single matching: per deployment query, its confidence (float64; NaN for a
+    /// calibration without a decision; ``None`` in multi matching).
+    #[pyo3(get)]
+    query_confidences: Option<Py<PyArray1<f64>>>,
+    /// In single matching: per deployment query, its confidence's one-sided 95%
+    /// Clopper-Pearson lower bound (float64; ``None`` in multi matching).
+    #[pyo3(get)]
+    query_confidences_lower95: Option<Py<PyArray1<f64>>>,
 }
 
 impl TransferResult {
@@ -477,6 +500,8 @@ impl TransferResult {
             neighbours: out.neighbours.mapv(|i| i as i64).into_pyarray(py).unbind(),
             gate: out.gate,
             query_margins: out.query_margins.map(|m| m.into_pyarray(py).unbind()),
+            query_confidences: out.query_confidences.map(|c| c.into_pyarray(py).unbind()),
+            query_confidences_lower95: out.query_confidences_lower95.map(|c| c.into_pyarray(py).unbind()),
         }
     }
 }
@@ -490,11 +515,12 @@ impl TransferResult {
     /// ``ValueError`` when the per-segment fields (``thresholds``, ``quantiles``,
     /// ``segments``) or the per-query fields (``query_quantiles``,
     /// ``query_thresholds``, ``query_weights``, the rows of ``neighbours``,
-    /// ``query_margins``) differ in length.
+    /// ``query_margins``, ``query_confidences``, ``query_confidences_lower95``) differ in
+    /// length.
     #[staticmethod]
     #[pyo3(signature = (
         thresholds, quantiles, segments, query_quantiles, query_thresholds, query_weights, neighbours,
-        gate = None, query_margins = None,
+        gate = None, query_margins = None, query_confidences = None, query_confidences_lower95 = None,
     ))]
     #[allow(clippy::too_many_arguments)] // the fields
     fn _from_parts(
@@ -507,6 +533,8 @@ impl TransferResult {
         neighbours: Bound<'_, PyArray2<i64>>,
         gate: Option<f64>,
         query_margins: Option<Bound<'_, PyArray1<f64>>>,
+        query_confidences: Option<Bound<'_, PyArray1<f64>>>,
+        query_confidences_lower95: Option<Bound<'_, PyArray1<f64>>>,
     ) -> PyResult<Self> {
         let per_segment = [thresholds.len(), quantiles.len(), segments.len()];
         let per_query = [
@@ -515,11 +543,16 @@ impl TransferResult {
             query_weights.len(),
             neighbours.shape()[0],
             query_margins.as_ref().map_or(query_quantiles.len(), |m| m.len()),
+            query_confidences.as_ref().map_or(query_quantiles.len(), |m| m.len()),
+            query_confidences_lower95
+                .as_ref()
+                .map_or(query_quantiles.len(), |m| m.len()),
         ];
         if per_segment.iter().any(|&n| n != per_segment[0]) || per_query.iter().any(|&n| n != per_query[0]) {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "TransferResult parts differ in length: thresholds, quantiles, segments {per_segment:?}; \
-                 query_quantiles, query_thresholds, query_weights, neighbours rows, query_margins {per_query:?}"
+                 query_quantiles, query_thresholds, query_weights, neighbours rows, query_margins, query_confidences, \
+                 query_confidences_lower95 {per_query:?}"
             )));
         }
         Ok(Self {
@@ -532,6 +565,8 @@ impl TransferResult {
             neighbours: neighbours.unbind(),
             gate,
             query_margins: query_margins.map(Bound::unbind),
+            query_confidences: query_confidences.map(Bound::unbind),
+            query_confidences_lower95: query_confidences_lower95.map(Bound::unbind),
         })
     }
 

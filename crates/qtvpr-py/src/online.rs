@@ -279,6 +279,10 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// score ``>= threshold``; with the margin gate, single matching also needs
 /// ``margin >= gate``) and ``accept`` is ``accepted > 0``. ``margin`` (the query's
 /// margin) and ``gate`` (m*) are those of the margin gate, ``None`` without it.
+/// ``confidence`` is the probability that the best match is right (the calibration's
+/// hit rate at the query's margin, semantics §14), whatever the gate, and
+/// ``confidence_lower95`` its one-sided 95% Clopper-Pearson lower bound; both NaN in
+/// ``"multi"`` matching or for a calibration without a decision.
 /// ``accepted_indices`` are the accepted database indices, ascending (int64).
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecision")]
 pub(crate) struct OnlineDecision {
@@ -315,6 +319,12 @@ pub(crate) struct OnlineDecision {
     /// With the margin gate: m*, the margin the best match needs (``None`` without it).
     #[pyo3(get)]
     gate: Option<f64>,
+    /// The probability that the best match is right (NaN in multi matching).
+    #[pyo3(get)]
+    confidence: f64,
+    /// Its one-sided 95% Clopper-Pearson lower bound (NaN in multi matching).
+    #[pyo3(get)]
+    confidence_lower95: f64,
     /// The accepted database indices, ascending (int64).
     #[pyo3(get)]
     accepted_indices: Py<PyArray1<i64>>,
@@ -334,6 +344,8 @@ impl OnlineDecision {
             accept: d.accept(),
             margin: d.margin,
             gate: d.gate,
+            confidence: d.confidence,
+            confidence_lower95: d.confidence_lower95,
             // Indices are below |DB|, so they fit in an i64.
             accepted_indices: PyArray1::from_iter(py, accepted.iter().map(|&i| i as i64)).unbind(),
         }
@@ -383,8 +395,9 @@ impl OnlineDecision {
 ///
 /// ``queries`` (int64, their indices in arrival order), ``query_quantiles``,
 /// ``weights``, ``quantiles``, ``thresholds`` and ``score`` (float64), ``best`` and
-/// ``accepted`` (int64) and ``accept`` (bool); with the margin gate ``margins`` and
-/// ``gates`` (float64), ``None`` without it.
+/// ``accepted`` (int64), ``accept`` (bool), ``confidences`` and
+/// ``confidences_lower95`` (float64, NaN in multi matching); with the margin gate
+/// ``margins`` and ``gates`` (float64), ``None`` without it.
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecisions")]
 pub(crate) struct OnlineDecisions {
     /// Each query's index in arrival order (int64).
@@ -420,6 +433,12 @@ pub(crate) struct OnlineDecisions {
     /// With the margin gate: each query's m* (``None`` without it).
     #[pyo3(get)]
     gates: Option<Py<PyArray1<f64>>>,
+    /// Each query's confidence (NaN in multi matching).
+    #[pyo3(get)]
+    confidences: Py<PyArray1<f64>>,
+    /// Each confidence's one-sided 95% Clopper-Pearson lower bound.
+    #[pyo3(get)]
+    confidences_lower95: Py<PyArray1<f64>>,
     len: usize,
 }
 
@@ -446,6 +465,8 @@ impl OnlineDecisions {
             accept: PyArray1::from_iter(py, decisions.iter().map(Decision::accept)).unbind(),
             margins: gated(|d| d.margin),
             gates: gated(|d| d.gate),
+            confidences: f64s(|d| d.confidence),
+            confidences_lower95: f64s(|d| d.confidence_lower95),
             len: decisions.len(),
         }
     }
@@ -460,8 +481,8 @@ impl OnlineDecisions {
     /// ``ValueError`` for arrays of different lengths.
     #[staticmethod]
     #[pyo3(signature = (
-        queries, query_quantiles, weights, quantiles, thresholds, best, score, accepted, accept, margins = None,
-        gates = None,
+        queries, query_quantiles, weights, quantiles, thresholds, best, score, accepted, accept, confidences,
+        confidences_lower95, margins = None, gates = None,
     ))]
     #[allow(clippy::too_many_arguments)]
     fn _from_parts(
@@ -474,6 +495,8 @@ impl OnlineDecisions {
         score: Bound<'_, PyArray1<f64>>,
         accepted: Bound<'_, PyArray1<i64>>,
         accept: Bound<'_, PyArray1<bool>>,
+        confidences: Bound<'_, PyArray1<f64>>,
+        confidences_lower95: Bound<'_, PyArray1<f64>>,
         margins: Option<Bound<'_, PyArray1<f64>>>,
         gates: Option<Bound<'_, PyArray1<f64>>>,
     ) -> PyResult<Self> {
@@ -487,6 +510,8 @@ impl OnlineDecisions {
             score.len(),
             accepted.len(),
             accept.len(),
+            confidences.len(),
+            confidences_lower95.len(),
             margins.as_ref().map_or(len, |m| m.len()),
             gates.as_ref().map_or(len, |g| g.len()),
         ];
@@ -507,6 +532,8 @@ impl OnlineDecisions {
             accept: accept.unbind(),
             margins: margins.map(Bound::unbind),
             gates: gates.map(Bound::unbind),
+            confidences: confidences.unbind(),
+            confidences_lower95: confidences_lower95.unbind(),
             len,
         })
     }

@@ -27,6 +27,7 @@
 //! | 11 online thresholds over a causal window | [`online`] |
 //! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
 //! | 13 the margin gate (an extension) | [`margin`] |
+//! | 14 confidence: a calibrated probability per decision (an extension) | [`confidence`] |
 //! | extension: similarity from descriptors | [`similarity`] |
 //! | extension: sequence matching (the paper's future work) | [`sequence`] |
 //! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
@@ -76,6 +77,7 @@ pub mod input;
 pub mod baselines;
 pub mod best_threshold;
 pub mod calibration_file;
+pub mod confidence;
 pub mod decisions;
 pub mod deployment;
 mod error;
@@ -102,6 +104,7 @@ pub mod transfer;
 
 pub use baselines::schubert_threshold;
 pub use best_threshold::best_threshold;
+pub use confidence::ConfidenceMap;
 pub use decisions::{Counts, Matching, counts};
 pub use error::{Error, Result};
 pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate};

@@ -42,7 +42,7 @@ use crate::transfer::{CHUNK_SCORES, Calibration, QueryTransfer};
 
 /// The decision of one deployment query: the record of semantics §11, the same values
 /// in every front end (the CLI's `stream` line, Python, C) and in both matching modes.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 pub struct Decision {
     /// Its index in arrival order, from 0.
     pub query: usize,
@@ -67,12 +67,18 @@ pub struct Decision {
     pub margin: Option<f64>,
     /// With the margin gate: `m*`, the margin the best match needs.
     pub gate: Option<f64>,
+    /// semantics §14: the probability that the best match is right, the calibration's
+    /// hit rate at the column's margin, whatever the gate; NaN in multi matching, with
+    /// fewer than 2 database images, or when the calibration has no decision.
+    pub confidence: f64,
+    /// The one-sided 95% Clopper-Pearson lower bound on `confidence` (NaN where it is).
+    pub confidence_lower95: f64,
 }
 
 impl Decision {
-    /// The names of the record's fields (semantics §11), in order: what it serialises to,
-    /// and the columns of a table of decisions.
-    pub const FIELDS: [&'static str; 9] = [
+    /// The names of the record's fields (semantics §11, and §14's confidence), in order:
+    /// what it serialises to, and the columns of a table of decisions.
+    pub const FIELDS: [&'static str; 11] = [
         "query",
         "query_quantile",
         "weight",
@@ -82,6 +88,8 @@ impl Decision {
         "score",
         "accepted",
         "accept",
+        "confidence",
+        "confidence_lower95",
     ];
 
     /// The fields a gated record has besides [`Decision::FIELDS`] (semantics §13).
@@ -100,7 +108,40 @@ impl Decision {
     }
 }
 
-/// [`Decision::FIELDS`] in order; then, with the margin gate, `margin` and `gate`.
+/// Every field equal, a NaN confidence equal to a NaN confidence (it stands for "none",
+/// as JSON's `null` does), so that the records of multi matching compare as values.
+impl PartialEq for Decision {
+    fn eq(&self, other: &Self) -> bool {
+        let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+        (
+            self.query,
+            self.query_quantile,
+            self.weight,
+            self.quantile,
+            self.threshold,
+            self.best,
+            self.score,
+            self.accepted,
+            self.margin,
+            self.gate,
+        ) == (
+            other.query,
+            other.query_quantile,
+            other.weight,
+            other.quantile,
+            other.threshold,
+            other.best,
+            other.score,
+            other.accepted,
+            other.margin,
+            other.gate,
+        ) && same(self.confidence, other.confidence)
+            && same(self.confidence_lower95, other.confidence_lower95)
+    }
+}
+
+/// [`Decision::FIELDS`] in order (a NaN confidence is JSON's `null`); then, with the
+/// margin gate, `margin` and `gate`.
 #[cfg(feature = "serde")]
 impl serde::Serialize for Decision {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
@@ -116,8 +157,11 @@ impl serde::Serialize for Decision {
             score,
             accepted,
             accept,
+            confidence,
+            confidence_lower95,
         ] = Self::FIELDS;
-        let mut s = serializer.serialize_struct("Decision", if gated.is_some() { 11 } else { 9 })?;
+        let len = Self::FIELDS.len() + if gated.is_some() { Self::GATE_FIELDS.len() } else { 0 };
+        let mut s = serializer.serialize_struct("Decision", len)?;
         s.serialize_field(query, &self.query)?;
         s.serialize_field(query_quantile, &self.query_quantile)?;
         s.serialize_field(weight, &self.weight)?;
@@ -127,6 +171,10 @@ impl serde::Serialize for Decision {
         s.serialize_field(score, &self.score)?;
         s.serialize_field(accepted, &self.accepted)?;
         s.serialize_field(accept, &self.accept())?;
+        // `Option`, so that a NaN is `null` in every serialiser, not only serde_json.
+        let finite = |x: f64| (!x.is_nan()).then_some(x);
+        s.serialize_field(confidence, &finite(self.confidence))?;
+        s.serialize_field(confidence_lower95, &finite(self.confidence_lower95))?;
         if let Some((m, g)) = gated {
             let [margin, gate] = Self::GATE_FIELDS;
             s.serialize_field(margin, &m)?;
@@ -169,6 +217,9 @@ pub struct Online {
     threshold: Option<f64>,
     /// `m*` with the margin gate.
     gate: Option<f64>,
+    /// Whether a push finds its column's margin: with the gate, or for the confidence
+    /// (semantics §14: single matching, |DB| >= 2).
+    with_margin: bool,
     /// Buffers a push reuses (a fresh |DB|-long buffer per push would cost the kernel
     /// zeroing its pages every time): a [`Scratch`] of the type last pushed, and the
     /// standardised profile.
@@ -197,6 +248,8 @@ impl Online {
     pub fn new(calibration: Arc<Calibration>, params: OnlineParams) -> Result<Online> {
         params.validate()?;
         let gate = calibration.gate_of(params.gate, params.precision)?;
+        // The confidence map is found here, once, not by the first push.
+        let with_margin = gate.is_some() || calibration.confidence_of_decisions().is_some();
         let n_db = calibration.db_size();
         // The full window holds `window x |DB|` scores as f64 (and a q and w per
         // query): a window whose state exceeds what any allocation can hold would only
@@ -226,6 +279,7 @@ impl Online {
             accepted: Vec::new(),
             threshold: None,
             gate,
+            with_margin,
             scratch: None,
             profile: Vec::new(),
         })
@@ -271,7 +325,7 @@ impl Online {
         let p = &self.params;
         let r = self
             .calibration
-            .query(ranked, 0, p.k, p.precision, p.gate, &mut self.profile);
+            .query(ranked, 0, p.k, p.precision, self.with_margin, &mut self.profile);
         self.reserve()?;
         Ok(self.commit(ranked.column(0), column, r))
     }
@@ -393,7 +447,7 @@ impl Online {
 
     fn per_query<T: Score>(&self, ranked: &Ranked<T>) -> Vec<QueryTransfer> {
         let p = &self.params;
-        self.calibration.queries(ranked, p.k, p.precision, p.gate)
+        self.calibration.queries(ranked, p.k, p.precision, self.with_margin)
     }
 
     /// Make room for one more query while the window fills: doubling, up to the full
@@ -477,6 +531,10 @@ impl Online {
         }
         self.pushed += 1;
         self.threshold = Some(threshold);
+        let (confidence, confidence_lower95) = r
+            .margin
+            .zip(self.calibration.confidence_of_decisions())
+            .map_or((f64::NAN, f64::NAN), |(m, map)| map.of(m));
         Decision {
             query,
             query_quantile: r.quantile,
@@ -486,8 +544,10 @@ impl Online {
             best,
             score,
             accepted: self.accepted.len(),
-            margin: r.margin,
+            margin: self.gate.and(r.margin),
             gate: self.gate,
+            confidence,
+            confidence_lower95,
         }
     }
 }

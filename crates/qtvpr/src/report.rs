@@ -53,6 +53,9 @@
 //!     methods only, semantics §13: `m*`; reject-all is `null` / `inf`), `tp`, `fp`,
 //!     `positives`, `precision` (1 when nothing is accepted), `recall` (0 without
 //!     positives), `precision_lower95` and `meets` (precision >= tau - 1e-12).
+//! - `confidence` (single matching with |DB| >= 2 only, semantics §14): `{"signals":
+//!   {"score": {"auroc"}, "margin": {"auroc"}, "confidence": {"auroc", "brier",
+//!   "ece"}}}` over the full segments' decisions ([`Signals`]).
 //!
 //! `precision_lower95` is the one-sided 95% Clopper-Pearson lower bound on the
 //! precision, the 0.05 quantile of Beta(TP, FP + 1) ([`Counts::precision_lower95`]): 0
@@ -62,7 +65,8 @@
 //! # An ablation (`evaluate --k 1,3,5 ...`, `qtvpr.ablation`)
 //!
 //! `dataset` as above, and `ablation`: a list with one object per setting
-//! ([`Ablation`]), each with the `params`, `recall_at_1` and `methods` of one run. Every
+//! ([`Ablation`]), each with the `params`, `recall_at_1`, `methods` (and `confidence`)
+//! of one run. Every
 //! run shares the deployment set (see [`ablation`](crate::evaluate::ablation)).
 //!
 //! # `threshold`
@@ -86,6 +90,7 @@
 //! [`MethodResult`]: crate::evaluate::MethodResult
 //! [`SegmentResult`]: crate::evaluate::SegmentResult
 //! [`Ablation`]: crate::evaluate::Ablation
+//! [`Signals`]: crate::confidence::Signals
 //! [`Counts::precision_lower95`]: crate::Counts::precision_lower95
 //! [`Params`]: crate::Params
 //! [`Segment`]: crate::Segment

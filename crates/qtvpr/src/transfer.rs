@@ -26,6 +26,7 @@ use ndarray::{Array2, ArrayView2, ArrayViewMut2, ShapeBuilder};
 use rayon::prelude::*;
 
 use crate::best_threshold::subset_threshold;
+use crate::confidence::{self, ConfidenceMap};
 use crate::decisions::{Candidates, Matching};
 use crate::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
 use crate::error::{Error, Result};
@@ -54,7 +55,7 @@ pub struct Segment {
 }
 
 /// Result of [`Calibration::transfer`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Transfer {
     /// One threshold per segment, in order.
     pub segments: Vec<Segment>,
@@ -71,6 +72,35 @@ pub struct Transfer {
     pub gate: Option<f64>,
     /// With the margin gate: every deployment query's margin.
     pub query_margins: Option<Vec<f64>>,
+    /// In single matching (semantics §14): every deployment query's confidence, the
+    /// calibration's hit rate at its margin (NaN for a calibration without a decision);
+    /// `None` in multi matching or with fewer than 2 database images.
+    pub query_confidences: Option<Vec<f64>>,
+    /// Beside [`Transfer::query_confidences`]: the one-sided 95% Clopper-Pearson lower
+    /// bound of each.
+    pub query_confidences_lower95: Option<Vec<f64>>,
+}
+
+/// Every field equal, a NaN confidence (a calibration without a decision) equal to a
+/// NaN confidence, so that transfers compare as values.
+impl PartialEq for Transfer {
+    fn eq(&self, other: &Self) -> bool {
+        let same = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>| match (a, b) {
+            (Some(a), Some(b)) => {
+                a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+            }
+            (a, b) => a.is_none() && b.is_none(),
+        };
+        self.segments == other.segments
+            && self.query_quantiles == other.query_quantiles
+            && self.query_thresholds == other.query_thresholds
+            && self.query_weights == other.query_weights
+            && self.neighbours == other.neighbours
+            && self.gate == other.gate
+            && self.query_margins == other.query_margins
+            && same(&self.query_confidences, &other.query_confidences)
+            && same(&self.query_confidences_lower95, &other.query_confidences_lower95)
+    }
 }
 
 /// A calibration traverse with ground truth, ready to transfer thresholds.
@@ -100,6 +130,9 @@ pub struct Calibration {
     /// first request for a gate (a pass over every profile that a calibration never
     /// gated should not pay).
     margins: OnceLock<CalibrationMargins>,
+    /// The confidence map of semantics §14, fitted to those decisions on the first
+    /// request for a confidence.
+    confidence: OnceLock<ConfidenceMap>,
 }
 
 /// What the calibration gives one deployment query (semantics §4 and §5).
@@ -113,7 +146,8 @@ pub(crate) struct QueryTransfer {
     pub(crate) threshold: f64,
     /// The quantile `q_j` of that threshold.
     pub(crate) quantile: f64,
-    /// Its margin (semantics §13), when the gate asks for it.
+    /// Its margin (semantics §13), when the gate or the confidence (semantics §14) asks
+    /// for it.
     pub(crate) margin: Option<f64>,
 }
 
@@ -267,6 +301,7 @@ impl Calibration {
             input,
             defaults: Defaults::default(),
             margins: OnceLock::new(),
+            confidence: OnceLock::new(),
         }
     }
 
@@ -335,7 +370,8 @@ impl Calibration {
     /// semantics §4 and §5 for every column of a block ranked by
     /// [`Calibration::rank`]: each query's `k` neighbours (their correlations computed
     /// in `f64` where the screen's bounds leave doubt) and weight, their
-    /// subset threshold at `precision`, and its quantile. The one place a deployment
+    /// subset threshold at `precision`, and its quantile (and its margin when `margin`,
+    /// for the gate or the confidence). The one place a deployment
     /// query's `q_j` and `w_j` are computed, for the batch transfer and for
     /// [`crate::Online`] alike; in parallel over the block.
     pub(crate) fn queries<T: Score>(
@@ -343,14 +379,14 @@ impl Calibration {
         ranked: &Ranked<T>,
         k: usize,
         precision: f64,
-        gate: Gate,
+        margin: bool,
     ) -> Vec<QueryTransfer> {
         threads::install(|| {
             (0..ranked.ncols())
                 .into_par_iter()
                 .map_init(
                     || vec![0.0; self.n_db],
-                    |u, j| self.query(ranked, j, k, precision, gate, u),
+                    |u, j| self.query(ranked, j, k, precision, margin, u),
                 )
                 .collect()
         })
@@ -364,7 +400,7 @@ impl Calibration {
         j: usize,
         k: usize,
         precision: f64,
-        gate: Gate,
+        margin: bool,
         u: &mut [f64],
     ) -> QueryTransfer {
         ranked.profile(j, u);
@@ -378,7 +414,7 @@ impl Calibration {
             weight,
             threshold,
             quantile,
-            margin: gate.is_on().then(|| margin::of_sorted(ranked.column(j))),
+            margin: margin.then(|| margin::of_sorted(ranked.column(j))),
         }
     }
 
@@ -418,7 +454,13 @@ impl Calibration {
     pub fn gate(&self, precision: f64) -> Result<f64> {
         margin::check(self.matching, self.n_db)?;
         check_precision(precision)?;
-        let margins = self.margins.get_or_init(|| {
+        Ok(self.calibration_margins().gate(precision))
+    }
+
+    /// The calibration's single-match decisions with their margins, found on the first
+    /// request (for the gate or the confidence). Single matching with |DB| >= 2 only.
+    fn calibration_margins(&self) -> &CalibrationMargins {
+        self.margins.get_or_init(|| {
             let of_columns: Vec<f64> = threads::install(|| {
                 (0..self.len())
                     .into_par_iter()
@@ -426,8 +468,27 @@ impl Calibration {
                     .collect()
             });
             CalibrationMargins::new(&of_columns, &self.candidates)
-        });
-        Ok(margins.gate(precision))
+        })
+    }
+
+    /// The confidence map of semantics §14: the isotonic fit of the calibration's
+    /// single-match decisions (soft-only best matches left out) on their margins,
+    /// found on the first request. Without a decision it has no blocks, and gives NaN.
+    ///
+    /// # Errors
+    /// A multi-match calibration or one of fewer than 2 database images
+    /// ([`confidence::check`]).
+    pub fn confidence_map(&self) -> Result<&ConfidenceMap> {
+        confidence::check(self.matching, self.n_db)?;
+        Ok(self
+            .confidence
+            .get_or_init(|| ConfidenceMap::fit(self.calibration_margins().pairs())))
+    }
+
+    /// The map when this calibration's decisions have a confidence (single matching,
+    /// |DB| >= 2), else `None`: what a decision record reads.
+    pub(crate) fn confidence_of_decisions(&self) -> Option<&ConfidenceMap> {
+        self.confidence_map().ok()
     }
 
     /// `Some(m*)` when `gate` is on, checked against this calibration.
@@ -551,6 +612,10 @@ impl Calibration {
         let k = params.k.min(self.len());
         let gate = self.gate_of(params.gate, params.precision)?;
         let mut query_margins = gate.map(|_| vec![0.0; n_val]);
+        // Found before the parallel loops, which only read it.
+        let confidence = self.confidence_of_decisions();
+        let mut query_confidences = confidence.map(|_| (vec![0.0; n_val], vec![0.0; n_val]));
+        let with_margin = gate.is_some() || confidence.is_some();
 
         let mut query_quantiles = vec![0.0; n_val];
         let mut query_thresholds = vec![0.0; n_val];
@@ -576,7 +641,7 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             source.rank(&mut ranked, start..end)?;
-            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, params.gate)) {
+            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, with_margin)) {
                 neighbours
                     .row_mut(j)
                     .iter_mut()
@@ -585,6 +650,10 @@ impl Calibration {
                 (query_weights[j], query_thresholds[j], query_quantiles[j]) = (r.weight, r.threshold, r.quantile);
                 if let (Some(m), Some(margin)) = (query_margins.as_mut(), r.margin) {
                     m[j] = margin;
+                }
+                if let (Some((c, lower)), Some(map), Some(margin)) = (query_confidences.as_mut(), confidence, r.margin)
+                {
+                    (c[j], lower[j]) = map.of(margin);
                 }
             }
             if in_chunks {
@@ -620,6 +689,8 @@ impl Calibration {
             neighbours,
             gate,
             query_margins,
+            query_confidences: query_confidences.as_ref().map(|c| c.0.clone()),
+            query_confidences_lower95: query_confidences.map(|c| c.1),
         })
     }
 }

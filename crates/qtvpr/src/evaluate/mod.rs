@@ -37,10 +37,11 @@ use rayon::prelude::*;
 
 use crate::baselines::schubert;
 use crate::best_threshold::subset_threshold;
+use crate::confidence::{ConfidenceMap, Signals};
 use crate::decisions::{Candidates, Matching};
 use crate::error::Result;
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
-use crate::margin::{self, Gate};
+use crate::margin::{self, CalibrationMargins, Gate};
 use crate::names::Input;
 use crate::params::{Options, Params};
 use crate::source::ScoreSource;
@@ -135,12 +136,27 @@ fn evaluate_matrix<T: Score>(
         .transpose()?;
     // The gate's margins (of scores validated above) and m*, and the quantile-transfer
     // thresholds: each found once for the methods that share them.
+    let confident = protocol.matching == Matching::Single && s.nrows() >= 2;
+    let dep_margins = (gated || confident).then(|| margin::of_columns(s_dep));
     let gate = if gated {
         let cal = calibration.as_ref().expect("built for the gate");
-        Some((margin::of_columns(s_dep), cal.gate(tau)?))
+        Some((dep_margins.clone().expect("found for the gate"), cal.gate(tau)?))
     } else {
         None
     };
+    // Semantics §14: the calibration's map, from its own margins and decisions, and the
+    // signals of the full segments' decisions.
+    let confidence = dep_margins.as_ref().filter(|_| confident).map(|margins| {
+        let cal = Candidates::new(s_cal, gt_cal, Matching::Single);
+        let map = ConfidenceMap::fit(CalibrationMargins::new(&margin::of_columns(s_cal), &cal).pairs());
+        let decisions: Vec<(f64, f64, bool)> = (0..deployment.ncols())
+            .filter_map(|j| {
+                let (scores, correct) = deployment.column(j);
+                correct.first().map(|&c| (scores[0], margins[j], c))
+            })
+            .collect();
+        Signals::of(&decisions, &map)
+    });
     let transferred = if unique
         .iter()
         .any(|m| matches!(m, Method::QuantileTransfer | Method::QuantileTransferMargin))
@@ -198,6 +214,7 @@ fn evaluate_matrix<T: Score>(
         layout,
         recall_at_1,
         methods: results,
+        confidence,
         deployment,
     })
 }

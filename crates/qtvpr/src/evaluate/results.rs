@@ -104,6 +104,12 @@ pub struct Evaluation {
     /// serialised as an object keyed by method name.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::report::serialize::methods"))]
     pub methods: Vec<MethodResult>,
+    /// In single matching with |DB| >= 2, semantics §14's signals over the full
+    /// segments' decisions (soft-only best matches left out): the AUROC of the best
+    /// score, the margin and the confidence, and the confidence's Brier score and ECE.
+    /// Serialised as `confidence`, left out otherwise.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
+    pub confidence: Option<crate::confidence::Signals>,
     /// The candidates of the full segments' queries, for the precision-recall curve.
     #[cfg_attr(feature = "serde", serde(skip))]
     pub(super) deployment: Candidates,
@@ -357,7 +363,15 @@ mod tests {
             k.sort();
             k
         };
-        assert_eq!(keys(&v), ["dataset", "methods", "params", "recall_at_1"]);
+        assert_eq!(keys(&v), ["confidence", "dataset", "methods", "params", "recall_at_1"]);
+        // Semantics §14's signals, in single matching.
+        assert_eq!(keys(&v["confidence"]), ["signals"]);
+        assert_eq!(keys(&v["confidence"]["signals"]), ["confidence", "margin", "score"]);
+        assert_eq!(
+            keys(&v["confidence"]["signals"]["confidence"]),
+            ["auroc", "brier", "ece"]
+        );
+        assert_eq!(keys(&v["confidence"]["signals"]["score"]), ["auroc"]);
         assert_eq!(
             keys(&v["params"]),
             [
@@ -430,7 +444,10 @@ mod tests {
         })
         .unwrap();
         assert_eq!(keys(&v), ["ablation", "dataset"]);
-        assert_eq!(keys(&v["ablation"][1]), ["methods", "params", "recall_at_1"]);
+        assert_eq!(
+            keys(&v["ablation"][1]),
+            ["confidence", "methods", "params", "recall_at_1"]
+        );
         assert_eq!(v["ablation"][1]["params"]["k"], 2);
     }
 }

@@ -1,0 +1,242 @@
+"""Confidence (semantics §14) in Python: the NumPy reference's pool-adjacent-violators
+fit by hand and its properties, then the wheel against the reference (its blocks, the
+batch transfer's ``query_confidences``, ``Online``) and against the CLI's ``stream``, on
+the embedded Corridor data and, where present, the real matrices of ``../shared/data``.
+
+The same scenarios are tested in Rust (crates/qtvpr/src/confidence.rs,
+crates/qtvpr/tests/confidence.rs, crates/qtvpr-cli/tests/online.rs).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import qtvpr
+from qtvpr import reference as ref
+from test_cli import run_cli
+
+CORRIDOR = Path(__file__).resolve().parents[1] / "data" / "corridor"
+DATASETS = {"corridor": "vprbench-corridor", "spedtest": "vprbench-spedtest"}
+TECHNIQUES = ["AlexNet_VPR", "CALC", "HOG", "NetVLAD", "denseVLAD"]
+MULTI_WHY = "confidence needs single matching"
+
+
+def blocks(pairs):
+    m = np.array([p[0] for p in pairs], dtype=np.float64)
+    c = np.array([p[1] for p in pairs], dtype=bool)
+    return ref._isotonic_blocks(m, c)
+
+
+def close(a, b, tol=1e-9):
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    assert a.shape == b.shape
+    assert np.allclose(a, b, rtol=tol, atol=tol, equal_nan=True), np.nanmax(np.abs(a - b))
+
+
+# ---------------------------------------------------------------------------------------
+# The reference by hand
+# ---------------------------------------------------------------------------------------
+
+
+def test_pava_by_hand():
+    # One pair: one block.
+    assert blocks([(0.7, 1)]) == [(0.7, 1, 1)]
+    # All correct, all wrong: one block each, at the lowest margin.
+    assert blocks([(2.0, 1), (0.5, 1), (1.0, 1), (3.0, 1)]) == [(0.5, 4, 4)]
+    assert blocks([(2.0, 0), (0.5, 0), (1.0, 0)]) == [(0.5, 3, 0)]
+    # Ties are one point: (1: 1/2), (2: 2/3), increasing, two blocks.
+    assert blocks([(1.0, 0), (2.0, 1), (1.0, 1), (2.0, 0), (2.0, 1)]) == [(1.0, 2, 1), (2.0, 3, 2)]
+    # Equal values at distinct margins merge: (1: 1/2), (2: 1/2), (3: 1/1).
+    assert blocks([(1.0, 1), (1.0, 0), (2.0, 0), (2.0, 1), (3.0, 1)]) == [(1.0, 4, 2), (3.0, 1, 1)]
+    # A tie is pooled whole: (1: 1/1) and (2: 1/2) violate, 2/3.
+    assert blocks([(1.0, 1), (2.0, 0), (2.0, 1)]) == [(1.0, 3, 2)]
+    # A violator chain, c = 1 0 1 0 0 1 at margins 1..6: 2/5 from 1, then 1/1 at 6.
+    assert blocks([(i + 1.0, c) for i, c in enumerate([1, 0, 1, 0, 0, 1])]) == [(1.0, 5, 2), (6.0, 1, 1)]
+
+
+def test_confidence_of_a_margin_by_hand():
+    b = [(1.0, 5, 2), (6.0, 1, 1)]
+    assert ref._confidence_of(b, 0.0) == (0.4, ref.precision_lower95(2, 3))  # below all: the first
+    assert ref._confidence_of(b, 5.9)[0] == 0.4
+    # 1 of 1: the bound is 0.05^(1/1).
+    assert ref._confidence_of(b, 6.0) == (1.0, pytest.approx(0.05, abs=1e-15))
+    # 1 of 2: the 0.05 quantile of Beta(1, 2), 1 - sqrt(0.95).
+    assert ref._confidence_of([(0.0, 2, 1)], 3.0)[1] == pytest.approx(1 - math.sqrt(0.95), abs=1e-15)
+    assert ref._confidence_of([(0.0, 3, 0)], 3.0) == (0.0, 0.0)
+    nan = ref._confidence_of([], 1.0)
+    assert math.isnan(nan[0]) and math.isnan(nan[1])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(
+    st.lists(st.tuples(st.integers(0, 11), st.booleans()), min_size=1, max_size=40),
+    st.lists(st.floats(-1.0, 7.0), min_size=1, max_size=20),
+)
+def test_reference_properties(pairs, probes):
+    b = blocks([(m / 2, c) for m, c in pairs])
+    assert sum(n for _, n, _ in b) == len(pairs) and sum(x for *_, x in b) == sum(c for _, c in pairs)
+    values = [x / n for _, n, x in b]
+    assert all(a < z for a, z in zip(values, values[1:], strict=False))  # maximal, increasing
+    last = 0.0
+    for m in sorted(probes):
+        c, lower = ref._confidence_of(b, m)
+        assert 0.0 <= lower <= c <= 1.0
+        assert c >= last
+        last = c
+
+
+# ---------------------------------------------------------------------------------------
+# The wheel against the reference
+# ---------------------------------------------------------------------------------------
+
+
+def assert_same_blocks(got, want):
+    assert [(n, x) for _, n, x in got] == [(n, x) for _, n, x in want]
+    close([m for m, *_ in got], [m for m, *_ in want], 1e-12)
+
+
+def check_parity(s_cal, gt_cal, s_val, window=7, segment_size=10):
+    cal, want_cal = qtvpr.Calibration(s_cal, gt_cal), ref.Calibration(s_cal, gt_cal)
+    assert_same_blocks(cal.confidence_blocks(), want_cal.confidence_blocks())
+    for gate in ("none", "margin"):
+        got = cal.transfer(s_val, segment_size=segment_size, gate=gate)
+        want = want_cal.transfer(s_val, segment_size=segment_size, gate=gate)
+        close(got.query_confidences, want.query_confidences)
+        close(got.query_confidences_lower95, want.query_confidences_lower95)
+        d = qtvpr.Online(cal, window=window, gate=gate).push_many(s_val)
+        w = ref.Online(want_cal, window=window, gate=gate).push_many(s_val)
+        close(d.confidences, w.confidences)
+        close(d.confidences_lower95, w.confidences_lower95)
+        # The batch and the stream give each query the same confidence, whatever the gate.
+        assert np.array_equal(d.confidences, got.query_confidences)
+        assert np.all(d.confidences_lower95 <= d.confidences)
+        one = qtvpr.Online(cal, window=window, gate=gate).push(s_val[:, 0])
+        assert (one.confidence, one.confidence_lower95) == (d.confidences[0], d.confidences_lower95[0])
+    return cal, d
+
+
+def test_wheel_equals_reference_on_the_embedded_corridor():
+    # The embedded deployment half calibrates (83 of its 100 best matches are right, six
+    # blocks); the embedded calibration half is decided. And the other way round: the
+    # calibration's 11 best matches are all right, one block.
+    s_val, s_cal = np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "deploy_S.npy")
+    gt_cal = np.load(CORRIDOR / "deploy_GT.npy")
+    cal, d = check_parity(s_cal, gt_cal, s_val, window=4, segment_size=4)
+    assert [(n, x) for _, n, x in cal.confidence_blocks()] == [(2, 0), (2, 1), (31, 24), (25, 20), (28, 26), (12, 12)]
+    assert {0.0, 0.8, 1.0} <= set(d.confidences.tolist())
+    cal, _ = check_parity(np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "cal_GT.npy"),
+                          np.load(CORRIDOR / "deploy_S.npy"))
+    assert [(n, x) for _, n, x in cal.confidence_blocks()] == [(11, 11)]
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("dataset", DATASETS)
+def test_wheel_equals_reference_on_real_data(shared_data, dataset, technique):
+    d = shared_data / DATASETS[dataset]
+    s, gt = np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+    n_cal = s.shape[1] // 10
+    check_parity(s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:])
+
+
+def test_soft_only_best_matches_are_left_out_and_no_pair_is_nan():
+    s = np.array([[0.9, 0.5, 0.6, 0.8], [0.1, 0.1, 0.5, 0.1], [0.1, 0.2, 0.4, 0.3]])
+    gt = np.array([[1, 0, 1, 0], [0, 1, 0, 1], [0, 0, 0, 0]], dtype=bool)
+    soft = gt.copy()
+    soft[0, 3] = True  # query 3's best match is soft-only
+    for cal in (qtvpr.Calibration(s, gt, gt_soft=soft), ref.Calibration(s, gt, gt_soft=soft)):
+        assert sum(n for _, n, _ in cal.confidence_blocks()) == 3
+    # Every best match soft-only: no pair, NaN.
+    all_soft = np.ones_like(gt)
+    for cal in (qtvpr.Calibration(s, np.zeros_like(gt), gt_soft=all_soft),
+                ref.Calibration(s, np.zeros_like(gt), gt_soft=all_soft)):
+        assert cal.confidence_blocks() == []
+        d = (qtvpr.Online if isinstance(cal, qtvpr.Calibration) else ref.Online)(cal, window=2).push(s[:, 0])
+        assert math.isnan(d.confidence) and math.isnan(d.confidence_lower95)
+
+
+def test_multi_matching_has_none():
+    s, gt = np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "cal_GT.npy")
+    s_val = np.load(CORRIDOR / "deploy_S.npy")
+    for cal in (qtvpr.Calibration(s, gt, matching="multi"), ref.Calibration(s, gt, matching="multi")):
+        with pytest.raises(ValueError, match=MULTI_WHY):
+            cal.confidence_blocks()
+        assert cal.transfer(s_val, k=3).query_confidences is None
+    d = qtvpr.Online(qtvpr.Calibration(s, gt, matching="multi"), window=3).push_many(s_val)
+    assert np.isnan(d.confidences).all() and np.isnan(d.confidences_lower95).all()
+
+
+def test_cli_stream_equals_the_wheel(cli, tmp_path):
+    # Calibrate on the embedded deployment half (six blocks), stream the calibration half.
+    cal_path = tmp_path / "cal.npz"
+    s_cal, gt_cal = np.load(CORRIDOR / "deploy_S.npy"), np.load(CORRIDOR / "deploy_GT.npy")
+    qtvpr.Calibration(s_cal, gt_cal).save(cal_path, window=4)
+    # The file stores no map: loading rebuilds it from s and gt, bit for bit (§12).
+    assert qtvpr.Calibration.load(cal_path).confidence_blocks() == qtvpr.Calibration(s_cal, gt_cal).confidence_blocks()
+    assert ref.Calibration.load(cal_path).confidence_blocks() == ref.Calibration(s_cal, gt_cal).confidence_blocks()
+    val = CORRIDOR / "cal_S.npy"
+    d = ref.Online(ref.Calibration(s_cal, gt_cal), window=4).push_many(np.load(val))
+    out = run_cli(cli, "stream", "--calibration", str(cal_path), "--val", str(val))
+    assert out.returncode == 0, out.stderr
+    lines = [json.loads(line) for line in out.stdout.splitlines()]
+    close([line["confidence"] for line in lines], d.confidences)
+    close([line["confidence_lower95"] for line in lines], d.confidences_lower95)
+    out = run_cli(cli, "stream", "--calibration", str(cal_path), "--val", str(val), "--format", "csv")
+    header, *rows = out.stdout.splitlines()
+    cols = header.split(",")
+    got = np.array([[float(r.split(",")[cols.index(k)]) for k in ("confidence", "confidence_lower95")] for r in rows])
+    close(got[:, 0], d.confidences)
+    close(got[:, 1], d.confidences_lower95)
+    # Multi matching: null in JSON, NaN in CSV.
+    qtvpr.Calibration(s_cal, gt_cal, matching="multi").save(cal_path, window=4)
+    out = run_cli(cli, "stream", "--calibration", str(cal_path), "--val", str(val))
+    first = json.loads(out.stdout.splitlines()[0])
+    assert first["confidence"] is None and first["confidence_lower95"] is None
+    out = run_cli(cli, "stream", "--calibration", str(cal_path), "--val", str(val), "--format", "csv")
+    assert out.stdout.splitlines()[1].endswith(",NaN,NaN")
+
+
+# ---------------------------------------------------------------------------------------
+# evaluate's signals
+# ---------------------------------------------------------------------------------------
+
+
+def assert_same_signals(got, want):
+    assert list(got) == ["signals"] and list(got["signals"]) == ["score", "margin", "confidence"]
+    for signal, figures in want["signals"].items():
+        assert list(got["signals"][signal]) == list(figures)
+        for key, w in figures.items():
+            g = got["signals"][signal][key]
+            assert (g is None and w is None) or abs(g - w) <= 1e-9, (signal, key, g, w)
+
+
+def test_evaluate_signals_on_the_embedded_corridor(cli):
+    # The 11 calibration queries' best matches are all right: one block, every
+    # confidence 1; 83 of the 100 deployment decisions are right, so the Brier score is
+    # 17/100, the ECE |1 - 0.83| and the confidence's AUROC 1/2 (all tied).
+    s = np.concatenate([np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "deploy_S.npy")], axis=1)
+    gt = np.concatenate([np.load(CORRIDOR / "cal_GT.npy"), np.load(CORRIDOR / "deploy_GT.npy")], axis=1)
+    got, want = qtvpr.evaluate(s, gt)["confidence"], ref.evaluate(s, gt)["confidence"]
+    assert_same_signals(got, want)
+    c = want["signals"]["confidence"]
+    assert c["auroc"] == 0.5 and c["brier"] == pytest.approx(0.17, abs=1e-12) and c["ece"] == pytest.approx(0.17)
+    out = run_cli(cli, "evaluate", "--format", "json")  # the embedded demo data
+    assert_same_signals(json.loads(out.stdout)["confidence"], want)
+    # Multi matching: no signals.
+    assert "confidence" not in qtvpr.evaluate(s, gt, matching="multi")
+    assert "confidence" not in ref.evaluate(s, gt, matching="multi")
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("dataset", DATASETS)
+def test_evaluate_signals_equal_the_reference(shared_data, dataset, technique):
+    d = shared_data / DATASETS[dataset]
+    s, gt = np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+    assert_same_signals(qtvpr.evaluate(s, gt, methods=["oracle"])["confidence"],
+                        ref.evaluate(s, gt, methods=["oracle"])["confidence"])
