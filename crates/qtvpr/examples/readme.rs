@@ -2,7 +2,7 @@
 use std::path::Path;
 
 use qtvpr::npy::{read_ground_truth, read_scores};
-use qtvpr::{Calibration, Matching, Params};
+use qtvpr::{Calibration, Defaults, Matching, Params};
 
 fn main() -> qtvpr::Result<()> {
     // The embedded Corridor traverse, |DB| x |Q| .npy files (memory-mapped), from the clone's root.
@@ -10,8 +10,8 @@ fn main() -> qtvpr::Result<()> {
     let gt = read_ground_truth(Path::new("data/corridor/cal_GT.npy"), None)?; // bool or 0/1
     let s_val = read_scores(Path::new("data/corridor/deploy_S.npy"))?; // no ground truth needed
     let cal = Calibration::new(s_cal.view(), &gt, Matching::Single)?;
-    let mut params = Params::default(); // k = 10, 100% precision
-    params.segment_size = Some(25); // deployment queries per threshold
+    // k, precision, segment size, gate: None is the default (k = 10, 100% precision, ...).
+    let params = Params::resolve(&Defaults::default(), None, None, Some(25), None)?;
     let out = cal.transfer(s_val.view(), &params)?;
     for seg in &out.segments {
         println!("queries {}..{}: accept score >= {}", seg.start, seg.end, seg.threshold);
