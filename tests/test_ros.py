@@ -174,7 +174,7 @@ def check_decisions(client: Client, want: list[list[float]]) -> None:
 def test_decision_fields_are_the_cores() -> None:
     assert DECISION_FIELDS == (
         "query", "query_quantile", "weight", "quantile", "threshold", "best", "score", "accepted", "accept",
-        "margin", "gate",
+        "confidence", "confidence_lower95", "margin", "gate",
     )
     assert qtvpr.OnlineDecision.FIELDS + qtvpr.OnlineDecision.GATE_FIELDS == DECISION_FIELDS
 
