@@ -31,17 +31,31 @@ fn the_examples_shown_are_the_compiled_ones() {
             .unwrap_or_else(|| panic!("{doc} has no {fence:?} block"))
             + fence.len();
         let end = start + text[start..].find("```\n").expect("the block ends");
-        if text[start..end] == example {
-            continue;
-        }
-        if std::env::var_os("QTVPR_UPDATE_README").is_some() {
-            std::fs::write(&path, format!("{}{example}{}", &text[..start], &text[end..])).unwrap();
-            continue;
-        }
-        panic!(
-            "{doc}'s example is not {file}; regenerate it with QTVPR_UPDATE_README=1 cargo test -p qtvpr-cli --test readme"
+        keep_current(
+            &path,
+            &text,
+            start..end,
+            &example,
+            &format!("{doc}'s example is not {file}"),
         );
     }
+}
+
+/// `text[range]` (of the file at `path`) is `wanted`; with `QTVPR_UPDATE_README` set, it
+/// is made so; otherwise the test fails, saying `what` is wrong.
+fn keep_current(path: &Path, text: &str, range: std::ops::Range<usize>, wanted: &str, what: &str) {
+    if text[range.clone()] == *wanted {
+        return;
+    }
+    if std::env::var_os("QTVPR_UPDATE_README").is_some() {
+        std::fs::write(path, format!("{}{wanted}{}", &text[..range.start], &text[range.end..])).unwrap();
+        return;
+    }
+    panic!(
+        "{what}; regenerate it with QTVPR_UPDATE_README=1 cargo test -p qtvpr-cli --test readme\n\
+         --- now:\n{}\n--- wanted:\n{wanted}",
+        &text[range]
+    );
 }
 
 #[test]
@@ -58,16 +72,11 @@ fn the_readme_table_is_what_evaluate_prints() {
     let (Some(start), Some(end)) = (readme.find(START), readme.find(END)) else {
         panic!("README.md has no {START:?} ... {END:?} block");
     };
-    if readme[start..end] == block {
-        return;
-    }
-    if std::env::var_os("QTVPR_UPDATE_README").is_some() {
-        std::fs::write(&path, format!("{}{block}{}", &readme[..start], &readme[end..])).unwrap();
-        return;
-    }
-    panic!(
-        "README.md's table is not what `qtvpr-cli evaluate` prints; regenerate it with \
-         QTVPR_UPDATE_README=1 cargo test -p qtvpr-cli --test readme\n--- README:\n{}\n--- evaluate:\n{block}",
-        &readme[start..end]
+    keep_current(
+        &path,
+        &readme,
+        start..end,
+        &block,
+        "README.md's table is not what `qtvpr-cli evaluate` prints",
     );
 }
