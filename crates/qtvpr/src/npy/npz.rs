@@ -33,7 +33,7 @@ pub(crate) enum Kind {
 
 impl Kind {
     /// What the dtype must be, for errors.
-    fn rule(self) -> &'static str {
+    const fn rule(self) -> &'static str {
         match self {
             Kind::Scores => "expected float32 or float64 similarity scores",
             Kind::Bool => "expected bool",
@@ -143,7 +143,7 @@ pub(crate) fn npz_array<'a, R: ReaderAt>(
 /// A float32/float64 matrix read into memory from `npy` (`path` names it).
 pub(crate) fn read_owned_scores<R: Read>(npy: NpyFile<R>, path: &Path) -> Result<crate::input::ScoreMatrix> {
     use crate::input::ScoreMatrix;
-    const RULE: &str = "expected float32 or float64 similarity scores";
+    const RULE: &str = Kind::Scores.rule();
     match plain_dtype(&npy, path, RULE)? {
         (TypeChar::Float, 4, _) => Ok(ScoreMatrix::F32(read_matrix(npy, path, MATRIX)?.into_array())),
         (TypeChar::Float, 8, _) => Ok(ScoreMatrix::F64(read_matrix(npy, path, MATRIX)?.into_array())),
@@ -157,7 +157,7 @@ pub(crate) fn read_owned_scores<R: Read>(npy: NpyFile<R>, path: &Path) -> Result
 
 /// A bool matrix read from `npy` (`path` names it); other dtypes are refused.
 pub(crate) fn read_bool_matrix<R: Read>(npy: NpyFile<R>, path: &Path) -> Result<ndarray::Array2<bool>> {
-    const RULE: &str = "expected bool";
+    const RULE: &str = Kind::Bool.rule();
     match plain_dtype(&npy, path, RULE)? {
         (TypeChar::Bool, 1, _) => Ok(read_matrix(npy, path, MATRIX)?.into_array()),
         _ => Err(Error::Dtype {
