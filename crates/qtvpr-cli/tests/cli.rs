@@ -7,8 +7,7 @@ use std::process::{Command, Output};
 
 use tempfile::TempDir;
 
-mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw, run_in};
+use crate::common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw, run_in};
 
 /// The `transfer.rs` unit-test example: |DB| = 3, two calibration, two deployment queries.
 struct Case {

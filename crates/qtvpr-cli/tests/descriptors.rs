@@ -8,11 +8,8 @@ use qtvpr::ScoresView;
 use qtvpr::npy::{read_scores, write_npy};
 use tempfile::TempDir;
 
-mod common;
-// The data helper of the core's tests, one for both crates.
-#[path = "../../qtvpr/tests/data/mod.rs"]
-mod data;
-use common::{assert_clean_failure, ok_in, run_in};
+use crate::common::{assert_clean_failure, ok_in, run_in};
+use crate::data;
 
 /// Queries of the test: the first 600 summer frames (137 calibrate, not a multiple of
 /// the kernel's tile of 16).

@@ -8,8 +8,7 @@ use std::process::{Command, Output};
 use serde_json::{Value, json};
 use tempfile::TempDir;
 
-mod common;
-use common::{npy_bool, npy_f64};
+use crate::common::{npy_bool, npy_f64};
 
 const Z: f64 = 4.753424308817087;
 

@@ -8,8 +8,7 @@ use std::process::Output;
 
 use tempfile::TempDir;
 
-mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f32, npy_f64, npy_raw, ok_in, run_in};
+use crate::common::{assert_clean_failure, f64s, npy_bool, npy_f32, npy_f64, npy_raw, ok_in, run_in};
 
 struct Dir(TempDir);
 
@@ -302,8 +301,8 @@ fn ground_truth_by_tolerance() {
         "-o",
         "gt.npz",
     ]);
-    let hard = common::npz_bools(&dir.path("gt.npz"), "GThard");
-    let gt_soft = common::npz_bools(&dir.path("gt.npz"), "GTsoft");
+    let hard = crate::common::npz_bools(&dir.path("gt.npz"), "GThard");
+    let gt_soft = crate::common::npz_bools(&dir.path("gt.npz"), "GTsoft");
     assert_eq!((hard, gt_soft), (want, soft));
 }
 
@@ -328,8 +327,8 @@ fn ground_truth_by_positions_is_inclusive() {
         "-o",
         "gt.npz",
     ]);
-    let hard = common::npz_bools(&dir.path("gt.npz"), "GThard");
-    let soft = common::npz_bools(&dir.path("gt.npz"), "GTsoft");
+    let hard = crate::common::npz_bools(&dir.path("gt.npz"), "GThard");
+    let soft = crate::common::npz_bools(&dir.path("gt.npz"), "GTsoft");
     assert_eq!(hard, bools(&[&[1, 0], &[0, 1], &[0, 1]]));
     assert_eq!(soft, bools(&[&[1, 0], &[1, 1], &[0, 1]]));
 }

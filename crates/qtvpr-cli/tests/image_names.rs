@@ -7,11 +7,8 @@ use std::path::{Path, PathBuf};
 
 use tempfile::TempDir;
 
-mod common;
-// The data helper of the core's tests, one for both crates.
-#[path = "../../qtvpr/tests/data/mod.rs"]
-mod data;
-use common::{assert_clean_failure, npy_f64, ok_in, run_in};
+use crate::common::{assert_clean_failure, npy_f64, ok_in, run_in};
+use crate::data;
 
 /// A VPR-methods-evaluation-style folder: `database/` and `queries/` of empty images
 /// named `@east@north@...@.jpg`.
@@ -96,8 +93,8 @@ fn ground_truth_from_names_equals_ground_truth_from_positions() {
     ]
     .concat());
     assert_eq!(f.read("a.npz"), f.read("b.npz"));
-    let hard = common::npz_bools(&f.path("a.npz"), "GThard");
-    let soft = common::npz_bools(&f.path("a.npz"), "GTsoft");
+    let hard = crate::common::npz_bools(&f.path("a.npz"), "GThard");
+    let soft = crate::common::npz_bools(&f.path("a.npz"), "GTsoft");
     // Rows (10, -5), (3, 4), (7, 0), see small_case.
     let t = true;
     assert_eq!(hard, [!t, t, t, !t, !t, t]);

@@ -8,8 +8,7 @@ use std::time::{Duration, Instant};
 
 use tempfile::TempDir;
 
-mod common;
-use common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw, ok_in, run_in};
+use crate::common::{assert_clean_failure, f64s, npy_bool, npy_f64, npy_header, npy_raw, ok_in, run_in};
 
 struct Dir(TempDir);
 

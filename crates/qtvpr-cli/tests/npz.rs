@@ -10,14 +10,13 @@ use ndarray::{Array2, array};
 use qtvpr::npy::{NpyArray, write_npy, write_npz};
 use qtvpr::{Calibration, Defaults, GroundTruth, Matching};
 
-mod common;
-use common::zip::{Member, Members, hostile, npy_header, unzip, zip};
-use common::{ok_in, run_in};
+use crate::common::zip::{Member, Members, hostile, npy_header, unzip, zip};
+use crate::common::{ok_in, run_in};
 
 /// A 3x4 calibration's `.npy` members and a VPR_Tutorial ground truth's, and the files
 /// they come from (`cal.npy`, `gt.npz`, `cal.npz`) with a deployment `val.npy`, in `dir`.
 fn valid(dir: &Path) -> (Members, Members) {
-    let (s, hard, soft) = common::zip::traverse();
+    let (s, hard, soft) = crate::common::zip::traverse();
     write_npy(&dir.join("cal.npy"), s.view()).unwrap();
     write_npy(&dir.join("val.npy"), array![[0.5, 0.1], [0.2, 0.9], [0.3, 0.3]].view()).unwrap();
     write_npz(
@@ -121,7 +120,7 @@ fn every_hostile_npz_exits_2_as_calibration_and_as_ground_truth() {
 /// `qtvpr-cli` with `args` in `dir`, under `ulimit -v 1000000` (1 GB of address space)
 /// when `cap`, its standard output redirected as `redirect` says (e.g. `>&-`).
 fn run_shell(dir: &Path, cap: bool, redirect: &str, args: &[&str]) -> Output {
-    common::run_in_shell(dir, if cap { common::CAP } else { "" }, redirect, args)
+    crate::common::run_in_shell(dir, if cap { crate::common::CAP } else { "" }, redirect, args)
 }
 
 /// A calibration of 60 x 1,000,000 float64 zeros (480 MB; 0.5 MB deflated) whose

@@ -15,11 +15,8 @@ use qtvpr::npy::{NpyArray, read_scores, write_npy, write_npz};
 use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, Score};
 use tempfile::TempDir;
 
-mod common;
-// The data helper of the core's tests, one for both crates.
-#[path = "../../qtvpr/tests/data/mod.rs"]
-mod data;
-use common::{assert_clean_failure, ok_in, run_in};
+use crate::common::{assert_clean_failure, ok_in, run_in};
+use crate::data;
 
 /// Corridor (111 x 111) of one technique: calibration = the first 11 queries.
 struct Case {
@@ -739,7 +736,7 @@ fn evaluate_reports_the_online_method() {
 
 /// Run `qtvpr-cli` in `dir` under `ulimit -v 1000000` (1 GB of address space).
 fn run_capped(dir: &Path, args: &[&str]) -> Output {
-    common::run_in_shell(dir, common::CAP, "", args)
+    crate::common::run_in_shell(dir, crate::common::CAP, "", args)
 }
 
 /// A calibration whose `s.npy` is marked bzip2 (a few kB claiming 128 MiB), and a
@@ -747,7 +744,7 @@ fn run_capped(dir: &Path, args: &[&str]) -> Output {
 /// address-space cap both are refused with exit 2 and a message, fast, never a signal.
 #[test]
 fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
-    use common::zip::{Member, npy_header, zip};
+    use crate::common::zip::{Member, npy_header, zip};
     let dir = tempfile::tempdir().unwrap();
     let path = |name: &str| dir.path().join(name);
     let n: usize = 1 << 27; // bytes of zeros in s.npy
@@ -771,8 +768,8 @@ fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
     std::fs::write(path("bomb.npz"), bomb).unwrap();
     let size = std::fs::metadata(path("bomb.npz")).unwrap().len();
     assert!(size < 1 << 20, "{size}");
-    common::npy_f64(&path("val.npy"), &[&[0.5, 0.1], &[0.2, 0.9]]);
-    common::npy_raw(&path("huge.npy"), ">f8", false, &[100_000, 100_000], &[0; 8]);
+    crate::common::npy_f64(&path("val.npy"), &[&[0.5, 0.1], &[0.2, 0.9]]);
+    crate::common::npy_raw(&path("huge.npy"), ">f8", false, &[100_000, 100_000], &[0; 8]);
     for (args, needle) in [
         (
             &["stream", "--calibration", "bomb.npz", "--val", "val.npy"][..],

@@ -4,8 +4,7 @@
 
 use std::process::Command;
 
-mod common;
-use common::npy_f32;
+use crate::common::npy_f32;
 
 fn quiet_stderr(args: &[&str]) {
     let out = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))

@@ -6,7 +6,7 @@
 //! multiple of the tile width.
 #![cfg(feature = "npy")]
 
-mod data;
+use crate::data;
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};

@@ -4,7 +4,7 @@
 //! loaded gives the same decisions.
 #![cfg(feature = "npy")]
 
-mod data;
+use crate::data;
 use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};

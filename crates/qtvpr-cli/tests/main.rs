@@ -1,0 +1,23 @@
+//! The CLI's integration tests, one test binary: each file of `tests/` is a module
+//! (`cargo test -p qtvpr-cli --test cli evaluate::` runs one). One binary, not one per
+//! file: each of those linked the core and every dependency again, most of a cold
+//! `cargo test`'s link time.
+
+mod common;
+// The data helper of the core's tests, one for both crates.
+#[path = "../../qtvpr/tests/data/mod.rs"]
+mod data;
+
+mod cli;
+mod descriptors;
+mod docs;
+mod evaluate;
+mod extensions;
+mod help;
+mod image_names;
+mod inputs;
+mod npz;
+mod online;
+mod outputs;
+mod progress;
+mod readme;
