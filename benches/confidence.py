@@ -1,23 +1,28 @@
-"""How well the confidence of semantics §14 is calibrated, on every real matrix.
+"""How well the confidence of semantics §14 ranks and is calibrated, on every real matrix.
 
 For each of the 22 real matrices of benches/results_table.py (VPR-Bench Corridor and
-SPEDTest, 10 techniques each; Nordland HOG single frame and 11-frame sequence), in the
-paper's protocol (the first 10% of the queries calibrate; the deployment queries are
-the n_seg x seg of the full 1% segments, from the first deployment query; soft-only
-best matches left out; single matching): the AUROC of the best match's correctness c
-for three signals (the best score s1, the margin, the confidence; ties count one
-half), and for the confidence its Brier score, the Brier score of the constant
-calibration hit rate (what a map of one block gives), and the expected calibration
-error over 10 equal-width bins (the last holds 1.0), each bin's |mean confidence -
-mean c| weighted by its share of queries. These are section 14's evaluation signals,
-computed here in NumPy from the wheel's per-query confidences (`evaluate` does not
-report them yet).
+SPEDTest, 10 techniques each; Nordland HOG single frame and 11-frame sequence), single
+matching, in the five protocol settings of docs/margin-gate.md (the paper's: the first
+10% of the queries calibrate, 1% segments, tau 1; then one change each: 5% or 20%
+calibrate, 2% segments, tau 0.95, which no signal depends on): section 14's signals
+over the protocol's deployment decisions as `qtvpr.evaluate` reports them (the AUROC
+of the best match's correctness c for the best score s1, the margin and the
+confidence; the confidence's Brier score, ECE and reliability bins), and two
+comparisons computed here:
 
-Uses the installed wheel and NumPy only. Writes the table between
+- the PA-score (Lowe's ratio on distances): with the cosine scores s of a query,
+  d = sqrt(max(0, 2 - 2 s)) and PA = d1 / d2, the best over the second-best distance
+  (0 / 0 is 1); lower is more confident, so its AUROC is that of -PA, ties one half;
+- the Brier score of the constant calibration hit rate (what a map of one block gives).
+
+Uses the installed wheel and NumPy only. Writes the tables between
 ``<!-- confidence:start -->`` and ``<!-- confidence:end -->`` in docs/margin-gate.md
-and prints it.
+and the figure docs/confidence.svg (mean AUROC per signal and dataset; the reliability
+diagram of each dataset's bins pooled over its matrices; a hand-written SVG, no
+plotting package), and prints the tables.
 
     python benches/confidence.py [--data ../shared/data] [--output docs/margin-gate.md]
+                                 [--figure docs/confidence.svg]
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -32,80 +38,229 @@ import numpy as np
 import qtvpr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from report import write_block  # noqa: E402
+from margin_gate import SETTINGS  # noqa: E402
+from report import machine, write_block  # noqa: E402
 from results_table import matrices  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
+#: Figure columns: (key of a row, label).
+AUROCS = [("auroc_score", "score s1"), ("auroc_margin", "margin"), ("auroc_confidence", "confidence"),
+          ("auroc_pa", "PA-score")]
+CALIBRATION = [("brier", "Brier"), ("brier_constant", "Brier of the constant"), ("ece", "ECE")]
+#: Datasets of the figure and of the means: (label, prefix of the matrix names).
+GROUPS = [("Corridor", "Corridor"), ("SPEDTest", "SPEDTest"), ("Nordland", "Nordland"), ("all", "")]
 
 
-def auroc(x: np.ndarray, c: np.ndarray) -> float:
-    """P(x of a correct query > x of a wrong one), ties one half; NaN without both."""
-    pos, neg = x[c], x[~c]
-    if len(pos) == 0 or len(neg) == 0:
-        return math.nan
-    greater = (pos[:, None] > neg[None, :]).sum()
-    ties = (pos[:, None] == neg[None, :]).sum()
-    return float((greater + 0.5 * ties) / (len(pos) * len(neg)))
+def auroc(x: np.ndarray, c: np.ndarray) -> float | None:
+    """P(x of a right decision > x of a wrong one), ties one half; None without both."""
+    right, wrong = x[c], x[~c]
+    if len(right) == 0 or len(wrong) == 0:
+        return None
+    above = np.count_nonzero(right[:, None] > wrong[None, :])
+    ties = np.count_nonzero(right[:, None] == wrong[None, :])
+    return float((above + ties / 2) / (len(right) * len(wrong)))
 
 
-def ece(p: np.ndarray, c: np.ndarray) -> float:
-    """Expected calibration error over 10 equal-width bins of [0, 1]."""
-    bins = np.minimum((p * 10).astype(int), 9)
-    return float(sum(abs(p[bins == b].mean() - c[bins == b].mean()) * (bins == b).mean()
-                     for b in range(10) if (bins == b).any()))
+def pa_score(s: np.ndarray) -> np.ndarray:
+    """Per column of cosine scores: the best over the second-best distance, d1 / d2 with
+    d = sqrt(max(0, 2 - 2 s)); 1 when both are 0."""
+    top = -np.sort(-s.astype(np.float64), axis=0)[:2]
+    d1, d2 = np.sqrt(np.maximum(0.0, 2.0 - 2.0 * top))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(d2 > 0, d1 / np.where(d2 > 0, d2, 1.0), 1.0)
 
 
-def signals(s: np.ndarray, gt: np.ndarray) -> dict:
-    n_q = s.shape[1]
-    n_cal = n_q // 10
-    seg = math.ceil(0.01 * n_q)
-    n_dep = (n_q - n_cal) // seg * seg
-    cal = qtvpr.Calibration(s[:, :n_cal], gt[:, :n_cal])
-    s_val, gt_val = s[:, n_cal:n_cal + n_dep], gt[:, n_cal:n_cal + n_dep]
-    p = cal.transfer(s_val).query_confidences
-    best = s_val.argmax(axis=0)
-    c = gt_val[best, np.arange(n_dep)]
-    # The calibration's own hit rate: the constant a one-block map gives.
+def signals(s: np.ndarray, gt: np.ndarray, kwargs: dict) -> dict:
+    """The core's signals of one run, and the two comparisons on the same decisions."""
+    r = qtvpr.evaluate(s, gt, methods=["oracle"], **kwargs)
+    p, sig = r["params"], r["confidence"]["signals"]
+    n_cal, start = p["calibration_queries"], p["deployment_start"]
+    dep = slice(start, start + p["segments"] * p["segment_size"])
+    s_dep, gt_dep = s[:, dep], gt[:, dep]
+    cols = np.arange(s_dep.shape[1])
+    best = s_dep.argmax(axis=0)
+    c = gt_dep[best, cols]
+    # The same decisions as the core's (no soft ground truth here): its score AUROC.
+    mine = auroc(s_dep[best, cols].astype(np.float64), c)
+    assert mine == sig["score"]["auroc"] or abs(mine - sig["score"]["auroc"]) < 1e-12, (mine, sig)
     cal_best = s[:, :n_cal].argmax(axis=0)
     rate = gt[cal_best, np.arange(n_cal)].mean()
     return {
-        "blocks": len(cal.confidence_blocks()),
-        "auroc_score": auroc(s_val.max(axis=0).astype(np.float64), c),
-        "auroc_margin": auroc(qtvpr.margins(s_val), c),
-        "auroc_confidence": auroc(p, c),
-        "brier": float(np.mean((p - c) ** 2)),
+        "blocks": len(qtvpr.Calibration(s[:, :n_cal], gt[:, :n_cal]).confidence_blocks()),
+        "auroc_score": sig["score"]["auroc"],
+        "auroc_margin": sig["margin"]["auroc"],
+        "auroc_confidence": sig["confidence"]["auroc"],
+        "auroc_pa": auroc(-pa_score(s_dep), c),
+        "brier": sig["confidence"]["brier"],
         "brier_constant": float(np.mean((rate - c) ** 2)),
-        "ece": ece(p, c),
+        "ece": sig["confidence"]["ece"],
+        "bins": sig["confidence"]["bins"],
     }
 
 
-def table(rows: list[tuple[str, dict]]) -> str:
-    keys = ["auroc_score", "auroc_margin", "auroc_confidence", "brier", "brier_constant", "ece"]
+def mean(rows: list[dict], key: str) -> float:
+    """The mean of the figures that exist."""
+    values = [r[key] for r in rows if r[key] is not None]
+    return float(np.mean(values)) if values else math.nan
+
+
+def group(rows: list[tuple[str, dict]], prefix: str) -> list[dict]:
+    return [r for name, r in rows if name.startswith(prefix)]
+
+
+def fmt(x) -> str:
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3f}"
+
+
+def tables(results: dict[str, list[tuple[str, dict]]]) -> str:
+    keys = [k for k, _ in AUROCS + CALIBRATION]
+    heads = " | ".join(f"AUROC {label}" for _, label in AUROCS) + " | " + " | ".join(label for _, label in CALIBRATION)
+    paper = results[SETTINGS[0][0]]
     lines = [
-        f"Section 14's signals in the paper's protocol (single matching; qtvpr {qtvpr.__version__}). "
-        "Regenerate with `python benches/confidence.py`.",
+        f"Section 14's signals (single matching; qtvpr {qtvpr.__version__}). Regenerate with "
+        "`python benches/confidence.py`, which also draws the figure. The mean over the "
+        f"{len(paper)} real matrices in each setting of the gate's table above:",
         "",
-        "| matrix | blocks | AUROC score | AUROC margin | AUROC confidence | Brier | Brier of the constant | ECE |",
-        "|:--|--:|--:|--:|--:|--:|--:|--:|",
+        f"| protocol | {heads} |",
+        "|:--|" + "--:|" * len(keys),
     ]
-    for name, r in rows:
-        lines.append(f"| {name} | {r['blocks']} | " + " | ".join(f"{r[k]:.3f}" for k in keys) + " |")
-    for label, prefix in (("Corridor", "Corridor"), ("SPEDTest", "SPEDTest"), ("all 22", "")):
-        part = [r for name, r in rows if name.startswith(prefix)]
-        means = " | ".join(f"{np.nanmean([r[k] for r in part]):.3f}" for k in keys)
-        lines.append(f"| **mean, {label}** | | {means} |")
+    for label, _ in SETTINGS:
+        rows = [r for _, r in results[label]]
+        lines.append(f"| {label} | " + " | ".join(fmt(mean(rows, k)) for k in keys) + " |")
+    lines += [
+        "",
+        "Per matrix, in the paper's setting (blocks: of the confidence map):",
+        "",
+        f"| matrix | blocks | {heads} |",
+        "|:--|--:|" + "--:|" * len(keys),
+    ]
+    for name, r in paper:
+        lines.append(f"| {name} | {r['blocks']} | " + " | ".join(fmt(r[k]) for k in keys) + " |")
+    for label, prefix in GROUPS:
+        if label != "Nordland":
+            rows = group(paper, prefix)
+            name = label if prefix else f"all {len(rows)}"
+            lines.append(f"| **mean, {name}** | | " + " | ".join(fmt(mean(rows, k)) for k in keys) + " |")
     return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------
+# The figure, a hand-written SVG
+# ---------------------------------------------------------------------------------------
+
+SIGNAL_COLOURS = ["#7f7f7f", "#2ca02c", "#1f77b4", "#ff7f0e"]
+GROUP_COLOURS = {"Corridor": "#d62728", "SPEDTest": "#9467bd", "Nordland": "#8c564b"}
+FONT = 'font-family="sans-serif"'
+
+
+def text(x: float, y: float, s: str, size: int = 12, anchor: str = "middle", extra: str = "") -> str:
+    s = s.replace("&", "&amp;").replace("<", "&lt;")
+    return f'<text x="{x:.1f}" y="{y:.1f}" {FONT} font-size="{size}" text-anchor="{anchor}"{extra}>{s}</text>'
+
+
+def pooled_bins(rows: list[dict]) -> list[tuple[float, float, int]]:
+    """(mean confidence, hit rate, n) per bin, pooled over the matrices' bins: each
+    bin's means weighted by its counts."""
+    pooled: dict[float, list[float]] = {}
+    for r in rows:
+        for b in r["bins"] or []:
+            acc = pooled.setdefault(b["lower"], [0.0, 0.0, 0])
+            acc[0] += b["n"] * b["mean_confidence"]
+            acc[1] += b["n"] * b["hit_rate"]
+            acc[2] += b["n"]
+    return [(a[0] / a[2], a[1] / a[2], a[2]) for _, a in sorted(pooled.items())]
+
+
+def figure(paper: list[tuple[str, dict]]) -> str:
+    w, h = 980, 430
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}">',
+           f'<rect width="{w}" height="{h}" fill="white"/>']
+    # Left: mean AUROC per signal, one group of bars per dataset.
+    x0, y0, pw, ph = 60, 50, 400, 290  # plot area: left, top, width, height
+    out.append(text(x0 + pw / 2, 24, "Mean AUROC of c per signal (paper's protocol)", 15))
+
+    def y_of(v: float) -> float:
+        return y0 + ph * (1 - v)
+
+    for t in np.linspace(0, 1, 6):
+        out.append(f'<line x1="{x0}" x2="{x0 + pw}" y1="{y_of(t):.1f}" y2="{y_of(t):.1f}" stroke="#e1e1e1"/>')
+        out.append(text(x0 - 6, y_of(t) + 4, f"{t:.1f}", 11, "end"))
+    out.append(f'<line x1="{x0}" x2="{x0 + pw}" y1="{y_of(0.5):.1f}" y2="{y_of(0.5):.1f}" stroke="#555" '
+               'stroke-dasharray="5,4"/>')
+    out.append(text(x0 + pw + 4, y_of(0.5) + 4, "chance", 11, "start", ' fill="#555"'))
+    slot = pw / len(GROUPS)
+    bar = slot * 0.8 / len(AUROCS)
+    for g, (label, prefix) in enumerate(GROUPS):
+        rows = group(paper, prefix)
+        for i, (key, _) in enumerate(AUROCS):
+            v = mean(rows, key)
+            x = x0 + g * slot + slot * 0.1 + i * bar
+            out.append(f'<rect x="{x:.1f}" y="{y_of(v):.1f}" width="{bar - 2:.1f}" height="{ph * v:.1f}" '
+                       f'fill="{SIGNAL_COLOURS[i]}"><title>{label}, {key}: {v:.3f}</title></rect>')
+        out.append(text(x0 + (g + 0.5) * slot, y0 + ph + 18, f"{label} ({len(rows)})", 12))
+    out.append(text(18, y0 + ph / 2, "AUROC", 13, "middle", f' transform="rotate(-90 18 {y0 + ph / 2})"'))
+    for i, (_, label) in enumerate(AUROCS):
+        lx = x0 + i * 100
+        out.append(f'<rect x="{lx}" y="{y0 + ph + 34}" width="14" height="14" fill="{SIGNAL_COLOURS[i]}"/>')
+        out.append(text(lx + 19, y0 + ph + 46, label, 12, "start"))
+
+    # Right: the reliability diagram, each dataset's bins pooled over its matrices.
+    x0, y0, pw, ph = 580, 50, 290, 290
+    out.append(text(x0 + pw / 2 + 30, 24, "Reliability of the confidence (bins pooled)", 15))
+
+    def px(v: float) -> float:
+        return x0 + pw * v
+
+    def py(v: float) -> float:
+        return y0 + ph * (1 - v)
+
+    for t in np.linspace(0, 1, 6):
+        out.append(f'<line x1="{px(t):.1f}" x2="{px(t):.1f}" y1="{y0}" y2="{y0 + ph}" stroke="#e1e1e1"/>')
+        out.append(f'<line x1="{x0}" x2="{x0 + pw}" y1="{py(t):.1f}" y2="{py(t):.1f}" stroke="#e1e1e1"/>')
+        out.append(text(px(t), y0 + ph + 16, f"{t:.1f}", 11))
+        out.append(text(x0 - 6, py(t) + 4, f"{t:.1f}", 11, "end"))
+    out.append(f'<line x1="{px(0)}" y1="{py(0)}" x2="{px(1)}" y2="{py(1)}" stroke="#555" stroke-dasharray="5,4"/>')
+    out.append(text(x0 + pw / 2, y0 + ph + 34, "mean confidence of the bin", 13))
+    out.append(text(x0 - 40, y0 + ph / 2, "hit rate of the bin", 13, "middle",
+                    f' transform="rotate(-90 {x0 - 40} {y0 + ph / 2})"'))
+    for g, (label, prefix) in enumerate(GROUPS[:3]):
+        pts = pooled_bins(group(paper, prefix))
+        colour = GROUP_COLOURS[label]
+        path = " ".join(f"{px(p):.1f},{py(q):.1f}" for p, q, _ in pts)
+        out.append(f'<polyline points="{path}" fill="none" stroke="{colour}" stroke-width="1.5"/>')
+        for p, q, n in pts:
+            # Area by count: a radius from 2.5 (one decision) to about 9 (thousands).
+            r = 2.5 + 1.6 * math.log10(n)
+            out.append(f'<circle cx="{px(p):.1f}" cy="{py(q):.1f}" r="{r:.1f}" fill="{colour}" fill-opacity="0.75">'
+                       f"<title>{label}: confidence {p:.3f}, hit rate {q:.3f}, n = {n}</title></circle>")
+        ly = y0 + 14 + 18 * g
+        out.append(f'<circle cx="{x0 + pw + 18}" cy="{ly - 4}" r="5" fill="{colour}"/>')
+        out.append(text(x0 + pw + 28, ly, label, 12, "start"))
+    for i, line in enumerate(["dot size: the", "decisions in", "the bin (log)", "", "dashed: perfect", "calibration"]):
+        out.append(text(x0 + pw + 12, y0 + 76 + 14 * i, line, 11, "start", ' fill="#555"'))
+    out.append(text(w / 2, h - 8, f"qtvpr {qtvpr.__version__}, python benches/confidence.py; single matching, "
+                    "10% calibrate, 1% segments", 11, "middle", ' fill="#555"'))
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
     parser.add_argument("--output", type=Path, default=REPO / "docs" / "margin-gate.md")
+    parser.add_argument("--figure", type=Path, default=REPO / "docs" / "confidence.svg")
     args = parser.parse_args()
-    rows = [(name, signals(s, gt)) for name, s, gt in matrices(args.data)]
-    text = table(rows)
-    print(text)
-    write_block(args.output, "confidence", text)
+    start = time.perf_counter()
+    results: dict[str, list[tuple[str, dict]]] = {label: [] for label, _ in SETTINGS}
+    for name, s, gt in matrices(args.data):
+        for label, kwargs in SETTINGS:
+            results[label].append((name, signals(s, gt, kwargs)))
+        print(f"{name}: done", flush=True)
+    text_ = tables(results)
+    print(f"\n{text_}")
+    write_block(args.output, "confidence", text_)
+    args.figure.write_text(figure(results[SETTINGS[0][0]]))
+    print(f"total {time.perf_counter() - start:.1f} s on {machine()}; written to {args.output} and {args.figure}")
 
 
 if __name__ == "__main__":

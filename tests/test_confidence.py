@@ -207,13 +207,42 @@ def test_cli_stream_equals_the_wheel(cli, tmp_path):
 # ---------------------------------------------------------------------------------------
 
 
+def assert_same_bins(got, want):
+    """Reliability bins: the same bins and counts, their means to 1e-9."""
+    assert (got is None) == (want is None)
+    if want is not None:
+        assert [(b["lower"], b["upper"], b["n"]) for b in got] == [(b["lower"], b["upper"], b["n"]) for b in want]
+        means = [[[b["mean_confidence"], b["hit_rate"]] for b in bins] for bins in (got, want)]
+        close(*means)
+
+
 def assert_same_signals(got, want):
     assert list(got) == ["signals"] and list(got["signals"]) == ["score", "margin", "confidence"]
+    assert list(got["signals"]["confidence"]) == ["auroc", "brier", "ece", "bins"]
     for signal, figures in want["signals"].items():
         assert list(got["signals"][signal]) == list(figures)
         for key, w in figures.items():
             g = got["signals"][signal][key]
-            assert (g is None and w is None) or abs(g - w) <= 1e-9, (signal, key, g, w)
+            if key == "bins":
+                assert_same_bins(g, w)
+            else:
+                assert (g is None and w is None) or abs(g - w) <= 1e-9, (signal, key, g, w)
+
+
+def test_reliability_bins_by_hand():
+    # The Rust scenario (crates/qtvpr/src/confidence.rs, reliability_bins_by_hand): p on
+    # an edge goes up (0.1: bin 1), except 1.0, which the last bin holds with 0.9.
+    p = np.array([0.0, 0.08, 0.1, 0.55, 0.58, 0.59, 0.9, 1.0])
+    c = np.array([0, 0, 1, 1, 0, 1, 0, 1], dtype=bool)
+    bins = ref._reliability(p, c)
+    # Bin 0: mean 0.04, none right; bin 1: 0.1, right; bin 5: 1.72 / 3, 2 of 3 right;
+    # bin 9: 0.95, 1 of 2 right. ECE = 2/8 x 0.04 + 1/8 x 0.9 + 3/8 x (2/3 - 1.72/3) +
+    # 2/8 x 0.45 = 0.01 + 0.1125 + 0.035 + 0.1125 = 0.27.
+    assert [(b["lower"], b["upper"], b["n"]) for b in bins] == [(0.0, 0.1, 2), (0.1, 0.2, 1), (0.5, 0.6, 3),
+                                                                 (0.9, 1.0, 2)]
+    close([b["mean_confidence"] for b in bins], [0.04, 0.1, 1.72 / 3, 0.95], 1e-12)
+    assert [b["hit_rate"] for b in bins] == [0.0, 1.0, 2 / 3, 0.5]
+    assert ref._ece(p, c) == pytest.approx(0.27, abs=1e-12)
 
 
 def test_evaluate_signals_on_the_embedded_corridor(cli):
@@ -226,6 +255,8 @@ def test_evaluate_signals_on_the_embedded_corridor(cli):
     assert_same_signals(got, want)
     c = want["signals"]["confidence"]
     assert c["auroc"] == 0.5 and c["brier"] == pytest.approx(0.17, abs=1e-12) and c["ece"] == pytest.approx(0.17)
+    # Every confidence 1: one reliability bin, the last, of all 100 decisions.
+    assert c["bins"] == [{"lower": 0.9, "upper": 1.0, "n": 100, "mean_confidence": 1.0, "hit_rate": 0.83}]
     out = run_cli(cli, "evaluate", "--format", "json")  # the embedded demo data
     assert_same_signals(json.loads(out.stdout)["confidence"], want)
     # Multi matching: no signals.

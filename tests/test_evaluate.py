@@ -35,7 +35,7 @@ METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped",
                "pooled_precision_lower95", "segments"]
 RUN_KEYS = ["params", "recall_at_1", "methods"]
 #: Semantics §14's signals: a run's last key, in single matching only.
-SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "confidence": ["auroc", "brier", "ece"]}
+SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "confidence": ["auroc", "brier", "ece", "bins"]}
 
 
 def run_of(d: dict) -> dict:
@@ -63,6 +63,15 @@ def same_figure(a, b) -> bool:
     return abs(a - b) <= 1e-9
 
 
+def same_bins(a, b) -> bool:
+    """Reliability bins: the same bins and counts, their means to 1e-9."""
+    if a is None or b is None:
+        return a is None and b is None
+    return [(x["lower"], x["upper"], x["n"]) for x in a] == [(x["lower"], x["upper"], x["n"]) for x in b] and all(
+        same_figure(x[k], y[k]) for x, y in zip(a, b, strict=True) for k in ("mean_confidence", "hit_rate")
+    )
+
+
 def key_tree(value):
     """The keys of ``value``, recursively and in order (a list by its elements)."""
     if isinstance(value, dict):
@@ -83,7 +92,7 @@ def assert_same_run(got: dict, want: dict) -> None:
         for signal, keys in SIGNALS.items():
             for key in keys:
                 g, w = got["confidence"]["signals"][signal][key], signals[signal][key]
-                assert same_figure(g, w), (signal, key, g, w)
+                assert (same_bins if key == "bins" else same_figure)(g, w), (signal, key, g, w)
     assert got["params"] == want["params"]
     assert same_figure(got["recall_at_1"], want["recall_at_1"])
     assert list(got["methods"]) == list(want["methods"])

@@ -112,10 +112,19 @@ class _Params(TypedDict):
 class _Auroc(TypedDict):
     auroc: float | None
 
+class _ReliabilityBin(TypedDict):
+    lower: float
+    upper: float
+    n: int
+    mean_confidence: float
+    hit_rate: float
+
 class _Calibrated(TypedDict):
     auroc: float | None
     brier: float | None
     ece: float | None
+    # The non-empty bins the ECE is computed from (a reliability diagram).
+    bins: list[_ReliabilityBin] | None
 
 class _SignalSet(TypedDict):
     score: _Auroc

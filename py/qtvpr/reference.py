@@ -773,9 +773,28 @@ def _ece(p: np.ndarray, c: np.ndarray) -> float:
     return total
 
 
+def _reliability(p: np.ndarray, c: np.ndarray) -> list[dict]:
+    """The reliability bins: of the 10 equal-width bins of [0, 1] (the last holds 1.0),
+    those that hold a decision, with their edges, count, mean p and mean c."""
+    bins = np.array([min(math.floor(v * 10), 9) for v in p])
+    out = []
+    for b in range(10):
+        here = bins == b
+        if here.any():
+            out.append({
+                "lower": b / 10,
+                "upper": (b + 1) / 10,
+                "n": int(np.count_nonzero(here)),
+                "mean_confidence": float(p[here].mean()),
+                "hit_rate": float(c[here].mean()),
+            })
+    return out
+
+
 def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
     """Section 14's evaluation signals over the deployment columns given (soft-only best
-    matches left out): AUROC of s1, margin, confidence; the confidence's Brier and ECE."""
+    matches left out): AUROC of s1, margin, confidence; the confidence's Brier, ECE and
+    reliability bins."""
     blocks = _confidence_blocks(s_cal, gt_cal, ign_cal)
     best = np.argmax(s_dep, axis=0)
     cols = np.arange(s_dep.shape[1])
@@ -793,6 +812,7 @@ def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
                 "auroc": _auroc(p, c) if calibrated else None,
                 "brier": float(np.mean((p - c) ** 2)) if calibrated else None,
                 "ece": _ece(p, c) if calibrated else None,
+                "bins": _reliability(p, c) if calibrated else None,
             },
         }
     }

@@ -115,9 +115,9 @@ pub struct EvaluateArgs {
     /// Write to this file (atomically) instead of stdout.
     #[arg(long, short, value_name = "FILE")]
     output: Option<PathBuf>,
-    /// Write SVG figures into this directory (created if need be): thresholds.svg and
-    /// precision_recall.svg for one setting; ablation_k.svg / ablation_cal.svg for an
-    /// ablation.
+    /// Write SVG figures into this directory (created if need be): thresholds.svg,
+    /// precision_recall.svg and (single matching) reliability.svg for one setting;
+    /// ablation_k.svg / ablation_cal.svg for an ablation.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
 }

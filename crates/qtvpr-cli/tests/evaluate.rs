@@ -223,6 +223,17 @@ fn hand_computed_json() {
         &methods["schubert-calibrated"]["segments"][1]["threshold"],
         0.35 + 0.2 / 0.675 * Z
     ));
+    // Semantics §14's reliability bins (the decisions of table_and_csv below):
+    // confidences 0 (d1, d2: both wrong) and 1 (d0 right, d3 wrong), so bin 0 holds two
+    // at mean 0 with hit rate 0, the last bin two at mean 1 with hit rate 1/2; the ECE,
+    // 2/4 |0 - 0| + 2/4 |1 - 1/2| = 0.25, is computed from them.
+    let c = &out["confidence"]["signals"]["confidence"];
+    assert_eq!(
+        c["bins"],
+        json!([{"lower": 0.0, "upper": 0.1, "n": 2, "mean_confidence": 0.0, "hit_rate": 0.0},
+               {"lower": 0.9, "upper": 1.0, "n": 2, "mean_confidence": 1.0, "hit_rate": 0.5}])
+    );
+    assert_eq!(c["ece"], 0.25);
 }
 
 #[test]
@@ -420,6 +431,46 @@ fn plots_are_written() {
     let svg = std::fs::read_to_string(dir.join("ablation_k.svg")).unwrap();
     assert!(svg.contains("Sensitivity to k"));
     assert!(!dir.join("ablation_cal.svg").exists());
+}
+
+/// The count labels of a reliability diagram, in drawing order (plotters writes each
+/// text on a line of its own).
+fn reliability_counts(svg: &str) -> Vec<&str> {
+    svg.lines().filter(|l| l.starts_with("n = ")).collect()
+}
+
+#[test]
+fn reliability_diagram_has_a_point_per_bin() {
+    let case = Case::new();
+    let dir = case.path("figs");
+    case.ok(&["--plot", dir.to_str().unwrap()]);
+    // Two non-empty bins (hand_computed_json): confidence 0, hit rate 0, and confidence
+    // 1, hit rate 1/2; two decisions each. One circle per point and one in the legend.
+    let svg = std::fs::read_to_string(dir.join("reliability.svg")).unwrap();
+    assert_eq!(reliability_counts(&svg), ["n = 2", "n = 2"], "{svg}");
+    assert_eq!(svg.matches("<circle").count(), 3, "{svg}");
+    assert!(svg.contains("ECE 0.250, Brier 0.250"), "{svg}");
+    assert!(svg.contains("perfect calibration"), "{svg}");
+
+    // The embedded data: the 11 calibration queries' best matches are all right, so
+    // every confidence is 1: one point, the last bin's, with all 100 decisions at hit
+    // rate 0.83 (ECE |1 - 0.83|).
+    std::fs::remove_dir_all(&dir).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .args(["evaluate", "--plot", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.join("reliability.svg")).unwrap();
+    assert_eq!(reliability_counts(&svg), ["n = 100"], "{svg}");
+    assert_eq!(svg.matches("<circle").count(), 2, "{svg}");
+    assert!(svg.contains("ECE 0.170, Brier 0.170"), "{svg}");
+
+    // Multi matching has no confidence: no diagram, the other figures as before.
+    std::fs::remove_dir_all(&dir).unwrap();
+    case.ok(&["--plot", dir.to_str().unwrap(), "--matching", "multi"]);
+    assert!(dir.join("thresholds.svg").exists() && dir.join("precision_recall.svg").exists());
+    assert!(!dir.join("reliability.svg").exists());
 }
 
 #[test]

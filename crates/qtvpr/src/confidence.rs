@@ -148,12 +148,73 @@ impl ConfidenceMap {
     }
 }
 
+/// The number of equal-width bins of [0, 1] of the reliability summary and the ECE.
+pub const RELIABILITY_BINS: usize = 10;
+
+/// One bin of a reliability diagram: the decisions whose confidence lies in
+/// `[lower, upper)` (the last bin, `[0.9, 1]`, holds 1.0), their mean confidence and
+/// their observed hit rate. The expected calibration error ([`ece`]) is computed from
+/// these bins, so a reliability diagram and the ECE cannot bin differently.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct ReliabilityBin {
+    /// The bin's lower edge, `i / 10`.
+    pub lower: f64,
+    /// Its upper edge, `(i + 1) / 10` (inclusive for the last bin only).
+    pub upper: f64,
+    /// Its number of decisions (at least 1: empty bins are left out).
+    pub n: usize,
+    /// The mean confidence of its decisions.
+    pub mean_confidence: f64,
+    /// The share of its decisions that are right (the mean of `c`).
+    pub hit_rate: f64,
+}
+
+/// The reliability summary of confidences `p` (in [0, 1]) of decisions whose
+/// correctness is `c`: over [`RELIABILITY_BINS`] equal-width bins of [0, 1] (decision
+/// `i` in bin `min(floor(10 p_i), 9)`, so the last holds 1.0), the bins that hold a
+/// decision, in ascending order.
+///
+/// # Panics
+/// When `p` and `c` differ in length.
+pub fn reliability(p: &[f64], c: &[bool]) -> Vec<ReliabilityBin> {
+    assert_eq!(p.len(), c.len(), "one correctness per confidence");
+    // Per bin: count, sum of p, right decisions.
+    let mut sums = [(0usize, 0.0f64, 0usize); RELIABILITY_BINS];
+    for (&p, &c) in p.iter().zip(c) {
+        let bin = &mut sums[((p * RELIABILITY_BINS as f64).floor() as usize).min(RELIABILITY_BINS - 1)];
+        bin.0 += 1;
+        bin.1 += p;
+        bin.2 += usize::from(c);
+    }
+    sums.iter()
+        .enumerate()
+        .filter(|(_, b)| b.0 > 0)
+        .map(|(i, &(n, sum, right))| ReliabilityBin {
+            lower: i as f64 / RELIABILITY_BINS as f64,
+            upper: (i + 1) as f64 / RELIABILITY_BINS as f64,
+            n,
+            mean_confidence: sum / n as f64,
+            hit_rate: right as f64 / n as f64,
+        })
+        .collect()
+}
+
+/// The expected calibration error of a reliability summary: each bin's `|mean
+/// confidence - hit rate|` weighted by its share of the decisions (0 without a bin).
+pub fn ece(bins: &[ReliabilityBin]) -> f64 {
+    let total = bins.iter().map(|b| b.n).sum::<usize>() as f64;
+    bins.iter()
+        .map(|b| (b.mean_confidence - b.hit_rate).abs() * b.n as f64 / total)
+        .sum()
+}
+
 /// The evaluation signals of semantics §14 over the protocol's deployment decisions:
 /// how well each signal ranks right above wrong best matches, and how well the
 /// confidence is calibrated. Serialised as
 /// `{"signals": {"score": {"auroc"}, "margin": {"auroc"}, "confidence": {"auroc",
-/// "brier", "ece"}}}`; a figure without the decisions it needs is `null`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// "brier", "ece", "bins"}}}`; a figure without the decisions it needs is `null`.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Signals {
     /// AUROC of the best score `s1`.
     pub score_auroc: Option<f64>,
@@ -163,20 +224,25 @@ pub struct Signals {
     pub confidence_auroc: Option<f64>,
     /// The confidence's Brier score: the mean of `(confidence - c)^2`.
     pub brier: Option<f64>,
-    /// The confidence's expected calibration error over 10 equal-width bins of [0, 1].
+    /// The confidence's expected calibration error over 10 equal-width bins of [0, 1]:
+    /// [`ece`] of [`Signals::bins`].
     pub ece: Option<f64>,
+    /// The confidence's reliability summary ([`reliability`]): the non-empty bins of
+    /// the ECE, for a reliability diagram.
+    pub bins: Option<Vec<ReliabilityBin>>,
 }
 
 impl Signals {
     /// The signals of decisions `(score, margin, correct)` under `map`. AUROCs are
-    /// `None` without a right or without a wrong decision; Brier and ECE are `None`
-    /// without a decision or without a confidence (a map without blocks).
+    /// `None` without a right or without a wrong decision; Brier, ECE and the bins are
+    /// `None` without a decision or without a confidence (a map without blocks).
     pub fn of(decisions: &[(f64, f64, bool)], map: &ConfidenceMap) -> Self {
         let c: Vec<bool> = decisions.iter().map(|d| d.2).collect();
         let p: Vec<f64> = decisions.iter().map(|d| map.confidence(d.1)).collect();
         let scores: Vec<f64> = decisions.iter().map(|d| d.0).collect();
         let margins: Vec<f64> = decisions.iter().map(|d| d.1).collect();
         let calibrated = !p.is_empty() && !map.blocks().is_empty();
+        let bins = calibrated.then(|| reliability(&p, &c));
         Self {
             score_auroc: auroc(&scores, &c),
             margin_auroc: auroc(&margins, &c),
@@ -188,7 +254,8 @@ impl Signals {
                     .sum::<f64>()
                     / p.len() as f64
             }),
-            ece: calibrated.then(|| ece(&p, &c)),
+            ece: bins.as_deref().map(ece),
+            bins,
         }
     }
 }
@@ -208,10 +275,11 @@ impl serde::Serialize for Signals {
         struct Calibrated<'a>(&'a Signals);
         impl serde::Serialize for Calibrated<'_> {
             fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
-                let mut m = serializer.serialize_map(Some(3))?;
+                let mut m = serializer.serialize_map(Some(4))?;
                 m.serialize_entry("auroc", &self.0.confidence_auroc)?;
                 m.serialize_entry("brier", &self.0.brier)?;
                 m.serialize_entry("ece", &self.0.ece)?;
+                m.serialize_entry("bins", &self.0.bins)?;
                 m.end()
             }
         }
@@ -258,24 +326,6 @@ fn auroc(x: &[f64], c: &[bool]) -> Option<f64> {
     // U = rank sum - right (right + 1) / 2, doubled.
     let twice_u = twice_ranks - right * (right + 1);
     Some(twice_u as f64 / (2 * right * wrong) as f64)
-}
-
-/// Expected calibration error: over 10 equal-width bins of [0, 1] (bin
-/// `min(floor(10 p), 9)`, so the last holds 1.0), `|mean p - mean c|` weighted by the
-/// bin's share of decisions.
-fn ece(p: &[f64], c: &[bool]) -> f64 {
-    let mut bins = [(0usize, 0.0f64, 0usize); 10];
-    for (&p, &c) in p.iter().zip(c) {
-        let bin = &mut bins[((p * 10.0).floor() as usize).min(9)];
-        bin.0 += 1;
-        bin.1 += p;
-        bin.2 += usize::from(c);
-    }
-    let n = p.len() as f64;
-    bins.iter()
-        .filter(|b| b.0 > 0)
-        .map(|&(count, sum, right)| (sum / count as f64 - right as f64 / count as f64).abs() * count as f64 / n)
-        .sum()
 }
 
 /// Check that decisions in `matching` mode over a database of `n_db` images have a
@@ -435,6 +485,19 @@ mod tests {
         // Margin: right {3, 2.5} above wrong {1, 0.5}: 1. Confidence: 1, 1 against 0, 0.
         assert_eq!((s.margin_auroc, s.confidence_auroc), (Some(1.0), Some(1.0)));
         assert_eq!((s.brier, s.ece), (Some(0.0), Some(0.0)));
+        // Its bins: the two wrong decisions at confidence 0 (bin 0), the two right ones
+        // at 1 (the last bin).
+        let bin = |lower, upper, n, mean_confidence, hit_rate| ReliabilityBin {
+            lower,
+            upper,
+            n,
+            mean_confidence,
+            hit_rate,
+        };
+        assert_eq!(
+            s.bins,
+            Some(vec![bin(0.0, 0.1, 2, 0.0, 0.0), bin(0.9, 1.0, 2, 1.0, 1.0)])
+        );
         // A map of one block 1 of 2 (right at 1, wrong at 2: a violator, pooled): every
         // confidence 0.5; AUROC 0.5 (all tied), Brier 0.25, ECE: one bin (5),
         // |0.5 - 2/4| = 0.
@@ -443,15 +506,50 @@ mod tests {
         assert_eq!((s.confidence_auroc, s.brier, s.ece), (Some(0.5), Some(0.25), Some(0.0)));
         // Bins: p = 0.25 (bin 2, wrong) and 1.0 (bin 9, the last, right), 0.95 (bin 9,
         // wrong): ECE = 1/3 |0.25 - 0| + 2/3 |0.975 - 1/2| = 0.083333 + 0.316667 = 0.4.
-        assert!((ece(&[0.25, 1.0, 0.95], &[false, true, false]) - 0.4).abs() < 1e-12);
+        let bins = reliability(&[0.25, 1.0, 0.95], &[false, true, false]);
+        assert!((ece(&bins) - 0.4).abs() < 1e-12);
         // Without a wrong decision, no AUROC; without blocks, no calibration figure.
         let all_right = Signals::of(&[(0.9, 3.0, true)], &map);
         assert_eq!((all_right.score_auroc, all_right.brier), (None, Some(0.0)));
         let none = Signals::of(&d, &ConfidenceMap::fit([]));
         assert_eq!(
-            (none.score_auroc, none.confidence_auroc, none.brier, none.ece),
-            (Some(0.875), None, None, None)
+            (none.score_auroc, none.confidence_auroc, none.brier, none.ece, none.bins),
+            (Some(0.875), None, None, None, None)
         );
+    }
+
+    #[test]
+    fn reliability_bins_by_hand() {
+        // (p, c) in four of the ten bins; a p on an edge goes up (0.1: bin 1), except
+        // 1.0, which the last bin holds with 0.9.
+        let pc = [
+            (0.0, false),
+            (0.08, false),
+            (0.1, true),
+            (0.55, true),
+            (0.58, false),
+            (0.59, true),
+            (0.9, false),
+            (1.0, true),
+        ];
+        let (p, c): (Vec<f64>, Vec<bool>) = pc.iter().copied().unzip();
+        let bins = reliability(&p, &c);
+        // Bin 0: 0 and 0.08, mean 0.04, none right. Bin 1: 0.1, right.
+        // Bin 5: (0.55 + 0.58 + 0.59) / 3 = 1.72 / 3 = 0.573333, 2 of 3 right.
+        // Bin 9: (0.9 + 1.0) / 2 = 0.95, 1 of 2 right. Bins 2-4 and 6-8 are empty: left out.
+        let got: Vec<(f64, f64, usize)> = bins.iter().map(|b| (b.lower, b.upper, b.n)).collect();
+        assert_eq!(got, [(0.0, 0.1, 2), (0.1, 0.2, 1), (0.5, 0.6, 3), (0.9, 1.0, 2)]);
+        let want = [(0.04, 0.0), (0.1, 1.0), (1.72 / 3.0, 2.0 / 3.0), (0.95, 0.5)];
+        for (b, (mean, hit)) in bins.iter().zip(want) {
+            assert!((b.mean_confidence - mean).abs() < 1e-12, "{b:?}");
+            assert_eq!(b.hit_rate, hit, "{b:?}");
+        }
+        // ECE = 2/8 x 0.04 + 1/8 x 0.9 + 3/8 x |0.573333 - 0.666667| + 2/8 x 0.45
+        //     = 0.01 + 0.1125 + 0.035 + 0.1125 = 0.27.
+        assert!((ece(&bins) - 0.27).abs() < 1e-12, "{}", ece(&bins));
+        // No decision: no bin, and an ECE of 0.
+        assert!(reliability(&[], &[]).is_empty());
+        assert_eq!(ece(&[]), 0.0);
     }
 
     proptest! {

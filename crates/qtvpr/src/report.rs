@@ -55,7 +55,10 @@
 //!     positives), `precision_lower95` and `meets` (precision >= tau - 1e-12).
 //! - `confidence` (single matching with |DB| >= 2 only, semantics §14): `{"signals":
 //!   {"score": {"auroc"}, "margin": {"auroc"}, "confidence": {"auroc", "brier",
-//!   "ece"}}}` over the full segments' decisions ([`Signals`]).
+//!   "ece", "bins"}}}` over the full segments' decisions ([`Signals`]); `bins` is the
+//!   reliability summary the ECE is computed from, the non-empty ones of 10 equal-width
+//!   bins of [0, 1], each `{"lower", "upper", "n", "mean_confidence", "hit_rate"}`
+//!   ([`ReliabilityBin`]), `null` with the ECE.
 //!
 //! `precision_lower95` is the one-sided 95% Clopper-Pearson lower bound on the
 //! precision, the 0.05 quantile of Beta(TP, FP + 1) ([`Counts::precision_lower95`]): 0
@@ -91,6 +94,7 @@
 //! [`SegmentResult`]: crate::evaluate::SegmentResult
 //! [`Ablation`]: crate::evaluate::Ablation
 //! [`Signals`]: crate::confidence::Signals
+//! [`ReliabilityBin`]: crate::confidence::ReliabilityBin
 //! [`Counts::precision_lower95`]: crate::Counts::precision_lower95
 //! [`Params`]: crate::Params
 //! [`Segment`]: crate::Segment

@@ -7,6 +7,9 @@
 //! - `precision_recall.svg` (Fig. 4, right): the precision-recall curve of the
 //!   deployment set under one global threshold, with each method's operating point
 //!   (its per-segment decisions pooled over the deployment set).
+//! - `reliability.svg` (single matching): the reliability diagram of the confidence
+//!   (semantics §14), the hit rate against the mean confidence of each bin of the ECE
+//!   that holds a decision, with its count, and the diagonal of perfect calibration.
 //! - `ablation_k.svg` / `ablation_cal.svg` (Fig. 5): %Segs and AvgR against k or the
 //!   calibration size, when `--k` or the calibration size is given a list.
 //!
@@ -16,6 +19,7 @@
 
 mod ablation;
 mod precision_recall;
+mod reliability;
 mod thresholds;
 
 use std::fmt::Debug;
@@ -37,6 +41,7 @@ use crate::embedded;
 use crate::output::emit;
 use crate::summary::{Run, RunContext, ablation_setting, fmt_num};
 use precision_recall::PR_HEIGHT;
+use reliability::{RELIABILITY_BELOW, RELIABILITY_HEIGHT};
 use thresholds::{LEGEND_HEIGHT, STRIP_HEIGHT, THRESHOLD_HEIGHT};
 
 const FONT: &str = "sans-serif";
@@ -279,6 +284,15 @@ pub fn write_all(dir: &Path, ctx: &RunContext, runs: &[Run], k_varies: bool, cal
         svg(dir, "precision_recall.svg", (900, PR_HEIGHT + 30 + 22 * rows), |root| {
             precision_recall::precision_recall(root, ctx, run)
         })?;
+        // Semantics §14's signals exist in single matching only.
+        if let Some(signals) = &run.eval.confidence {
+            svg(
+                dir,
+                "reliability.svg",
+                (900, RELIABILITY_HEIGHT + RELIABILITY_BELOW),
+                |root| reliability::reliability(root, ctx, signals),
+            )?;
+        }
         return Ok(());
     }
     if k_varies {

@@ -369,7 +369,7 @@ mod tests {
         assert_eq!(keys(&v["confidence"]["signals"]), ["confidence", "margin", "score"]);
         assert_eq!(
             keys(&v["confidence"]["signals"]["confidence"]),
-            ["auroc", "brier", "ece"]
+            ["auroc", "bins", "brier", "ece"]
         );
         assert_eq!(keys(&v["confidence"]["signals"]["score"]), ["auroc"]);
         assert_eq!(
