@@ -706,3 +706,99 @@ fn shapes_that_fit_only_the_other_way_round_say_so() {
     );
     assert!(String::from_utf8_lossy(&out.stderr).ends_with("of the 100 queries, got 200\n"));
 }
+
+/// The polylines of an SVG written by plotters, in order, as (stroke colour, number of
+/// points), and the texts between them: `Err(text)` for a text, `Ok(polyline)` else.
+fn svg_elements(svg: &str) -> Vec<Result<(String, usize), String>> {
+    let attr = |line: &str, name: &str| -> Option<String> {
+        let start = line.find(&format!(" {name}=\""))? + name.len() + 3;
+        Some(line[start..start + line[start..].find('"')?].to_string())
+    };
+    svg.lines()
+        .filter_map(|line| {
+            if line.starts_with("<polyline") {
+                let points = attr(line, "points").unwrap_or_default();
+                Some(Ok((
+                    attr(line, "stroke").unwrap_or_default(),
+                    points.split_whitespace().count(),
+                )))
+            } else if !line.starts_with('<') && !line.trim().is_empty() {
+                Some(Err(line.trim().to_string()))
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn gated_threshold_lines_are_dashed_and_the_others_solid() {
+    // The embedded data: quantile-transfer-margin's thresholds are quantile transfer's,
+    // so its line lies on quantile transfer's and must be dashed for both to show.
+    let dir = tempfile::tempdir().unwrap();
+    let out = cli(dir.path(), &["evaluate", "--plot", "figs", "--format", "json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("figs/thresholds.svg")).unwrap();
+    let elements = svg_elements(&svg);
+    // A legend entry is its swatch, drawn just before the method's name (the last run of
+    // polylines of one colour before the text), then the name: one segment for a solid
+    // line, several for a dashed one.
+    let mut swatches: Vec<(String, Vec<(String, usize)>)> = vec![];
+    let mut since_text: Vec<(String, usize)> = vec![];
+    for e in &elements {
+        match e {
+            Ok(p) => since_text.push(p.clone()),
+            Err(text) => {
+                let mut run = std::mem::take(&mut since_text);
+                let last = run.last().map(|(c, _)| c.clone());
+                let keep = run.iter().rev().take_while(|(c, _)| Some(c) == last.as_ref()).count();
+                swatches.push((text.clone(), run.split_off(run.len() - keep)));
+            }
+        }
+    }
+    let swatch = |name: &str| -> Vec<(String, usize)> {
+        swatches
+            .iter()
+            .find(|(text, _)| text == name)
+            .unwrap_or_else(|| panic!("no legend entry {name}"))
+            .1
+            .clone()
+    };
+    let colour = |name: &str| swatch(name)[0].0.clone();
+    // (`margin`, whose score threshold is -inf, has no line and no entry.)
+    for name in ["quantile-transfer", "quantile-transfer-margin", "schubert"] {
+        let s = swatch(name);
+        assert!(s.iter().all(|(c, n)| *c == s[0].0 && *n == 2), "{name}: {s:?}");
+        let gated = name.ends_with("margin");
+        assert_eq!(s.len() > 1, gated, "{name}'s swatch: {s:?}");
+    }
+    // The plotted lines (every polyline of the method's colour): quantile transfer's is
+    // one polyline through every segment's ends (about 100 points); its gated twin's is
+    // dashes of 2 points (3 where a dash turns a corner), many more than the legend's.
+    let lines = |name: &str| -> Vec<usize> {
+        let c = colour(name);
+        elements
+            .iter()
+            .filter_map(|e| e.as_ref().ok())
+            .filter(|(s, _)| *s == c)
+            .map(|(_, n)| *n)
+            .collect()
+    };
+    assert_ne!(colour("quantile-transfer"), colour("quantile-transfer-margin"));
+    let solid = lines("quantile-transfer");
+    assert!(solid.iter().any(|&n| n > 10), "quantile-transfer: {solid:?}");
+    let dashed = lines("quantile-transfer-margin");
+    assert!(
+        dashed.iter().all(|&n| n <= 3) && dashed.len() > 20,
+        "quantile-transfer-margin: {dashed:?}"
+    );
+    for name in [
+        "quantile-transfer-online",
+        "schubert",
+        "schubert-calibrated",
+        "calibration-threshold",
+    ] {
+        let l = lines(name);
+        assert!(l.iter().any(|&n| n > 10), "{name}: {l:?}");
+    }
+}
