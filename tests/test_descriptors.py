@@ -65,6 +65,9 @@ def test_evaluate_from_descriptors_equals_the_matrix_path(nordland):
     db, q, gt = nordland
     want = qtvpr.evaluate(qtvpr.cosine_similarity(db, q), gt, cal_queries=N_CAL, segment_size=20)
     got = qtvpr.evaluate(qtvpr.Descriptors(db, q), gt, cal_queries=N_CAL, segment_size=20)
+    # Only a matrix has an orientation to report; descriptors have but one. The first
+    # N_Q queries of 3576 all have a positive, the database images past them none.
+    assert want.pop("orientation")["evidence"]["verdict"] == "consistent"
     assert got == want
     assert want["methods"]["quantile-transfer"]["segments"]
 
@@ -74,6 +77,7 @@ def test_ablation_from_descriptors_equals_the_matrix_path(nordland):
     opts = {"k": [1, 5], "cal_queries": [50, N_CAL], "segment_size": 20, "methods": ["quantile-transfer"]}
     want = qtvpr.ablation(qtvpr.cosine_similarity(db, q), gt, **opts)
     got = qtvpr.ablation(qtvpr.Descriptors(db, q), gt, **opts)
+    assert want.pop("orientation")["query_major"] is False
     assert got == want
     runs = want["ablation"]
     assert [(r["params"]["calibration_queries"], r["params"]["k"]) for r in runs] == [

@@ -117,14 +117,22 @@ def assert_same_run(got: dict, want: dict) -> None:
             assert same_figure(gs["precision_lower95"], ws["precision_lower95"]), (name, gs, ws)
 
 
+def same_layout(got: dict, want: dict) -> bool:
+    """The same ``orientation`` record, whether or not it was read query-major (which
+    the callers compare themselves)."""
+    return {**got, "query_major": None} == {**want, "query_major": None}
+
+
 def assert_same_evaluation(got: dict, want: dict) -> None:
     """``evaluate``'s dicts: ``dataset`` (whatever its value) and one run."""
-    assert list(got) == ["dataset", *run_of(want)]
+    assert list(got) == ["dataset", "orientation", *run_of(want)]
+    assert same_layout(got["orientation"], want["orientation"])
     assert_same_run(run_of(got), run_of(want))
 
 
 def assert_same_ablation(got: dict, want: dict) -> None:
-    assert list(got) == ["dataset", "ablation"]
+    assert list(got) == ["dataset", "orientation", "ablation"]
+    assert same_layout(got["orientation"], want["orientation"])
     assert len(got["ablation"]) == len(want["ablation"])
     for g, w in zip(got["ablation"], want["ablation"], strict=True):
         assert_same_run(g, w)
@@ -172,6 +180,7 @@ def test_soft_ground_truth_and_query_major(shared_data, technique, matching):
     got = qtvpr.evaluate(np.asfortranarray(s.T), gt.T.astype(np.uint8), gt_soft=soft.T,
                          query_major=True, **kwargs)
     assert_same_evaluation(got, want)
+    assert got["orientation"]["query_major"] and not want["orientation"]["query_major"]
     assert_same_evaluation(
         ref.evaluate(s.T, gt.T, gt_soft=soft.T, query_major=True, **kwargs), want)
 
@@ -322,7 +331,7 @@ def test_cli_ablation_json_and_python_dict_have_the_same_keys(cli, shared_data):
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     got = qtvpr.ablation(str(s), str(gt), k=[1, 3], cal_fraction=[0.05, 0.2])
-    assert list(got) == ["dataset", "ablation"]
+    assert list(got) == ["dataset", "orientation", "ablation"]
     assert key_tree(out) == key_tree(got)
     assert from_json(out) == got
     want = ref.ablation(*load(shared_data, "vprbench-corridor", "NetVLAD"), k=[1, 3], cal_fraction=[0.05, 0.2])
@@ -379,7 +388,10 @@ def test_cli_embedded_data_matches_the_reference(cli):
     data = Path(__file__).resolve().parents[1] / "data" / "corridor"
     s = np.concatenate([np.load(data / "cal_S.npy"), np.load(data / "deploy_S.npy")], axis=1)
     gt = np.concatenate([np.load(data / "cal_GT.npy"), np.load(data / "deploy_GT.npy")], axis=1)
-    assert_same_evaluation(from_json(json.loads(res.stdout)), ref.evaluate(s, gt))
+    got, want = from_json(json.loads(res.stdout)), ref.evaluate(s, gt)
+    # The embedded data has but one layout: no orientation is reported.
+    assert list(got) == ["dataset", *run_of(want)]
+    assert_same_run(run_of(got), run_of(want))
 
 
 # ---------------------------------------------------------------------------------------
@@ -420,6 +432,7 @@ def evaluate_cases(draw):
 
 @settings(max_examples=250, deadline=None, derandomize=True)
 @given(evaluate_cases())
+@pytest.mark.filterwarnings("ignore:.*queries have no positive:UserWarning")  # random ground truth
 def test_random_matrices_equal_reference(case):
     s, gt, kwargs = case
     single = kwargs["matching"] == "single"

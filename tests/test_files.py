@@ -468,7 +468,7 @@ def test_a_database_mismatch_hints_at_query_major(files, tmp_path):
         qtvpr.quantile_transfer(files["s_cal"], files["gt_cal"], short)
     assert str(info.value) == (
         "s_val: deployment similarity has 3 database images but calibration similarity has 4; both must be "
-        "scored against the same database; if the arrays are query-major (|Q| x |DB|, as VPR-Bench stores "
+        "scored against the same database; if the matrices are query-major (|Q| x |DB|, as VPR-Bench stores "
         "them), pass query_major=True"
     )
     # Query-major: |DB| is 3 (cal) against 4 (val); the hint would be wrong.

@@ -229,6 +229,8 @@ def test_vpr_methods_evaluation_folder_in_one_command(cli, shared_data, tmp_path
     # The dataset line names the inputs (the two descriptor files, or S.npy); all else agrees.
     assert got.pop("dataset").endswith("database_descriptors.npy x " + str(tmp_path / "queries_descriptors.npy"))
     want.pop("dataset")
+    # Only the matrix has an orientation to report (ground truth made for it: no evidence).
+    assert want.pop("orientation") == {"db": 3576, "queries": 3576, "query_major": False}
     assert got == want
 
 

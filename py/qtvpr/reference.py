@@ -1124,6 +1124,38 @@ def _protocol_defaults(*given):
     return tuple(d if v is None else v for v, d in zip(given, PROTOCOL_DEFAULTS, strict=True))
 
 
+#: Semantics §1: the share of queries without a positive from which, every database
+#: image having one, ground truth contradicts the layout read (and the reverse).
+CONTRADICTION_SHARE = 0.05
+
+
+def orientation(shape: tuple[int, int], gt: np.ndarray | None, query_major: bool) -> dict:
+    """What was assumed of a similarity matrix's orientation (``shape`` is its |DB| x |Q|
+    view) and, with hard ground truth ``gt`` given in the matrix's orientation, what its
+    positives say: ``"contradicts"`` when every database image has a positive and at
+    least 5% of the queries (and one) have none, ``"consistent"`` the other way round,
+    else ``"cannot-tell"``."""
+    out = {"db": shape[0], "queries": shape[1], "query_major": bool(query_major)}
+    if gt is None or gt.shape[0] != shape[0]:
+        return out
+    n_db, n_q = gt.shape
+    q_without = int((~gt.any(axis=0)).sum())
+    db_without = int((~gt.any(axis=1)).sum())
+
+    def many(without: int, of: int) -> bool:
+        return without >= 1 and without >= CONTRADICTION_SHARE * of
+
+    if db_without == 0 and many(q_without, n_q):
+        verdict = "contradicts"
+    elif q_without == 0 and many(db_without, n_db):
+        verdict = "consistent"
+    else:
+        verdict = "cannot-tell"
+    out["evidence"] = {"labelled_queries": n_q, "queries_without_positive": q_without,
+                       "db_without_positive": db_without, "verdict": verdict}
+    return out
+
+
 def evaluate(
     s,
     gt,
@@ -1153,7 +1185,7 @@ def evaluate(
     ground truth. For quantile-transfer each segment is its own batch.
 
     Returns the keys of ``qtvpr-cli evaluate --format json``: ``dataset`` (None here),
-    ``params`` (the parameters as asked for and the split: ``database_size``,
+    ``orientation`` (:func:`orientation`), ``params`` (the parameters as asked for and the split: ``database_size``,
     ``queries``, ``calibration_queries``, ``deployment_start``, ``deployment_queries``,
     ``segment_size``, ``segments``), ``recall_at_1`` of the full segments' queries, and
     ``methods``: ``{name: {"pct_segs", "avg_recall", "segments_counted",
@@ -1174,7 +1206,8 @@ def evaluate(
     methods = _check_methods(methods, matching)
     s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
     layout = _layout(*s.shape, cal_fraction, cal_queries, deploy_fraction, segment_fraction, segment_size)
-    return {"dataset": None, **_run(s, gt, ignored, methods, k, tau, matching, layout)}
+    return {"dataset": None, "orientation": orientation(s.shape, gt, query_major),
+            **_run(s, gt, ignored, methods, k, tau, matching, layout)}
 
 
 #: The deployment set of an ablation without ``deploy_fraction``: the last half.
@@ -1209,7 +1242,7 @@ def ablation(
     :func:`evaluate` would with that setting, except that every run deploys on the
     last ``floor(deploy_fraction * |Q|)`` queries, ``deploy_fraction`` defaulting to
     0.5. Every setting is checked before the first runs. Returns ``{"dataset": None,
-    "ablation": [run, ...]}``, each run with the ``params``, ``recall_at_1`` and
+    "orientation": ..., "ablation": [run, ...]}``, each run with the ``params``, ``recall_at_1`` and
     ``methods`` of :func:`evaluate`.
     """
     k, precision, cal_fraction, segment_fraction = _protocol_defaults(k, precision, cal_fraction, segment_fraction)
@@ -1232,7 +1265,7 @@ def ablation(
         _layout(*s.shape, f, n, deploy_fraction, segment_fraction, segment_size) for f, n in settings
     ]
     runs = [_run(s, gt, ignored, methods, kk, tau, matching, layout) for layout in layouts for kk in ks]
-    return {"dataset": None, "ablation": runs}
+    return {"dataset": None, "orientation": orientation(s.shape, gt, query_major), "ablation": runs}
 
 
 # ---------------------------------------------------------------------------------------

@@ -28,6 +28,29 @@ pub fn blame(err: qtvpr::Error, sources: &[(Input, String)]) -> anyhow::Error {
     }
 }
 
+/// The option that says matrices are stored query-major, as the core's orientation
+/// messages name it.
+pub const QUERY_MAJOR: &str = "--query-major";
+
+/// A core error of a computation on views oriented by `query_major`, in the files'
+/// orientation ([`qtvpr::Error::oriented`]), with the core's advice when it is the usual
+/// sign of a matrix read the wrong way round ([`qtvpr::orientation::hint`]).
+pub fn oriented(err: qtvpr::Error, query_major: bool) -> anyhow::Error {
+    let hint = qtvpr::orientation::hint(&err, query_major, QUERY_MAJOR);
+    let err = err.oriented(query_major);
+    match hint {
+        Some(hint) => anyhow::anyhow!("{err}; {hint}"),
+        None => err.into(),
+    }
+}
+
+/// Print the core's warning when the ground truth contradicts the orientation assumed.
+pub fn warn_orientation(orientation: &qtvpr::Orientation) {
+    if let Some(warning) = orientation.warning(QUERY_MAJOR) {
+        eprintln!("warning: {warning}");
+    }
+}
+
 /// The `--matching` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum MatchingArg {

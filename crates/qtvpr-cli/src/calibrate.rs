@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::{Calibration, Defaults, Matching, QuerySplit, ScoreSource, Split};
+use qtvpr::{Calibration, Defaults, Matching, Orientation, QuerySplit, ScoreSource, Split};
 
 use crate::args::{DescriptorFiles, MatchingArg, SplitArgs, gate_parser};
 use crate::gt_source::{CalGtSource, GtSource};
@@ -74,18 +74,23 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     let split = args.split.split()?;
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
     let matching = Matching::from(args.matching);
-    let cal = match (
+    let (cal, orientation) = match (
         &args.cal,
         args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref()),
     ) {
         (Some(path), _) => from_matrix(path, gt_source, matching, args.query_major)?,
-        (None, Some((db, q))) => from_descriptors(db, q, split, gt_source, matching)?,
+        (None, Some((db, q))) => (from_descriptors(db, q, split, gt_source, matching)?, None),
         (None, None) => bail!("give --cal, or --db-descriptors and --query-descriptors"),
     };
     // The gate is checked against the calibration (its matching) before the file is
     // touched, so that the error names the option, not the output.
     cal.check_defaults(&defaults).context("--gate")?;
-    cal.save(&args.output, &defaults).context("--output")
+    cal.save(&args.output, &defaults).context("--output")?;
+    // Warned once the file is written, so that a failure stays one `error:` line.
+    if let Some(o) = &orientation {
+        crate::args::warn_orientation(o);
+    }
+    Ok(())
 }
 
 /// The calibration of the first queries (`split`, or all of them) of descriptor files
@@ -112,13 +117,21 @@ fn from_descriptors(
 }
 
 /// The calibration of similarity matrix `--cal PATH` with its ground truth from
-/// `gt_source`; errors name the files, with positions in their own orientation. The
+/// `gt_source`, and the matrix's orientation with what ground truth read from a file
+/// says of it (always `Some`: the shape of `calibrate`'s result); errors name the files, with positions in their own orientation. The
 /// matrix is unmapped once the calibration is built.
-pub fn from_matrix(path: &Path, gt_source: GtSource<'_>, matching: Matching, query_major: bool) -> Result<Calibration> {
+pub fn from_matrix(
+    path: &Path,
+    gt_source: GtSource<'_>,
+    matching: Matching,
+    query_major: bool,
+) -> Result<(Calibration, Option<Orientation>)> {
     let s_cal = read_scores(path).context("--cal")?;
     let s_cal = s_cal.view().oriented(query_major);
     let gt = gt_source.load(s_cal.dim(), query_major)?;
-    Calibration::new(s_cal, &gt, matching)
-        .map_err(|e| e.oriented(query_major))
-        .with_context(|| format!("--cal {} / {}", path.display(), gt_source.describe()))
+    let cal = Calibration::new(s_cal, &gt, matching)
+        .map_err(|e| crate::args::oriented(e, query_major))
+        .with_context(|| format!("--cal {} / {}", path.display(), gt_source.describe()))?;
+    let orientation = Orientation::of(s_cal.dim(), gt_source.is_file().then_some(&gt), query_major);
+    Ok((cal, Some(orientation)))
 }

@@ -219,6 +219,12 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
             )
         }
     };
+    // What was assumed of a matrix file's orientation, and what its ground truth says
+    // (descriptors and the embedded data have but one).
+    let orientation = args.similarity.as_ref().map(|_| {
+        let from_file = args.gt.source().is_some_and(|g| g.is_file());
+        qtvpr::Orientation::of(scores.dim(), from_file.then_some(&gt), query_major)
+    });
     let input = || match (&args.similarity, descriptors, args.gt.source()) {
         (Some(s), _, Some(g)) => format!("--similarity {} / {}", s.display(), g.describe()),
         (_, Some((db, q)), Some(g)) => format!(
@@ -239,21 +245,26 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
     let runs: Vec<Run> = if ablation {
         let options = Options::new(base).progress(&progress);
         let a = qtvpr::ablation(scores, &gt, options, &args.k, &calibrations, &methods)
-            .map_err(|e| e.oriented(query_major))
+            .map_err(|e| crate::args::oriented(e, query_major))
             .with_context(input)?;
         a.runs.into_iter().map(Run::from).collect()
     } else {
         let eval = qtvpr::evaluate(scores, &gt, Options::new(base).progress(&progress), &methods)
-            .map_err(|e| e.oriented(query_major))
+            .map_err(|e| crate::args::oriented(e, query_major))
             .with_context(input)?;
         vec![Run::from(eval)]
     };
     bar.finish_and_clear();
+    // Warned once the result stands, so that a failure stays one `error:` line.
+    if let Some(o) = &orientation {
+        crate::args::warn_orientation(o);
+    }
     let ctx = RunContext {
         dataset,
         database_size: gt.dim().0,
         precision: args.precision,
         matching,
+        orientation,
     };
 
     if let Some(dir) = &args.plot {
@@ -290,11 +301,13 @@ fn json(ctx: &RunContext, runs: Vec<Run>, ablation: bool) -> Result<String> {
         };
         serde_json::to_string_pretty(&Report {
             dataset,
+            orientation: ctx.orientation,
             result: &result,
         })?
     } else {
         serde_json::to_string_pretty(&Report {
             dataset,
+            orientation: ctx.orientation,
             result: &runs[0].eval,
         })?
     };
@@ -335,6 +348,9 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
     if !ablation {
         let run = &runs[0];
         writeln!(t, "*{}*\n", describe(ctx, run)).unwrap();
+        if let Some(o) = &ctx.orientation {
+            writeln!(t, "orientation: {}\n", o.describe(crate::args::QUERY_MAJOR)).unwrap();
+        }
         writeln!(
             t,
             "| method | %Segs | {avg} | segments counted | skipped (no positives) | threshold MSE vs oracle \
@@ -383,6 +399,9 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
         ablation_setting(ctx, &runs[0])
     )
     .unwrap();
+    if let Some(o) = &ctx.orientation {
+        writeln!(t, "orientation: {}\n", o.describe(crate::args::QUERY_MAJOR)).unwrap();
+    }
     let methods: Vec<Method> = runs[0].eval.methods.iter().map(|m| m.method).collect();
     write!(t, "| k | calibration queries |").unwrap();
     for m in &methods {

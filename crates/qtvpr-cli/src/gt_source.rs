@@ -318,6 +318,13 @@ impl GtSource<'_> {
         }
     }
 
+    /// Whether the ground truth is read from files, in the similarity's orientation (and
+    /// transposed with it): then its positives say something of that orientation
+    /// ([`qtvpr::Orientation::of`]); ground truth made for the matrix as read says nothing.
+    pub fn is_file(&self) -> bool {
+        matches!(self.kind, Kind::File { .. })
+    }
+
     /// The ground truth of a |DB| x |Q| similarity matrix of shape `shape` (as the core
     /// sees it, after orientation). Files are read and, for `query_major`, transposed;
     /// tolerance and positions give |DB| x |Q| directly.
@@ -336,14 +343,26 @@ impl GtSource<'_> {
     /// checks its shape and keeps the calibration columns. `input` names the similarity
     /// (its options and files) in errors.
     pub fn load_split(&self, split: &QuerySplit, query_major: bool, input: &str) -> Result<GroundTruth> {
+        Ok(self.load_split_read(split, query_major, input)?.0)
+    }
+
+    /// [`GtSource::load_split`], and the ground truth of every query when it was read
+    /// from files ([`GtSource::is_file`]), for [`qtvpr::Orientation::of`].
+    pub fn load_split_read(
+        &self,
+        split: &QuerySplit,
+        query_major: bool,
+        input: &str,
+    ) -> Result<(GroundTruth, Option<GroundTruth>)> {
         if let Kind::Tolerance { .. } = self.kind {
-            return self.load(split.calibration_shape(), query_major);
+            return Ok((self.load(split.calibration_shape(), query_major)?, None));
         }
         let gt = self.load(split.shape(), query_major)?;
-        split
+        let cal = split
             .calibration_truth(&gt)
-            .map_err(|e| e.oriented(query_major))
-            .with_context(|| format!("{input} / {}", self.describe()))
+            .map_err(|e| crate::args::oriented(e, query_major))
+            .with_context(|| format!("{input} / {}", self.describe()))?;
+        Ok((cal, self.is_file().then_some(gt)))
     }
 
     /// Hard and soft ground truth of a tolerance or positions source, of shape `shape`

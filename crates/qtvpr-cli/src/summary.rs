@@ -37,6 +37,8 @@ pub struct RunContext {
     pub precision: f64,
     /// Matching mode.
     pub matching: Matching,
+    /// How a similarity file was read (`None` for descriptors and the embedded data).
+    pub orientation: Option<qtvpr::Orientation>,
 }
 
 impl RunContext {

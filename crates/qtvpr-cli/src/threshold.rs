@@ -181,16 +181,21 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     // matrix position in the file's orientation.
     let explain = |e: qtvpr::Error| match &files {
         Some(files) => files.blame(e),
-        None => query_major_hint(e.oriented(args.query_major), args.query_major),
+        None => crate::args::oriented(e, args.query_major),
     };
     let (n_db, n_q) = source.dim();
 
-    // The calibration, and the deployment queries: all of them, or those after the split.
+    // The calibration, and the deployment queries: all of them, or those after the split;
+    // and what ground truth read from files says of the matrices' orientation.
+    let mut evidence = None;
     let (cal, queries, split) = match split {
         Some((split, flag)) => {
-            let split = QuerySplit::new(split, (n_db, n_q)).with_context(|| format!("{flag} of {input}"))?;
+            let split = QuerySplit::new(split, (n_db, n_q))
+                .map_err(|e| crate::args::oriented(e, args.query_major))
+                .with_context(|| format!("{flag} of {input}"))?;
             let gt_source = gt_source.expect("a split needs ground truth, checked above");
-            let gt_cal = gt_source.load_split(&split, args.query_major, &input)?;
+            let (gt_cal, gt) = gt_source.load_split_read(&split, args.query_major, &input)?;
+            evidence = gt.as_ref().map(qtvpr::orientation::Evidence::of);
             // Nothing here saves it: a calibration that keeps neither its scores nor its
             // ground truth, which it drops once it has its candidates.
             let cal = Calibration::for_transfer(source.columns(split.calibration()), gt_cal, matching_arg)
@@ -215,11 +220,21 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
                     }
                     cal
                 }
-                Some(gt_source) => calibrate::from_matrix(cal_path, gt_source, matching_arg, args.query_major)?,
+                Some(gt_source) => {
+                    let (cal, orientation) =
+                        calibrate::from_matrix(cal_path, gt_source, matching_arg, args.query_major)?;
+                    evidence = orientation.and_then(|o| o.evidence);
+                    cal
+                }
             };
             (cal, 0..n_q, None)
         }
     };
+    // What was assumed of a matrix's orientation (descriptors have but one).
+    let orientation = files.is_none().then(|| qtvpr::Orientation {
+        evidence,
+        ..qtvpr::Orientation::new((n_db, n_q), args.query_major)
+    });
     let params = params(cal.defaults())?;
     cal.check_gate(params.gate).context("--gate")?;
     let bar = progress::bar(global.quiet, queries.len(), "deployment queries");
@@ -235,7 +250,14 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         .with_context(|| input.clone())?;
     bar.finish_and_clear();
 
-    let report = ThresholdReport::new(&cal, &params, &transfer);
+    // Warned once the result stands, so that a failure stays one `error:` line.
+    if let Some(o) = &orientation {
+        crate::args::warn_orientation(o);
+    }
+    let report = ThresholdReport {
+        orientation,
+        ..ThresholdReport::new(&cal, &params, &transfer)
+    };
     let text = match args.format {
         Format::Json => serde_json::to_string_pretty(&report)? + "\n",
         Format::Csv => {
@@ -249,15 +271,4 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
         }
     };
     emit(&text, args.output.as_deref())
-}
-
-/// A database mismatch of files not declared query-major is often a pair of query-major
-/// files (|Q| x |DB|) whose query counts differ: say so.
-fn query_major_hint(err: qtvpr::Error, query_major: bool) -> anyhow::Error {
-    match err {
-        qtvpr::Error::DatabaseMismatch { .. } if !query_major => anyhow::anyhow!(
-            "{err}; if the files are query-major (|Q| x |DB|, as VPR-Bench stores them), pass --query-major"
-        ),
-        err => err.into(),
-    }
 }

@@ -242,6 +242,13 @@ fn table_and_csv() {
     let table = case.ok(&["--format", "table", "--method", "oracle,calibration-threshold"]);
     let lines: Vec<&str> = table.lines().collect();
     assert!(lines[0].contains("queries 0..2 calibrate; 2 segments of 2"), "{table}");
+    // The orientation assumed: the tiny ground truth cannot tell (queries d2..d4 and
+    // database image 1 have no positive), so no warning.
+    assert_eq!(
+        lines[2],
+        "orientation: |DB| 3 x |Q| 7 (DB-major; pass --query-major for VPR-Bench files)"
+    );
+    let lines = &lines[2..];
     assert_eq!(
         lines[2],
         "| method | %Segs | AvgR@50P | segments counted | skipped (no positives) | threshold MSE vs oracle \
@@ -291,7 +298,7 @@ fn ablation_json() {
         k.sort_unstable();
         k
     }
-    assert_eq!(keys(&out), ["ablation", "dataset"]);
+    assert_eq!(keys(&out), ["ablation", "dataset", "orientation"]);
     let runs = out["ablation"].as_array().unwrap();
     // Calibration sizes outer, k inner; every run deploys on the last floor(0.5 x 7) = 3.
     let settings: Vec<(u64, u64)> = runs
@@ -537,4 +544,311 @@ fn bad_input() {
     // --plot into a path that is a file.
     std::fs::write(case.path("not_a_dir"), "x").unwrap();
     case.fails(&["--plot", case.path("not_a_dir").to_str().unwrap()], &["--plot"]);
+}
+
+/// The embedded deployment traverse (data/corridor, 111 database images x 100 queries,
+/// query j matching database images j+9 ..= j+13) and its transpose, as a VPR-Bench
+/// user would have it (100 x 111, query-major), both written into `dir`: `S.npy`,
+/// `GT.npy` (|DB| x |Q|) and `S_t.npy`, `GT_t.npy` (|Q| x |DB|).
+fn corridor_pair(dir: &std::path::Path) {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/corridor");
+    let read = |name: &str| npyz::NpyFile::new(std::fs::File::open(data.join(name)).unwrap()).unwrap();
+    let s = read("deploy_S.npy");
+    assert_eq!(s.shape(), [111, 100]);
+    let s: Vec<f64> = s.into_vec().unwrap();
+    let gt: Vec<bool> = read("deploy_GT.npy").into_vec().unwrap();
+    let rows = |n: usize, m: usize, at: &dyn Fn(usize, usize) -> usize| -> Vec<Vec<usize>> {
+        (0..n).map(|i| (0..m).map(|j| at(i, j)).collect()).collect()
+    };
+    for (suffix, n, m, at) in [
+        (
+            "",
+            111,
+            100,
+            &(|i: usize, j: usize| i * 100 + j) as &dyn Fn(usize, usize) -> usize,
+        ),
+        ("_t", 100, 111, &|i: usize, j: usize| j * 100 + i),
+    ] {
+        let index = rows(n, m, at);
+        let s_rows: Vec<Vec<f64>> = index.iter().map(|r| r.iter().map(|&k| s[k]).collect()).collect();
+        let gt_rows: Vec<Vec<u8>> = index
+            .iter()
+            .map(|r| r.iter().map(|&k| u8::from(gt[k])).collect())
+            .collect();
+        npy_f64(
+            &dir.join(format!("S{suffix}.npy")),
+            &s_rows.iter().map(Vec::as_slice).collect::<Vec<_>>(),
+        );
+        npy_bool(
+            &dir.join(format!("GT{suffix}.npy")),
+            &gt_rows.iter().map(Vec::as_slice).collect::<Vec<_>>(),
+        );
+    }
+}
+
+fn cli(dir: &std::path::Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_transposed_pair_read_without_query_major_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    corridor_pair(dir.path());
+    // Read as is, the query-major pair is 100 "database images" x 111 "queries": every
+    // one of the 100 (the real queries) has a positive, and 9 of the 111 (database
+    // images 0..=8, before the first deployment query's matches) have none:
+    // 9 >= 0.05 * 111, so the ground truth contradicts the layout.
+    let out = cli(dir.path(), &["evaluate", "--similarity", "S_t.npy", "--gt", "GT_t.npy"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "warning: 9 of the 111 queries have no positive in the ground truth while every one of the 100 database \
+         images has one; a VPR traverse is usually the other way round, so the matrices may be query-major \
+         (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major\n"
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        v["orientation"],
+        json!({"db": 100, "queries": 111, "query_major": false, "evidence": {
+            "labelled_queries": 111, "queries_without_positive": 9, "db_without_positive": 0,
+            "verdict": "contradicts"}})
+    );
+    assert_eq!(v["params"]["database_size"], 100);
+
+    // With --query-major: 111 x 100, every query has a positive and 9 of the 111
+    // database images none: consistent, no warning. The same as the |DB| x |Q| pair.
+    let out = cli(
+        dir.path(),
+        &[
+            "evaluate",
+            "--similarity",
+            "S_t.npy",
+            "--gt",
+            "GT_t.npy",
+            "--query-major",
+        ],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(String::from_utf8_lossy(&out.stderr), "");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let consistent = json!({"labelled_queries": 100, "queries_without_positive": 0, "db_without_positive": 9,
+                            "verdict": "consistent"});
+    assert_eq!(
+        v["orientation"],
+        json!({"db": 111, "queries": 100, "query_major": true, "evidence": consistent})
+    );
+    let out = cli(
+        dir.path(),
+        &[
+            "evaluate",
+            "--similarity",
+            "S.npy",
+            "--gt",
+            "GT.npy",
+            "--format",
+            "table",
+        ],
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stderr), "");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(
+        text.lines().nth(2),
+        Some("orientation: |DB| 111 x |Q| 100 (DB-major; pass --query-major for VPR-Bench files)"),
+        "{text}"
+    );
+
+    // threshold on one matrix split: the ground truth of every query is the evidence.
+    let out = cli(
+        dir.path(),
+        &[
+            "threshold",
+            "--similarity",
+            "S_t.npy",
+            "--cal-gt",
+            "GT_t.npy",
+            "--cal-queries",
+            "10",
+        ],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).starts_with("warning: 9 of the 111 queries have no positive"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["orientation"]["evidence"]["verdict"], "contradicts");
+    assert_eq!([&v["orientation"]["db"], &v["orientation"]["queries"]], [100, 111]);
+}
+
+#[test]
+fn shapes_that_fit_only_the_other_way_round_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    corridor_pair(dir.path());
+    // The matrix query-major, its ground truth not: one of the two is transposed.
+    let out = cli(dir.path(), &["evaluate", "--similarity", "S_t.npy", "--gt", "GT.npy"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: --similarity S_t.npy / --gt GT.npy: ground truth shape 111x100 does not match similarity shape \
+         100x111; the ground truth is the similarity's transpose (|Q| x |DB| against |DB| x |Q|): one of the two \
+         is stored query-major and the other not, and --query-major reads both query-major; transpose the one \
+         that is\n"
+    );
+    // 105 calibration queries of 100, but within the 111 database images: a query-major
+    // traverse of 111 queries read as |DB| x |Q|?
+    let out = cli(
+        dir.path(),
+        &[
+            "evaluate",
+            "--similarity",
+            "S.npy",
+            "--gt",
+            "GT.npy",
+            "--cal-queries",
+            "105",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: --similarity S.npy / --gt GT.npy: the calibration set must have between 1 and 99 of the 100 \
+         queries, got 105; the similarity has 111 database images but only 100 queries: if it is query-major \
+         (|Q| x |DB|, as VPR-Bench stores them), pass --query-major\n"
+    );
+    let out = cli(
+        dir.path(),
+        &[
+            "threshold",
+            "--similarity",
+            "S.npy",
+            "--cal-gt",
+            "GT.npy",
+            "--cal-queries",
+            "105",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.ends_with(
+            "queries, got 105; the similarity has 111 database images but only 100 queries: if it is \
+                       query-major (|Q| x |DB|, as VPR-Bench stores them), pass --query-major\n"
+        ),
+        "{err}"
+    );
+    // Beyond both: no hint.
+    let out = cli(
+        dir.path(),
+        &[
+            "evaluate",
+            "--similarity",
+            "S.npy",
+            "--gt",
+            "GT.npy",
+            "--cal-queries",
+            "200",
+        ],
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).ends_with("of the 100 queries, got 200\n"));
+}
+
+/// The polylines of an SVG written by plotters, in order, as (stroke colour, number of
+/// points), and the texts between them: `Err(text)` for a text, `Ok(polyline)` else.
+fn svg_elements(svg: &str) -> Vec<Result<(String, usize), String>> {
+    let attr = |line: &str, name: &str| -> Option<String> {
+        let start = line.find(&format!(" {name}=\""))? + name.len() + 3;
+        Some(line[start..start + line[start..].find('"')?].to_string())
+    };
+    svg.lines()
+        .filter_map(|line| {
+            if line.starts_with("<polyline") {
+                let points = attr(line, "points").unwrap_or_default();
+                Some(Ok((
+                    attr(line, "stroke").unwrap_or_default(),
+                    points.split_whitespace().count(),
+                )))
+            } else if !line.starts_with('<') && !line.trim().is_empty() {
+                Some(Err(line.trim().to_string()))
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn gated_threshold_lines_are_dashed_and_the_others_solid() {
+    // The embedded data: quantile-transfer-margin's thresholds are quantile transfer's,
+    // so its line lies on quantile transfer's and must be dashed for both to show.
+    let dir = tempfile::tempdir().unwrap();
+    let out = cli(dir.path(), &["evaluate", "--plot", "figs", "--format", "json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("figs/thresholds.svg")).unwrap();
+    let elements = svg_elements(&svg);
+    // A legend entry is its swatch, drawn just before the method's name (the last run of
+    // polylines of one colour before the text), then the name: one segment for a solid
+    // line, several for a dashed one.
+    let mut swatches: Vec<(String, Vec<(String, usize)>)> = vec![];
+    let mut since_text: Vec<(String, usize)> = vec![];
+    for e in &elements {
+        match e {
+            Ok(p) => since_text.push(p.clone()),
+            Err(text) => {
+                let mut run = std::mem::take(&mut since_text);
+                let last = run.last().map(|(c, _)| c.clone());
+                let keep = run.iter().rev().take_while(|(c, _)| Some(c) == last.as_ref()).count();
+                swatches.push((text.clone(), run.split_off(run.len() - keep)));
+            }
+        }
+    }
+    let swatch = |name: &str| -> Vec<(String, usize)> {
+        swatches
+            .iter()
+            .find(|(text, _)| text == name)
+            .unwrap_or_else(|| panic!("no legend entry {name}"))
+            .1
+            .clone()
+    };
+    let colour = |name: &str| swatch(name)[0].0.clone();
+    // (`margin`, whose score threshold is -inf, has no line and no entry.)
+    for name in ["quantile-transfer", "quantile-transfer-margin", "schubert"] {
+        let s = swatch(name);
+        assert!(s.iter().all(|(c, n)| *c == s[0].0 && *n == 2), "{name}: {s:?}");
+        let gated = name.ends_with("margin");
+        assert_eq!(s.len() > 1, gated, "{name}'s swatch: {s:?}");
+    }
+    // The plotted lines (every polyline of the method's colour): quantile transfer's is
+    // one polyline through every segment's ends (about 100 points); its gated twin's is
+    // dashes of 2 points (3 where a dash turns a corner), many more than the legend's.
+    let lines = |name: &str| -> Vec<usize> {
+        let c = colour(name);
+        elements
+            .iter()
+            .filter_map(|e| e.as_ref().ok())
+            .filter(|(s, _)| *s == c)
+            .map(|(_, n)| *n)
+            .collect()
+    };
+    assert_ne!(colour("quantile-transfer"), colour("quantile-transfer-margin"));
+    let solid = lines("quantile-transfer");
+    assert!(solid.iter().any(|&n| n > 10), "quantile-transfer: {solid:?}");
+    let dashed = lines("quantile-transfer-margin");
+    assert!(
+        dashed.iter().all(|&n| n <= 3) && dashed.len() > 20,
+        "quantile-transfer-margin: {dashed:?}"
+    );
+    for name in [
+        "quantile-transfer-online",
+        "schubert",
+        "schubert-calibrated",
+        "calibration-threshold",
+    ] {
+        let l = lines(name);
+        assert!(l.iter().any(|&n| n > 10), "{name}: {l:?}");
+    }
 }

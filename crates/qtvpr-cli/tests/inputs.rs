@@ -213,6 +213,16 @@ fn evaluate_takes_every_ground_truth_source() {
     let run = |gt: &[&str]| dir.ok(&[&common[..], gt].concat());
     let file = run(&["--gt", "tol0.npy", "--gt-soft", "tol1.npy"]);
     let tolerance = run(&["--gt-tolerance", "0", "--gt-soft-tolerance", "1"]);
+    // Only ground truth read from a file is evidence of the orientation: here every
+    // database image has a positive and queries 3..6 (4 of 7) none, which is what a
+    // transposed traverse looks like, and also a frame-aligned one whose queries run past
+    // the database (a warning the evidence cannot avoid).
+    let evidence = "  \"orientation\": {\n    \"db\": 3,\n    \"queries\": 7,\n    \"query_major\": false,\n    \
+                    \"evidence\": {\n      \"labelled_queries\": 7,\n      \"queries_without_positive\": 4,\n      \
+                    \"db_without_positive\": 0,\n      \"verdict\": \"contradicts\"\n    }\n  },\n";
+    let without = "  \"orientation\": {\n    \"db\": 3,\n    \"queries\": 7,\n    \"query_major\": false\n  },\n";
+    assert!(file.contains(evidence), "{file}");
+    let file = file.replace(evidence, without);
     assert_eq!(file, tolerance);
     assert!(file.contains("\"quantile-transfer\""), "{file}");
     // Positions: database images at x = 0, 10, 20 and queries at x = 0, 10, 20, 30, ...:
@@ -244,7 +254,12 @@ fn evaluate_takes_every_ground_truth_source() {
     let mut args = common.to_vec();
     args[2] = "S_t.npy";
     args.extend(["--query-major", "--gt-tolerance", "0", "--gt-soft-tolerance", "1"]);
-    assert_eq!(dir.ok(&args).replace("S_t.npy", "S.npy"), file);
+    // (Read query-major: the orientation says so.)
+    let query_major = dir.ok(&args).replace("S_t.npy", "S.npy");
+    assert_eq!(
+        query_major.replace("\"query_major\": true", "\"query_major\": false"),
+        file
+    );
     // One source at most, and none without --similarity.
     let out = dir.run(&[&common[..], &["--gt", "tol0.npy", "--gt-tolerance", "0"]].concat());
     assert_eq!(out.status.code(), Some(2));
@@ -311,7 +326,7 @@ fn a_database_mismatch_hints_at_query_major() {
     assert_eq!(
         stderr,
         "error: --val val.npy: deployment similarity has 2 database images but calibration similarity has 3; \
-         both must be scored against the same database; if the files are query-major (|Q| x |DB|, as VPR-Bench \
+         both must be scored against the same database; if the matrices are query-major (|Q| x |DB|, as VPR-Bench \
          stores them), pass --query-major\n"
     );
     // Given --query-major, the hint would be wrong: |DB| is then 2 (cal) vs 3 (val).

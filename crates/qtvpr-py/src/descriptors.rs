@@ -149,6 +149,23 @@ impl<'py> SourceArg<'py> {
         })
     }
 
+    /// What was assumed of a matrix's orientation, with the evidence of `gt` (given in
+    /// the matrix's orientation, and transposed with it); `None` for descriptors,
+    /// which have but one. The core's warning, when the evidence contradicts the
+    /// assumption, is issued as a `UserWarning`.
+    pub(crate) fn orientation(&self, py: Python<'_>, gt: &qtvpr::GroundTruth) -> PyResult<Option<qtvpr::Orientation>> {
+        let Self::Matrix(s, query_major) = self else {
+            return Ok(None);
+        };
+        let orientation = qtvpr::Orientation::of(s.view(*query_major).dim(), Some(gt), *query_major);
+        if let Some(warning) = orientation.warning("query_major=True") {
+            let message = std::ffi::CString::new(warning).expect("a message without NUL");
+            let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+            PyErr::warn(py, category.as_any(), &message, 1)?;
+        }
+        Ok(Some(orientation))
+    }
+
     /// Run `f` (without the GIL) on the core's source. The outer error is about the
     /// descriptors themselves (named `db` / `queries`); the inner one is `f`'s, for the
     /// caller to name.

@@ -68,20 +68,21 @@ impl Args {
         })
     }
 
-    /// [`Args::error`], naming inputs by `argument`.
+    /// [`Args::error`], naming inputs by `argument`, with the core's advice when the
+    /// error is the usual sign of a matrix read the wrong way round
+    /// ([`qtvpr::orientation::hint`]).
     fn error_naming(self, err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
+        let hint = qtvpr::orientation::hint(&err, self.query_major, "query_major=True");
         let err = err.oriented(self.query_major);
-        match &err {
+        let message = match &err {
             // The core names parameters as a user spells them; Python spells them with
             // underscores.
-            Error::InvalidParameter { name, message } => {
-                PyValueError::new_err(format!("{} {message}", name.replace(' ', "_")))
-            }
-            Error::DatabaseMismatch { .. } if !self.query_major => PyValueError::new_err(format!(
-                "s_val: {err}; if the arrays are query-major (|Q| x |DB|, as VPR-Bench stores them), \
-                 pass query_major=True"
-            )),
-            _ => named(err, argument),
+            Error::InvalidParameter { name, message } => format!("{} {message}", name.replace(' ', "_")),
+            _ => message(&err, argument),
+        };
+        match hint {
+            Some(hint) => exception(&err, format!("{message}; {hint}")),
+            None => exception(&err, message),
         }
     }
 
@@ -96,10 +97,17 @@ impl Args {
 /// The exception for a core error as it is, prefixed by the arguments it is about, as
 /// `argument` names them.
 fn named(err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
+    let message = message(&err, argument);
+    exception(&err, message)
+}
+
+/// The message of a core error, prefixed by the arguments it is about, as `argument`
+/// names them.
+fn message(err: &Error, argument: impl Fn(Input) -> &'static str) -> String {
     let names = err.inputs(|input| Some(argument(input)));
     match names.as_slice() {
-        [] => exception(&err, err.to_string()),
-        names => exception(&err, format!("{}: {err}", names.join(", "))),
+        [] => err.to_string(),
+        names => format!("{}: {err}", names.join(", ")),
     }
 }
 

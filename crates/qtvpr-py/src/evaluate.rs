@@ -186,11 +186,13 @@ pub(crate) fn evaluate<'py>(
     )?;
     let (s, gt, dataset) = inputs(s, gt, gt_soft, query_major)?;
     let gt = build_ground_truth(py, &gt, query_major)?;
+    let orientation = s.orientation(py, &gt)?;
     let out = s
         .with(py, |s| qtvpr::evaluate(s, &gt, &protocol, &methods))?
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),
+        orientation,
         result: &out,
     };
     Ok(pythonize::pythonize(py, &report)?)
@@ -286,11 +288,13 @@ pub(crate) fn ablation<'py>(
     }
     let (s, gt, dataset) = inputs(s, gt, gt_soft, query_major)?;
     let gt = build_ground_truth(py, &gt, query_major)?;
+    let orientation = s.orientation(py, &gt)?;
     let out = s
         .with(py, |s| qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods))?
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),
+        orientation,
         result: &out,
     };
     Ok(pythonize::pythonize(py, &report)?)

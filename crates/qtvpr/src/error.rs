@@ -178,6 +178,21 @@ pub enum Error {
         /// The number of calibration queries.
         calibration: usize,
     },
+    /// A split of the queries that leaves no calibration query or no query after them:
+    /// the calibration count must be between 1 and |Q| - 1.
+    #[error(
+        "the calibration set must have between 1 and {} of the {queries} queries, got {calibration}",
+        queries.saturating_sub(1)
+    )]
+    CalibrationSize {
+        /// The calibration queries asked for (a count, or a fraction of |Q| floored).
+        calibration: usize,
+        /// |Q|.
+        queries: usize,
+        /// |DB| where it is known: a count beyond |Q| but within |DB| is the usual
+        /// sign of a query-major matrix read as |DB| x |Q| ([`crate::orientation::hint`]).
+        database: Option<usize>,
+    },
     /// The evaluation protocol cannot split the queries as asked: no calibration query,
     /// calibration and deployment sets that overlap, or no full segment.
     #[error("{0}")]

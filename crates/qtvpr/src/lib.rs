@@ -14,6 +14,7 @@
 //! |---|---|
 //! | 1 terms, input validation | [`input`] |
 //! | 1 the scores an operation reads: a matrix or descriptors | [`source`] |
+//! | 1 orientation: what was assumed, what ground truth says of it | [`orientation`] |
 //! | 2 decisions and counts | [`decisions`] |
 //! | 3 best threshold under a precision target | [`best_threshold`](mod@best_threshold) |
 //! | 4 ranked correlation and neighbours | [`ranked_correlation`](mod@ranked_correlation) |
@@ -90,6 +91,7 @@ pub mod names;
 #[cfg(feature = "npy")]
 pub mod npy;
 pub mod online;
+pub mod orientation;
 pub mod params;
 pub mod ranked_correlation;
 pub mod report;
@@ -112,6 +114,7 @@ pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
 pub use margin::{Gate, margins};
 pub use names::Input;
 pub use online::{Decision, Online};
+pub use orientation::Orientation;
 pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Options, Params};
 pub use ranked_correlation::ranked_correlation;
 pub use sequence::{Sequence, sequence_match};

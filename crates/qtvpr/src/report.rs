@@ -15,6 +15,13 @@
 //!
 //! - `dataset`: what the run was made on: the similarity file's path, the embedded
 //!   data's name, or `None` in Python when the matrix was passed as an array.
+//! - `orientation` (a similarity matrix the caller gave, not descriptors or the
+//!   embedded data; [`Orientation`]): `db` and `queries` (|DB| and |Q| as computed on),
+//!   `query_major` (read transposed), and with ground truth read from a file (or given
+//!   as an array) `evidence`: `labelled_queries`, `queries_without_positive`,
+//!   `db_without_positive` (hard positives) and `verdict` (`"consistent"`,
+//!   `"cannot-tell"` or `"contradicts"`: every database image has a positive and at
+//!   least 5% of the queries have none, so the transposed layout is the likelier).
 //! - `params` ([`Layout`], with its [`Protocol`] flattened in):
 //!   - the parameters: `k`, `precision` (tau), `matching` (`"single"` or `"multi"`),
 //!     `calibration` and `segment` as asked for (`{"fraction": f}` of all |Q| queries or
@@ -77,8 +84,10 @@
 //! One transfer ([`ThresholdReport`]): `method` (`"quantile-transfer"`), `params`
 //! ([`Params`] with the segment size resolved, and `matching`), `segments` ([`Segment`]:
 //! `start`, `end`, `quantile`, `threshold`; reject-all is `null`), with the margin gate
-//! `gate` (`m*`, semantics §13), `calibration_queries`, `deployment_queries` and
-//! `database_size`.
+//! `gate` (`m*`, semantics §13), `calibration_queries`, `deployment_queries`,
+//! `database_size` and, for a similarity matrix (`--val` or `--similarity`),
+//! `orientation` as above: `queries` are its columns, `evidence` that of the ground
+//! truth given (the calibration queries', or every query's for a split).
 //!
 //! # `qtvpr.counts` and `Calibration.defaults`
 //!
@@ -100,6 +109,7 @@
 //! [`Segment`]: crate::Segment
 //! [`Counts`]: crate::Counts
 //! [`Defaults`]: crate::Defaults
+//! [`Orientation`]: crate::Orientation
 
 #[cfg(feature = "serde")]
 pub use serialize::{Report, ThresholdParams, ThresholdReport};
@@ -111,6 +121,7 @@ pub(crate) mod serialize {
 
     use crate::decisions::{Counts, Matching};
     use crate::evaluate::{Method, MethodResult};
+    use crate::orientation::Orientation;
     use crate::params::Params;
     use crate::transfer::{Calibration, Segment, Transfer};
 
@@ -120,6 +131,10 @@ pub(crate) mod serialize {
     pub struct Report<'a, T> {
         /// The similarity file's path or the dataset's name; `None` when unknown.
         pub dataset: Option<&'a str>,
+        /// How a similarity matrix given by the caller was read, and what its ground
+        /// truth says of that; `None` (left out) for descriptors and embedded data.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        pub orientation: Option<Orientation>,
         /// The [`Evaluation`](crate::Evaluation) or
         /// [`Ablation`](crate::evaluate::Ablation), its keys beside `dataset`.
         #[serde(flatten)]
@@ -145,6 +160,10 @@ pub(crate) mod serialize {
         pub deployment_queries: usize,
         /// |DB|.
         pub database_size: usize,
+        /// How the thresholded similarity matrix was read, with the evidence of the
+        /// ground truth given; `None` (left out) for descriptors. Set by the caller.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        pub orientation: Option<Orientation>,
     }
 
     /// The `params` of a [`ThresholdReport`]: the transfer's [`Params`], its segment
@@ -176,6 +195,7 @@ pub(crate) mod serialize {
                 calibration_queries: cal.len(),
                 deployment_queries,
                 database_size: cal.db_size(),
+                orientation: None,
             }
         }
     }

@@ -38,7 +38,7 @@ impl QuerySplit {
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for a fraction outside (0, 1) or a count of 0;
-    /// [`Error::Protocol`] when no query is left to calibrate or to threshold.
+    /// [`Error::CalibrationSize`] when no query is left to calibrate or to threshold.
     pub fn new(split: Split, (database_size, queries): (usize, usize)) -> Result<Self> {
         Self::of_range(split, database_size, 0..queries)
     }
@@ -50,7 +50,7 @@ impl QuerySplit {
     /// # Errors
     /// As [`QuerySplit::new`].
     pub fn of_range(split: Split, database_size: usize, queries: Range<usize>) -> Result<Self> {
-        let calibration_queries = split.calibration_size(queries.len())?;
+        let calibration_queries = split.calibration_size_of(Some(database_size), queries.len())?;
         Ok(Self {
             database_size,
             queries,

@@ -223,18 +223,29 @@ impl Split {
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for a fraction outside (0, 1) or a count of 0;
-    /// [`Error::Protocol`] when the result leaves no calibration query or no query
-    /// after it (it must be between 1 and `n_q - 1`).
+    /// [`Error::CalibrationSize`] when the result leaves no calibration query or no
+    /// query after it (it must be between 1 and `n_q - 1`).
     pub fn calibration_size(self, n_q: usize) -> Result<usize> {
+        self.calibration_size_of(None, n_q)
+    }
+
+    /// [`Split::calibration_size`] of a matrix of `database` images (when known), which
+    /// an error carries so that a front end can say when the count fits |DB| instead
+    /// ([`crate::orientation::hint`]).
+    ///
+    /// # Errors
+    /// As [`Split::calibration_size`].
+    pub(crate) fn calibration_size_of(self, database: Option<usize>, n_q: usize) -> Result<usize> {
         let n_cal = match self {
             Split::Fraction(f) => (fraction("cal fraction", f)? * n_q as f64).floor() as usize,
             Split::Count(n) => count("cal queries", n)?,
         };
         if !(1..n_q).contains(&n_cal) {
-            return Err(Error::Protocol(format!(
-                "the calibration set must have between 1 and {} of the {n_q} queries, got {n_cal}",
-                n_q.saturating_sub(1)
-            )));
+            return Err(Error::CalibrationSize {
+                calibration: n_cal,
+                queries: n_q,
+                database,
+            });
         }
         Ok(n_cal)
     }
@@ -300,11 +311,11 @@ impl Protocol {
     /// # Errors
     /// Invalid parameters ([`Protocol::validate`]), or a split that leaves no
     /// calibration query, no deployment query, overlapping sets or no full segment
-    /// ([`Error::Protocol`]).
+    /// ([`Error::CalibrationSize`], [`Error::Protocol`]).
     pub fn layout(&self, database_size: usize, queries: usize) -> Result<Layout> {
         self.validate()?;
         let n_q = queries;
-        let n_cal = self.calibration.calibration_size(n_q)?;
+        let n_cal = self.calibration.calibration_size_of(Some(database_size), n_q)?;
         let n_dep = match self.deploy_fraction {
             None => n_q - n_cal,
             Some(f) => {

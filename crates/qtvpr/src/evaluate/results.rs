@@ -353,8 +353,13 @@ mod tests {
     #[test]
     fn serialised_keys() {
         let e = run(&[Method::Oracle, Method::Schubert]);
+        // The tiny case (3 x 7, tiny()'s ground truth) as read: queries 4..6 of 7 have no
+        // positive (3 >= 0.05 * 7) and database image 1 none either: cannot tell.
+        let (_, gt) = tiny();
+        let orientation = crate::Orientation::of((3, 7), Some(&gt), false);
         let v = serde_json::to_value(crate::report::Report {
             dataset: Some("tiny"),
+            orientation: Some(orientation),
             result: &e,
         })
         .unwrap();
@@ -363,7 +368,23 @@ mod tests {
             k.sort();
             k
         };
-        assert_eq!(keys(&v), ["confidence", "dataset", "methods", "params", "recall_at_1"]);
+        assert_eq!(
+            keys(&v),
+            [
+                "confidence",
+                "dataset",
+                "methods",
+                "orientation",
+                "params",
+                "recall_at_1"
+            ]
+        );
+        assert_eq!(
+            v["orientation"],
+            serde_json::json!({"db": 3, "queries": 7, "query_major": false, "evidence": {
+                "labelled_queries": 7, "queries_without_positive": 3, "db_without_positive": 1,
+                "verdict": "cannot-tell"}})
+        );
         // Semantics §14's signals, in single matching.
         assert_eq!(keys(&v["confidence"]), ["signals"]);
         assert_eq!(keys(&v["confidence"]["signals"]), ["confidence", "margin", "score"]);
@@ -440,6 +461,7 @@ mod tests {
         let a = ablation(s.view(), &gt, &protocol(), &[1, 2], &[], &[Method::Oracle]).unwrap();
         let v = serde_json::to_value(crate::report::Report {
             dataset: None,
+            orientation: None,
             result: &a,
         })
         .unwrap();
