@@ -488,11 +488,15 @@ fn vpr_methods_evaluation_folder_in_one_command() {
         "--format",
         "table",
     ]);
-    // The header names the inputs (the two descriptor files, or S.npy); the tables agree.
+    // The header names the inputs (the two descriptor files, or S.npy), and the matrix's
+    // orientation follows it (descriptors have but one); the tables agree.
     let body = |t: &str| t.split_once('\n').map(|(_, rest)| rest.to_owned()).unwrap();
     assert!(
         table.starts_with("*database_descriptors.npy x queries_descriptors.npy: 3576 database images"),
         "{table}"
     );
-    assert_eq!(body(&table), body(&by_tolerance));
+    let orientation = "\norientation: |DB| 3576 x |Q| 3576 (DB-major; pass --query-major for VPR-Bench files)\n";
+    let matrix_body = body(&by_tolerance);
+    assert!(matrix_body.starts_with(orientation), "{by_tolerance}");
+    assert_eq!(body(&table), matrix_body.replacen(orientation, "", 1));
 }
