@@ -6,11 +6,14 @@
 #
 # One build of the workspace serves everything: `cargo test` builds the CLI binary
 # (dev profile: the project's crates at opt-level 1, dependencies at 2) that the Python
-# tests run, and the wheel is built with the same profile into the same target
-# directory, so it recompiles only what its pyo3 features change. CONTRIBUTING.md says
-# how long each step takes.
+# tests run, and the C library and the wheel are built with the same profile and, through
+# crates/workspace-hack, the same features into the same target directory, so they
+# compile only their own crates (and pyo3). CONTRIBUTING.md says how long each step takes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# A fresh clone builds everything once: incremental compilation's caches would only
+# cost time there (and disk). A developer's repeated local runs keep them.
+[ -z "${CI:-}" ] || export CARGO_INCREMENTAL=0
 
 # Each step says how long the one before it took (CONTRIBUTING.md quotes these).
 step_name="" step_start=$SECONDS
@@ -19,13 +22,46 @@ step() {
     step_name="$*" step_start=$SECONDS
     printf '\n== %s\n' "$*"
 }
-trap '[ -z "$step_name" ] || printf "== %s: %d s (total %d s)\n" "$step_name" $((SECONDS - step_start)) $SECONDS' EXIT
+checks=""
+finish() {
+    [ -z "$step_name" ] || printf "== %s: %d s (total %d s)\n" "$step_name" $((SECONDS - step_start)) $SECONDS
+    # A failure before the background checks were waited for ends them too.
+    if [ -n "$checks" ] && kill -0 "$checks" 2> /dev/null; then
+        pkill -P "$checks" 2> /dev/null || true
+        kill "$checks" 2> /dev/null || true
+    fi
+}
+trap finish EXIT
 target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 
 step "cargo fmt --check"
 cargo fmt --all -- --check
-step "cargo clippy"
-cargo clippy --workspace --all-targets --locked -- -D warnings
+
+# The checks that only type-check (clippy, rustdoc, the fuzz targets) run beside the
+# build and the tests, in a target directory of their own (cargo locks one per build):
+# they compile the dependencies in check mode, which the tests' build cannot reuse, and
+# on 2 cores they fill what the build leaves idle. Their output is printed when they
+# are waited for, below.
+mkdir -p "$target"
+check_log="$target/checks.log"
+(
+    set -euo pipefail
+    export CARGO_TARGET_DIR="$target/check"
+    start=$SECONDS
+    cargo clippy --workspace --all-targets --locked -- -D warnings
+    echo "== cargo clippy --workspace --all-targets -- -D warnings: $((SECONDS - start)) s" && start=$SECONDS
+    # Broken or private intra-doc links fail. The C library's crate is named `qtvpr` too
+    # (libqtvpr.so), so its docs would overwrite the core's: include/qtvpr.h documents it.
+    RUSTDOCFLAGS="-D warnings" cargo doc --workspace --exclude qtvpr-capi --no-deps --locked
+    echo "== rustdoc: $((SECONDS - start)) s" && start=$SECONDS
+    # fuzz/ is not a workspace member (libFuzzer needs a sanitizer build to run); stable
+    # can check that its targets compile. Its own target directory, fuzz/target.
+    unset CARGO_TARGET_DIR
+    cargo check --manifest-path fuzz/Cargo.toml --locked
+    echo "== fuzz targets compile: $((SECONDS - start)) s"
+) > "$check_log" 2>&1 &
+checks=$!
+
 step "no AES, bzip2, zstd or LZMA crate in the build"
 # Semantics §12: an .npz holds stored or deflated members, and its zip layer (rawzip,
 # which decompresses nothing, and flate2's deflate) compiles no other codec.
@@ -35,10 +71,6 @@ if [ -n "$banned" ]; then
     echo "crates the zip layer must not bring: $banned" >&2
     exit 1
 fi
-step "rustdoc"
-# Broken or private intra-doc links fail. The C library's crate is named `qtvpr` too
-# (libqtvpr.so), so its docs would overwrite the core's: include/qtvpr.h documents it.
-RUSTDOCFLAGS="-D warnings" cargo doc --workspace --exclude qtvpr-capi --no-deps --locked
 step "cargo test"
 # The zip layer's fixed fuzzing budget (the fuzz target npz_archive's function, without
 # libFuzzer): 3000 structured mutations of each of ~45 valid and hostile archives, in
@@ -53,15 +85,32 @@ else
     echo "../shared/data is absent: the tests that need it are reported ignored"
     cargo test --workspace --locked
 fi
+step "the C library and the CLI alone compile nothing cargo test did not"
+# A dependency compiled again would mean other features in that build than in the
+# tests': crates/workspace-hack is stale (`cargo hakari generate`), and the C checks
+# and the wheel would each compile most of the tree again.
+again=$(cargo build --locked -p qtvpr-capi -p qtvpr-cli 2>&1 | sed -n 's/^ *Compiling \([^ ]*\) .*/\1/p' | grep -vx 'qtvpr-capi' || true)
+if [ -n "$again" ]; then
+    echo "compiled again with other features: $again; regenerate crates/workspace-hack (cargo hakari generate)" >&2
+    exit 1
+fi
 step "the README's Rust example, from the repository root"
 # Built by cargo test above (the workspace's features include npy), run as a reader would.
 "$target/debug/examples/readme"
 step "C interface"
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
 
-step "fuzz targets compile"
-# Not a workspace member (libFuzzer needs a sanitizer build to run); stable can check it.
-cargo check --manifest-path fuzz/Cargo.toml --locked
+step "clippy, rustdoc and the fuzz targets' check (started beside the build)"
+status=0
+wait "$checks" || status=$?
+checks=""
+if [ "$status" != 0 ]; then
+    cat "$check_log"
+    echo "clippy, rustdoc or the fuzz targets' check failed: its output is above" >&2
+    exit 1
+fi
+# Their warnings and timings; not the hundreds of "Checking" lines.
+grep -vE '^ *(Checking|Compiling|Documenting|Finished|Generated|Locking|Adding|Downloaded|Downloading) ' "$check_log" || true
 
 step "wheel into a virtualenv"
 venv="$target/test-venv"
@@ -92,5 +141,8 @@ step "pytest"
 # Run from tests/ so that the installed wheel, not the source tree, is imported.
 cd tests
 # Then the Python examples of README.md and docs/*.md (Sybil, ../conftest.py); -rs prints
-# why each skipped test was skipped (most: ../shared/data is absent).
-QTVPR_CLI="$target/debug/qtvpr-cli" "$venv/bin/python" -m pytest -q -rs -p no:cacheprovider . ../README.md ../docs
+# why each skipped test was skipped (most: ../shared/data is absent). On every core
+# (pytest-xdist), a file to a worker: a document's examples run in order, in one
+# namespace, and a module's fixtures (the Dask cluster) start once.
+QTVPR_CLI="$target/debug/qtvpr-cli" "$venv/bin/python" -m pytest -q -rs -p no:cacheprovider -n auto --dist loadfile \
+    . ../README.md ../docs
