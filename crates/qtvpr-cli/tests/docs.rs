@@ -1,4 +1,4 @@
-//! The `console` examples of docs/*.md run as written (trycmd, the tool
+//! The `console` examples of README.md and docs/*.md run as written (trycmd, the tool
 //! clap and cargo test their own examples with): each `$ qtvpr-cli ...` line is run and
 //! its output compared with the lines under it (`[..]` and `...` elide).
 //!
@@ -17,7 +17,7 @@ fn console_examples_run_as_written() {
     let cases = trycmd::TestCases::new();
     cases.register_bin("qtvpr-cli", Path::new(env!("CARGO_BIN_EXE_qtvpr-cli")));
     // The documents with `console` blocks.
-    for doc in ["docs/cli.md", "docs/margin-gate.md", "docs/deployment.md"] {
+    for doc in ["README.md", "docs/cli.md", "docs/margin-gate.md", "docs/deployment.md"] {
         let name = doc.replace('/', "-");
         let case = work.path().join(&name);
         std::fs::copy(root.join(doc), &case).unwrap();
