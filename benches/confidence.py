@@ -12,7 +12,10 @@ comparisons computed here:
 
 - the PA-score (Lowe's ratio on distances): with the cosine scores s of a query,
   d = sqrt(max(0, 2 - 2 s)) and PA = d1 / d2, the best over the second-best distance
-  (0 / 0 is 1); lower is more confident, so its AUROC is that of -PA, ties one half;
+  (0 / 0 is 1); lower is more confident, so its AUROC is that of -PA, ties one half.
+  The distance is a cosine's: not every technique's score is one (all 22 matrices lie
+  in [-0.61, 0.97], so d is defined), and for those that are not, d is only a
+  decreasing stand-in for a distance;
 - the Brier score of the constant calibration hit rate (what a map of one block gives).
 
 Uses the installed wheel and NumPy only. Writes the tables between
