@@ -101,7 +101,7 @@ def compare(expected: str, actual: str, tolerance: str = "1e-12") -> None:
     if len(want) != len(got):
         sys.exit(f"{actual}: {len(got)} lines, expected {len(want)} ({expected})")
     worst = 0.0
-    for n, (w, g) in enumerate(zip(want, got), 1):
+    for n, (w, g) in enumerate(zip(want, got, strict=True), 1):
         if list(w) != list(g):
             sys.exit(f"{actual}:{n}: keys {list(g)}, expected {list(w)}")
         for key, value in w.items():

@@ -135,7 +135,7 @@ step "stubtest and ruff"
 # The stubs against the installed compiled module (from the repository root, where
 # `qtvpr` is not importable from source), then the lint of every Python file.
 "$venv/bin/python" -m mypy.stubtest --mypy-config-file pyproject.toml qtvpr._native
-"$venv/bin/ruff" check py tests benches
+"$venv/bin/ruff" check py tests benches scripts
 
 step "pytest"
 # Run from tests/ so that the installed wheel, not the source tree, is imported.
