@@ -78,7 +78,10 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         &args.cal,
         args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref()),
     ) {
-        (Some(path), _) => from_matrix(path, gt_source, matching, args.query_major)?,
+        (Some(path), _) => {
+            let (cal, orientation) = from_matrix(path, gt_source, matching, args.query_major)?;
+            (cal, Some(orientation))
+        }
         (None, Some((db, q))) => (from_descriptors(db, q, split, gt_source, matching)?, None),
         (None, None) => bail!("give --cal, or --db-descriptors and --query-descriptors"),
     };
@@ -118,14 +121,14 @@ fn from_descriptors(
 
 /// The calibration of similarity matrix `--cal PATH` with its ground truth from
 /// `gt_source`, and the matrix's orientation with what ground truth read from a file
-/// says of it (always `Some`: the shape of `calibrate`'s result); errors name the files, with positions in their own orientation. The
+/// says of it; errors name the files, with positions in their own orientation. The
 /// matrix is unmapped once the calibration is built.
 pub fn from_matrix(
     path: &Path,
     gt_source: GtSource<'_>,
     matching: Matching,
     query_major: bool,
-) -> Result<(Calibration, Option<Orientation>)> {
+) -> Result<(Calibration, Orientation)> {
     let s_cal = read_scores(path).context("--cal")?;
     let s_cal = s_cal.view().oriented(query_major);
     let gt = gt_source.load(s_cal.dim(), query_major)?;
@@ -133,5 +136,5 @@ pub fn from_matrix(
         .map_err(|e| crate::args::oriented(e, query_major))
         .with_context(|| format!("--cal {} / {}", path.display(), gt_source.describe()))?;
     let orientation = Orientation::of(s_cal.dim(), gt_source.is_file().then_some(&gt), query_major);
-    Ok((cal, Some(orientation)))
+    Ok((cal, orientation))
 }

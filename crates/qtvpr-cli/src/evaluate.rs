@@ -342,15 +342,21 @@ fn calibration_label(run: &Run) -> String {
     }
 }
 
+/// The table's line naming how a similarity file was read (none for descriptors and
+/// the embedded data), under the heading of a run or of an ablation.
+fn orientation_line(t: &mut String, ctx: &RunContext) {
+    if let Some(o) = &ctx.orientation {
+        writeln!(t, "orientation: {}\n", o.describe(crate::args::QUERY_MAJOR)).unwrap();
+    }
+}
+
 fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
     let avg = ctx.avg_recall_name();
     let mut t = String::new();
     if !ablation {
         let run = &runs[0];
         writeln!(t, "*{}*\n", describe(ctx, run)).unwrap();
-        if let Some(o) = &ctx.orientation {
-            writeln!(t, "orientation: {}\n", o.describe(crate::args::QUERY_MAJOR)).unwrap();
-        }
+        orientation_line(&mut t, ctx);
         writeln!(
             t,
             "| method | %Segs | {avg} | segments counted | skipped (no positives) | threshold MSE vs oracle \
@@ -399,9 +405,7 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
         ablation_setting(ctx, &runs[0])
     )
     .unwrap();
-    if let Some(o) = &ctx.orientation {
-        writeln!(t, "orientation: {}\n", o.describe(crate::args::QUERY_MAJOR)).unwrap();
-    }
+    orientation_line(&mut t, ctx);
     let methods: Vec<Method> = runs[0].eval.methods.iter().map(|m| m.method).collect();
     write!(t, "| k | calibration queries |").unwrap();
     for m in &methods {

@@ -223,7 +223,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
                 Some(gt_source) => {
                     let (cal, orientation) =
                         calibrate::from_matrix(cal_path, gt_source, matching_arg, args.query_major)?;
-                    evidence = orientation.and_then(|o| o.evidence);
+                    evidence = orientation.evidence;
                     cal
                 }
             };
