@@ -762,15 +762,10 @@ def _auroc(x: np.ndarray, c: np.ndarray) -> float | None:
 
 
 def _ece(p: np.ndarray, c: np.ndarray) -> float:
-    """Expected calibration error over 10 equal-width bins of [0, 1] (the last holds
-    1.0): each bin's |mean p - mean c| weighted by its share of the decisions."""
-    total = 0.0
-    bins = np.array([min(math.floor(v * 10), 9) for v in p])
-    for b in range(10):
-        here = bins == b
-        if here.any():
-            total += abs(p[here].mean() - c[here].mean()) * np.count_nonzero(here) / len(p)
-    return total
+    """Expected calibration error over the reliability bins (:func:`_reliability`: 10
+    equal-width bins of [0, 1], the last holding 1.0): each bin's |mean p - mean c|
+    weighted by its share of the decisions."""
+    return float(sum(abs(b["mean_confidence"] - b["hit_rate"]) * b["n"] / len(p) for b in _reliability(p, c)))
 
 
 def _reliability(p: np.ndarray, c: np.ndarray) -> list[dict]:
