@@ -3,7 +3,7 @@ fit by hand and its properties, then the wheel against the reference (its blocks
 batch transfer's ``query_confidences``, ``Online``) and against the CLI's ``stream``, on
 the embedded Corridor data and, where present, the real matrices of ``../shared/data``.
 
-The same scenarios are tested in Rust (crates/qtvpr/src/confidence.rs,
+The same scenarios are tested in Rust (crates/qtvpr/src/signals/confidence.rs,
 crates/qtvpr/tests/confidence.rs, crates/qtvpr-cli/tests/online.rs).
 """
 
@@ -230,7 +230,7 @@ def assert_same_signals(got, want):
 
 
 def test_reliability_bins_by_hand():
-    # The Rust scenario (crates/qtvpr/src/confidence.rs, reliability_bins_by_hand): p on
+    # The Rust scenario (crates/qtvpr/src/signals/confidence.rs, reliability_bins_by_hand): p on
     # an edge goes up (0.1: bin 1), except 1.0, which the last bin holds with 0.9.
     p = np.array([0.0, 0.08, 0.1, 0.55, 0.58, 0.59, 0.9, 1.0])
     c = np.array([0, 0, 1, 1, 0, 1, 0, 1], dtype=bool)

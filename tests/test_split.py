@@ -1,7 +1,7 @@
 """One matrix of every query, split by the core: the first queries calibrate, the rest
 are thresholded (``cal_queries=`` / ``cal_fraction=``).
 
-The same scenarios as the Rust tests (``crates/qtvpr/src/split.rs``, and
+The same scenarios as the Rust tests (``crates/qtvpr/src/input/split.rs``, and
 ``one_matrix_split_by_the_core`` in ``crates/qtvpr-cli/tests/cli.rs``): the split equals
 the transfer of the slices, and bad splits (a count of 0 or of |Q|, a fraction outside
 (0, 1) or leaving no calibration query, ground truth of the calibration queries alone,
@@ -18,7 +18,7 @@ import pytest
 import qtvpr
 from qtvpr import reference as ref
 
-# The hand-computed case of crates/qtvpr/src/transfer.rs as one matrix: columns 0-1
+# The hand-computed case of crates/qtvpr/src/operations/transfer.rs as one matrix: columns 0-1
 # calibrate, 2-3 are thresholded; the ground truth labels all four.
 S = np.array([[3.0, 1.0, 2.0, 2.0], [1.0, 4.0, 6.0, 5.0], [2.0, 1.0, 4.0, 2.0]])
 GT = np.array([[1, 1, 0, 1], [0, 1, 1, 0], [1, 0, 0, 0]], dtype=bool)

@@ -1,4 +1,4 @@
-//! The zip layer of every `.npz` alone (crates/qtvpr/src/npy/archive.rs): the central
+//! The zip layer of every `.npz` alone (crates/qtvpr/src/files/npy/archive.rs): the central
 //! directory, the local headers, the extra fields and the members' deflate streams of
 //! arbitrary bytes. Every input must be read to its end or refused with an error, never
 //! a panic, an abort or an allocation larger than the bytes justify. `cargo test` runs a

@@ -34,9 +34,9 @@ pub const QUERY_MAJOR: &str = "--query-major";
 
 /// A core error of a computation on views oriented by `query_major`, in the files'
 /// orientation ([`qtvpr::Error::oriented`]), with the core's advice when it is the usual
-/// sign of a matrix read the wrong way round ([`qtvpr::orientation::hint`]).
+/// sign of a matrix read the wrong way round ([`qtvpr::orientation_hint`]).
 pub fn oriented(err: qtvpr::Error, query_major: bool) -> anyhow::Error {
-    let hint = qtvpr::orientation::hint(&err, query_major, QUERY_MAJOR);
+    let hint = qtvpr::orientation_hint(&err, query_major, QUERY_MAJOR);
     let err = err.oriented(query_major);
     match hint {
         Some(hint) => anyhow::anyhow!("{err}; {hint}"),

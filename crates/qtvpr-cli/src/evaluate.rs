@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::evaluate::{Ablation, MethodResult};
-use qtvpr::report::Report;
+use qtvpr::Report;
+use qtvpr::{Ablation, MethodResult};
 use qtvpr::{Matching, Method, Options, Protocol, ScoresView, Split};
 
 use crate::args::{DescriptorFiles, MatchingArg};
@@ -81,7 +81,7 @@ pub struct EvaluateArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_values_t = [qtvpr::evaluate::DEFAULT_CAL_FRACTION],
+        default_values_t = [qtvpr::DEFAULT_CAL_FRACTION],
         conflicts_with = "cal_queries",
         allow_negative_numbers = true,
         value_name = "F1,F2,..."
@@ -93,7 +93,7 @@ pub struct EvaluateArgs {
     /// Segments of ceil(F x |Q|) deployment queries (a fraction of all queries).
     #[arg(
         long,
-        default_value_t = qtvpr::evaluate::DEFAULT_SEGMENT_FRACTION,
+        default_value_t = qtvpr::DEFAULT_SEGMENT_FRACTION,
         conflicts_with = "segment_size",
         allow_negative_numbers = true,
         value_name = "F"
@@ -164,7 +164,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
     // file is read.
     let deploy_fraction = args
         .deploy_fraction
-        .or(ablation.then_some(qtvpr::evaluate::ABLATION_DEPLOY_FRACTION));
+        .or(ablation.then_some(qtvpr::ABLATION_DEPLOY_FRACTION));
     let matching = Matching::from(args.matching);
     let protocol = |k: usize, calibration: Split| Protocol {
         calibration,
@@ -431,7 +431,7 @@ fn opt(x: Option<f64>) -> String {
 }
 
 /// Semantics §14's signals of a run as CSV cells (empty in multi matching).
-fn signals(c: Option<&qtvpr::confidence::Signals>) -> String {
+fn signals(c: Option<&qtvpr::Signals>) -> String {
     let cells = c.map(|c| [c.score_auroc, c.margin_auroc, c.confidence_auroc, c.brier, c.ece]);
     cells.unwrap_or_default().map(opt).join(",")
 }

@@ -1,13 +1,13 @@
 //! `qtvpr-cli ground-truth`: a ground-truth matrix from a frame tolerance, from
 //! positions or from image names carrying positions, written as `.npy` (hard; soft to `--soft-output`) or as a VPR_Tutorial
 //! `.npz` (`GThard`, `GTsoft`). The arithmetic is the core's
-//! ([`qtvpr::ground_truth`]).
+//! ([`qtvpr::within_tolerance`], [`qtvpr::within_radius`]).
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args};
-use qtvpr::ground_truth::HardSoft;
+use qtvpr::HardSoft;
 use qtvpr::npy::matrix_shape;
 
 use crate::gt_source::{DEFAULT_IMAGE_RADIUS, GtSource, Kind};

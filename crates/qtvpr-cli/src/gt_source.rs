@@ -10,7 +10,7 @@
 //! | positions, distance `<= R` | `--P-db-positions DB.npy --P-query-positions Q.npy --P-radius R [--P-soft-radius R2]` |
 //! | UTM positions in image names (`@east@north@...@.jpg`), distance `<= R` (default 25) | `--P-db-images LIST --P-query-images LIST [--P-radius R] [--P-soft-radius R2]` |
 //!
-//! A LIST is a directory or a text file of paths ([`qtvpr::image_names::image_paths`]).
+//! A LIST is a directory or a text file of paths ([`qtvpr::image_paths`]).
 //!
 //! The options are one flattenable clap `Args` struct per prefix, made by
 //! `gt_source_args!` (a clap-derive struct cannot take its option names at run time),
@@ -18,16 +18,16 @@
 //! and messages. `ground-truth` has the same options without a prefix and no file
 //! source, plus the shape options of a tolerance; it builds a [`GtSource`] with the
 //! empty prefix. Every source becomes ground truth through the core's one function,
-//! [`qtvpr::ground_truth::GtSpec`]; this module only reads files and names options.
+//! [`qtvpr::GtSpec`]; this module only reads files and names options.
 
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use qtvpr::Input;
-use qtvpr::ground_truth::{GtSpec, HardSoft, check_radius};
-use qtvpr::image_names::image_paths;
+use qtvpr::image_paths;
 use qtvpr::npy::{FloatMatrix, read_float_matrix, read_ground_truth};
 use qtvpr::{GroundTruth, QuerySplit, ScoresView};
+use qtvpr::{GtSpec, HardSoft, check_radius};
 
 use crate::args::blame;
 

@@ -101,7 +101,7 @@ fn main() -> ExitCode {
     }
 }
 
-/// Size the library's own pool (qtvpr::threads), not rayon's global one: the core runs
+/// Size the library's own pool (qtvpr::set_threads), not rayon's global one: the core runs
 /// every parallel region there, so that a forked child gets live threads. The core
 /// refuses 0.
 fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {

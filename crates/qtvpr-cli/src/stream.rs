@@ -113,7 +113,7 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let mut online = Online::new(Arc::new(cal), params)?;
     let file = read_scores(&args.val).context("--val")?;
     let s_val = file.view().oriented(args.query_major);
-    qtvpr::input::check_nonempty(Input::DeploymentSimilarity, s_val.dim())
+    qtvpr::check_nonempty(Input::DeploymentSimilarity, s_val.dim())
         .with_context(|| format!("--val {}", args.val.display()))?;
 
     // Lines go to stdout as queries are decided, or to memory for an atomic --output.

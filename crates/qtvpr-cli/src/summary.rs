@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use qtvpr::evaluate::Evaluation;
+use qtvpr::Evaluation;
 use qtvpr::{Matching, Split};
 
 /// One run of the protocol.

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::report::ThresholdReport;
+use qtvpr::ThresholdReport;
 use qtvpr::{Calibration, Defaults, Matching, Options, Params, QuerySplit, ScoreSource};
 
 use crate::args::{DescriptorFiles, MatchingArg, SplitArgs};
@@ -195,7 +195,7 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
                 .with_context(|| format!("{flag} of {input}"))?;
             let gt_source = gt_source.expect("a split needs ground truth, checked above");
             let (gt_cal, gt) = gt_source.load_split_read(&split, args.query_major, &input)?;
-            evidence = gt.as_ref().map(qtvpr::orientation::Evidence::of);
+            evidence = gt.as_ref().map(qtvpr::Evidence::of);
             // Nothing here saves it: a calibration that keeps neither its scores nor its
             // ground truth, which it drops once it has its candidates.
             let cal = Calibration::for_transfer(source.columns(split.calibration()), gt_cal, matching_arg)

@@ -62,7 +62,7 @@ impl Case {
 
 #[test]
 fn hand_computed_thresholds() {
-    // See crates/qtvpr/src/transfer.rs: with k = 1 and segments of one query the
+    // See crates/qtvpr/src/operations/transfer.rs: with k = 1 and segments of one query the
     // quantiles are 0.5 and 1 and the thresholds 4 and the next f64 above 5.
     let case = Case::new();
     let out = case.run(&[], &["--k", "1", "--matching", "multi", "--segment-size", "1"]);
@@ -105,7 +105,7 @@ fn fortran_float32_and_integer_ground_truth_read_the_same() {
     );
     assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
     let b = std::fs::read_to_string(case.path("out.json")).unwrap();
-    // One batch: q = 0.5, threshold 3 (crates/qtvpr/src/transfer.rs, one_neighbour_each).
+    // One batch: q = 0.5, threshold 3 (crates/qtvpr/src/operations/transfer.rs, one_neighbour_each).
     assert_eq!(a, "start,end,quantile,threshold\n0,2,0.5,3\n");
     assert_eq!(a, b);
 }

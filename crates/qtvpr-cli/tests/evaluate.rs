@@ -12,7 +12,7 @@ use crate::common::{npy_bool, npy_f64};
 
 const Z: f64 = 4.753424308817087;
 
-/// |DB| = 3, |Q| = 7: calibration c0, c1, deployment d0..d4 (crates/qtvpr/src/evaluate/mod.rs).
+/// |DB| = 3, |Q| = 7: calibration c0, c1, deployment d0..d4 (crates/qtvpr/src/operations/evaluate/mod.rs).
 ///
 /// ```text
 ///        c0   c1    d0   d1   d2   d3   d4
@@ -199,7 +199,7 @@ fn hand_computed_json() {
         (Some(1), Some(1))
     );
     assert!(near(&q["threshold_mse"], 0.01));
-    // Online, a window of 2 over d0, d1, ... (crates/qtvpr/src/evaluate/online.rs):
+    // Online, a window of 2 over d0, d1, ... (crates/qtvpr/src/operations/evaluate/online.rs):
     // d0 alone -> 0.54, accepting d0 (T); d1 with d0 -> 0.6, accepting d1 (F).
     // Segment 0: TP 1, FP 1 at the threshold of its last query, 0.6; segment 1 ends at
     // d3: 0.5.

@@ -70,9 +70,9 @@ impl Args {
 
     /// [`Args::error`], naming inputs by `argument`, with the core's advice when the
     /// error is the usual sign of a matrix read the wrong way round
-    /// ([`qtvpr::orientation::hint`]).
+    /// ([`qtvpr::orientation_hint`]).
     fn error_naming(self, err: Error, argument: impl Fn(Input) -> &'static str) -> PyErr {
-        let hint = qtvpr::orientation::hint(&err, self.query_major, "query_major=True");
+        let hint = qtvpr::orientation_hint(&err, self.query_major, "query_major=True");
         let err = err.oriented(self.query_major);
         let message = match &err {
             // The core names parameters as a user spells them; Python spells them with

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
-use qtvpr::report::Report;
+use qtvpr::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
 use crate::convert::{GroundTruthArgs, Int, count};

@@ -31,7 +31,7 @@ pub(crate) fn ground_truth_tolerance<'py>(
     let (n_db, n_queries) = (non_negative("n_db", n_db)?, non_negative("n_queries", n_queries)?);
     let tolerance = non_negative("tolerance", tolerance)?;
     let gt = py
-        .detach(|| qtvpr::ground_truth::within_tolerance(n_db, n_queries, tolerance))
+        .detach(|| qtvpr::within_tolerance(n_db, n_queries, tolerance))
         .map_err(|e| {
             Args {
                 gt: "n_db, n_queries",
@@ -64,16 +64,12 @@ pub(crate) fn ground_truth_positions<'py>(
     query_positions: &Bound<'py, PyAny>,
     radius: f64,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
-    qtvpr::ground_truth::check_radius("radius", radius).map_err(named_error)?;
+    qtvpr::check_radius("radius", radius).map_err(named_error)?;
     let db = MatrixArg::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
     let q = MatrixArg::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
     let (d, q) = (db.view(false), q.view(false));
     let gt = py
-        .detach(|| {
-            with_scores!(d, |d| with_scores!(q, |q| qtvpr::ground_truth::within_radius(
-                d, q, radius
-            )))
-        })
+        .detach(|| with_scores!(d, |d| with_scores!(q, |q| qtvpr::within_radius(d, q, radius))))
         .map_err(named_error)?;
     Ok(gt.into_pyarray(py))
 }

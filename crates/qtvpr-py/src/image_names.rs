@@ -28,7 +28,7 @@ use crate::error::named_error;
 #[pyfunction]
 #[pyo3(signature = (paths))]
 pub(crate) fn utm_positions<'py>(py: Python<'py>, paths: Vec<PathBuf>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let positions = qtvpr::image_names::utm_positions(&paths).map_err(named_error)?;
+    let positions = qtvpr::utm_positions(&paths).map_err(named_error)?;
     Ok(positions.into_pyarray(py))
 }
 
@@ -51,8 +51,6 @@ pub(crate) fn utm_positions<'py>(py: Python<'py>, paths: Vec<PathBuf>) -> PyResu
 #[pyfunction]
 #[pyo3(signature = (source))]
 pub(crate) fn image_paths(py: Python<'_>, source: PathBuf) -> PyResult<Vec<OsString>> {
-    let images = py
-        .detach(|| qtvpr::image_names::image_paths(&source))
-        .map_err(named_error)?;
+    let images = py.detach(|| qtvpr::image_paths(&source)).map_err(named_error)?;
     Ok(images.paths.into_iter().map(PathBuf::into_os_string).collect())
 }

@@ -16,7 +16,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ndarray::{Array2, s};
-use qtvpr::deployment::deployment_threshold;
+use qtvpr::deployment_threshold;
 use qtvpr::{Calibration, GroundTruth, Matching, Params, best_threshold, ranked_correlation};
 use std::hint::black_box;
 

@@ -8,35 +8,23 @@
 //! those, expresses it as a quantile of their scores, and reads the batch's weighted
 //! median quantile off the deployment scores.
 //!
-//! The semantics are those of `docs/semantics.md` in the repository, one module per section:
+//! The semantics are those of `docs/semantics.md` in the repository, one module per
+//! section, grouped in folders by what they are:
 //!
-//! | semantics | module |
-//! |---|---|
-//! | 1 terms, input validation | [`input`] |
-//! | 1 the scores an operation reads: a matrix or descriptors | [`source`] |
-//! | 1 orientation: what was assumed, what ground truth says of it | [`orientation`] |
-//! | 2 decisions and counts | [`decisions`] |
-//! | 3 best threshold under a precision target | [`best_threshold`](mod@best_threshold) |
-//! | 4 ranked correlation and neighbours | [`ranked_correlation`](mod@ranked_correlation) |
-//! | 5 quantile of a subset threshold | [`subset_quantile`](mod@subset_quantile) |
-//! | 6 deployment threshold of a segment | [`deployment`] |
-//! | 4-6 together | [`transfer`] |
-//! | 7 baselines (Schubert et al.'s threshold) | [`baselines`] |
-//! | 8 evaluation protocol (%Segs, AvgR@tauP), ablations | [`evaluate`](mod@evaluate) |
-//! | 8.1's calibration rule for one matrix: the first queries calibrate | [`split`] |
-//! | 9 machine-readable output (feature `serde`) | [`report`] |
-//! | 11 online thresholds over a causal window | [`online`] |
-//! | 12 the calibration file (save/load: feature `npy`) | [`calibration_file`] |
-//! | 13 the margin gate (an extension) | [`margin`] |
-//! | 14 confidence: a calibrated probability per decision (an extension) | [`confidence`] |
-//! | extension: similarity from descriptors | [`similarity`] |
-//! | extension: sequence matching (the paper's future work) | [`sequence`] |
-//! | extension: ground truth from a frame tolerance or positions | [`ground_truth`] |
-//! | extension: positions from image names (`@utm_east@utm_north@...@.jpg`) | [`image_names`] |
-//! | the thread pool, rebuilt in a forked child (§10) | [`threads`] |
-//! | the sort of a profile (AVX-512 quicksort, else `radsort`) | `sort` |
-//! | file input and output (feature `npy`) | `npy` |
-//! | the matrices errors are about ([`Input`]) | [`names`] |
+//! | folder | modules (semantics §) | what they are |
+//! |---|---|---|
+//! | `input/` | `mod.rs` (§1), `params` | what an operation is given: scores and ground truth and their checks; the parameters (the gate among them), resolved once |
+//! | `rules/` | `decisions` (§2), `best_threshold` (§3), `ranked_correlation` (§4), `subset_quantile` (§5), `deployment` (§6), `baselines` (§7) | the paper's rules, one per section |
+//! | `operations/` | `transfer` (§4-§6), `online` (§11), `evaluate/` (§8), `source` (§1), `split` (§8.1) | what a user runs: a batch, a stream, the protocol; what each reads (a matrix or descriptors), and one matrix split into calibration and deployment |
+//! | `signals/` | `margin` (§13), `confidence` (§14), `orientation` (§1) | what is said of each query beyond its threshold, and of the layout |
+//! | `extensions/` | `similarity`, `sequence`, `ground_truth`, `kd_tree`, `image_names` | beyond the paper: the matrices from what users have |
+//! | `files/` | `calibration_file` (§12), `report` (§9), `npy/` | reading and writing: the calibration file, the JSON documents, `.npy`/`.npz` |
+//! | `error/` | `mod.rs`, `names` | the one error enum, and the inputs ([`Input`]) errors are about |
+//! | `platform/` | `sort`, `threads` (§10) | the machine: the sort of a profile (AVX-512 quicksort, else `radsort`), the thread pool rebuilt in a forked child |
+//!
+//! Every public item is exported here, at the crate's root, and `npy` (feature `npy`)
+//! is the one public module: the modules themselves are the crate's own, so that moving
+//! a rule from one file to another changes no user's code.
 //!
 //! The extensions are beyond the paper and are not sections of the semantics: they make the
 //! similarity and ground-truth matrices the method takes from what users have
@@ -45,7 +33,7 @@
 //! Matrices are |DB| x |Q| [`ndarray::ArrayView2`]s of `f32` or `f64` with any strides
 //! (pass `.t()` of a query-major matrix); nothing is copied up front and every value
 //! the results depend on is computed in `f64` (bounds from block summaries only rule out
-//! neighbours that provably cannot be chosen; see [`ranked_correlation`](mod@ranked_correlation)).
+//! neighbours that provably cannot be chosen; see [`ranked_correlation()`] and `rules/ranked_correlation.rs`).
 //!
 //! ```
 //! use ndarray::array;
@@ -73,53 +61,44 @@
 // First, so that `with_scores!` (defined beside `ScoresView`) is in scope in every
 // module below by name.
 #[macro_use]
-pub mod input;
+mod input;
 
-pub mod baselines;
-pub mod best_threshold;
-pub mod calibration_file;
-pub mod confidence;
-pub mod decisions;
-pub mod deployment;
 mod error;
-pub mod evaluate;
-pub mod ground_truth;
-pub mod image_names;
-mod kd_tree;
-pub mod margin;
-pub mod names;
-#[cfg(feature = "npy")]
-pub mod npy;
-pub mod online;
-pub mod orientation;
-pub mod params;
-pub mod ranked_correlation;
-pub mod report;
-pub mod sequence;
-pub mod similarity;
-mod sort;
-pub mod source;
-pub mod split;
-pub mod subset_quantile;
-pub mod threads;
-pub mod transfer;
+mod extensions;
+mod files;
+mod operations;
+mod platform;
+mod rules;
+mod signals;
 
-pub use baselines::schubert_threshold;
-pub use best_threshold::best_threshold;
-pub use confidence::ConfidenceMap;
-pub use decisions::{Counts, Matching, counts};
+pub use error::names::Input;
 pub use error::{Error, Result};
-pub use evaluate::{Ablation, Evaluation, Method, Protocol, Split, ablation, evaluate};
-pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth};
-pub use margin::{Gate, margins};
-pub use names::Input;
-pub use online::{Decision, Online};
-pub use orientation::Orientation;
-pub use params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, OnlineParams, Options, Params};
-pub use ranked_correlation::ranked_correlation;
-pub use sequence::{Sequence, sequence_match};
-pub use similarity::{Descriptors, cosine_similarity};
-pub use source::ScoreSource;
-pub use split::QuerySplit;
-pub use threads::set_threads;
-pub use transfer::{Calibration, Segment, Transfer};
+pub use extensions::ground_truth::{GtSpec, HardSoft, check_radius, within_radius, within_tolerance};
+#[cfg(feature = "npy")]
+pub use extensions::image_names::image_paths;
+pub use extensions::image_names::{IMAGE_EXTENSIONS, utm_position, utm_positions};
+pub use extensions::sequence::{Sequence, sequence_match};
+pub use extensions::similarity::{Descriptors, TILE, cosine_similarity};
+#[cfg(feature = "npy")]
+pub use files::npy;
+#[cfg(feature = "serde")]
+pub use files::report::{Report, ThresholdParams, ThresholdReport};
+pub use input::params::{DEFAULT_K, DEFAULT_PRECISION, Defaults, Gate, OnlineParams, Options, Params};
+pub use input::{GroundTruth, Label, Score, ScoreMatrix, ScoresView, Truth, check_nonempty};
+pub use operations::evaluate::{
+    ABLATION_DEPLOY_FRACTION, Ablation, DEFAULT_CAL_FRACTION, DEFAULT_SEGMENT_FRACTION, Evaluation, Layout, Method,
+    MethodResult, PrPoint, Protocol, SegmentResult, Split, ablation, evaluate,
+};
+pub use operations::online::{Decision, Online};
+pub use operations::source::ScoreSource;
+pub use operations::split::QuerySplit;
+pub use operations::transfer::{Calibration, Segment, Transfer};
+pub use platform::threads::{current_threads, install as run_in_pool, set_threads};
+pub use rules::baselines::schubert_threshold;
+pub use rules::best_threshold::best_threshold;
+pub use rules::decisions::{Counts, Matching, best_match, counts};
+pub use rules::deployment::deployment_threshold;
+pub use rules::ranked_correlation::{ranked_correlation, top_k};
+pub use signals::confidence::{ConfidenceMap, Signals};
+pub use signals::margin::margins;
+pub use signals::orientation::{Evidence, Orientation, hint as orientation_hint};

@@ -11,7 +11,7 @@ use crate::data;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 use ndarray::{Array2, ArrayView2, s};
-use qtvpr::similarity::TILE;
+use qtvpr::TILE;
 use qtvpr::{
     Calibration, Descriptors, Gate, GroundTruth, Matching, Method, Options, Params, Protocol, ScoreSource, Split,
     cosine_similarity,

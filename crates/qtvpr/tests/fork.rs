@@ -136,17 +136,17 @@ fn the_pool_size_holds_in_a_forked_child() {
         "threads must be >= 1, got 0"
     );
     qtvpr::set_threads(3).unwrap();
-    assert_eq!(qtvpr::threads::current_threads(), 3);
+    assert_eq!(qtvpr::current_threads(), 3);
     let (cal, scores) = load();
     let s = deployment(&scores);
     let want = transfer(&cal, s);
     in_child(|| {
         // The child's pool is new, of the size set in the parent, and runs work on its
         // own named threads (nested installs included).
-        let named = qtvpr::threads::install(|| {
-            qtvpr::threads::install(|| std::thread::current().name().is_some_and(|n| n.starts_with("qtvpr-")))
+        let named = qtvpr::run_in_pool(|| {
+            qtvpr::run_in_pool(|| std::thread::current().name().is_some_and(|n| n.starts_with("qtvpr-")))
         });
-        named && qtvpr::threads::current_threads() == 3 && transfer(&cal, s) == want
+        named && qtvpr::current_threads() == 3 && transfer(&cal, s) == want
     })
     .unwrap();
 }

@@ -8,7 +8,7 @@ use crate::data;
 use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};
-use qtvpr::decisions::best_match;
+use qtvpr::best_match;
 use qtvpr::npy::{read_ground_truth, read_scores};
 use qtvpr::{
     Calibration, Defaults, Gate, GroundTruth, Matching, Method, Online, OnlineParams, Params, Protocol, Score,

@@ -10,7 +10,7 @@ use crate::data;
 
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::npy::read_scores;
-use qtvpr::ranked_correlation::top_k;
+use qtvpr::top_k;
 use qtvpr::{Calibration, GroundTruth, Matching, Params, Score, ScoresView, cosine_similarity, ranked_correlation};
 
 /// Calibrate on the first `n_cal` columns; the transfer's neighbours and weights of the

@@ -35,7 +35,7 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use qtvpr::Method;
-use qtvpr::evaluate::MethodResult;
+use qtvpr::MethodResult;
 
 use crate::embedded;
 use crate::output::emit;

@@ -2,10 +2,10 @@
 //! the deployment decisions: per bin of the ECE, the observed hit rate against the mean
 //! confidence, with the diagonal of perfect calibration.
 //!
-//! The bins are the core's ([`qtvpr::confidence::Signals::bins`]), the ones its ECE is
+//! The bins are the core's ([`qtvpr::Signals::bins`]), the ones its ECE is
 //! computed from; this module only draws them.
 
-use qtvpr::confidence::Signals;
+use qtvpr::Signals;
 
 use super::*;
 

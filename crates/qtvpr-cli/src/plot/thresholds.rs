@@ -45,7 +45,7 @@ pub(super) fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result
         .filter(|m| m.method != Method::Oracle && m.segments.iter().any(|g| g.threshold > f64::NEG_INFINITY))
         .collect();
     let mut lanes: Vec<(Shape, RGBColor, Vec<f64>)> = vec![];
-    let centres = |inf: &dyn Fn(&qtvpr::evaluate::SegmentResult) -> bool, m: &MethodResult| -> Vec<f64> {
+    let centres = |inf: &dyn Fn(&qtvpr::SegmentResult) -> bool, m: &MethodResult| -> Vec<f64> {
         m.segments
             .iter()
             .filter(|g| inf(g))

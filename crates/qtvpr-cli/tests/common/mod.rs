@@ -6,7 +6,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 /// Zip archives, hostile ones among them: the core's own test writer.
-#[path = "../../../qtvpr/src/npy/test_zip.rs"]
+#[path = "../../../qtvpr/src/files/npy/test_zip.rs"]
 pub mod zip;
 
 /// The members of the `.npz` at `path`, by name.

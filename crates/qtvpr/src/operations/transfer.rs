@@ -1,0 +1,1113 @@
+//! The quantile-transfer pipeline (semantics §4-§6) behind a calibrate-once,
+//! transfer-many API.
+//!
+//! [`Calibration::new`] does all the work that depends only on the calibration traverse:
+//! ranked profiles, their standardisation and screen (block summaries), and the
+//! per-column candidates. Each [`Calibration::transfer`] then streams the deployment
+//! queries through in column chunks: gather, check, sort and standardise a chunk (in
+//! parallel), and for each query pick its neighbours (bounding every correlation from
+//! the screen's summaries and computing in `f64` only those the bounds leave in doubt),
+//! their subset threshold and its quantile (in parallel). When segments are small, each
+//! chunk holds whole segments and their thresholds are read off the chunk's sorted
+//! copy, so the deployment scores are read once; a larger batch is read again where it
+//! lies. Memory beyond the inputs is the calibration profiles plus one chunk.
+//!
+//! The deployment scores may also come from descriptors
+//! ([`ScoreSource::Descriptors`]): each chunk's columns are then computed
+//! when the chunk is needed, by the kernel of [`cosine_similarity`](crate::cosine_similarity),
+//! so the |DB| x |Qval| matrix never exists and the result is that of the matrix, bit
+//! for bit. Such a source has no random access, so a chunk then always holds whole
+//! segments (one segment when a segment is larger than the base chunk).
+
+use std::ops::Range;
+use std::sync::OnceLock;
+
+use ndarray::{Array2, ArrayView2, ArrayViewMut2, ShapeBuilder};
+use rayon::prelude::*;
+
+use crate::error::names::Input;
+use crate::error::{Error, Result};
+use crate::extensions::similarity::{DescriptorColumns, TILE};
+use crate::input::params::Gate;
+use crate::input::params::{Defaults, Options, Params};
+use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
+use crate::operations::source::ScoreSource;
+use crate::platform::threads;
+use crate::rules::best_threshold::subset_threshold;
+use crate::rules::decisions::{Candidates, Matching};
+use crate::rules::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
+use crate::rules::ranked_correlation::{Ranked, Screen};
+use crate::rules::subset_quantile::subset_quantile;
+use crate::signals::confidence::{self, ConfidenceMap};
+use crate::signals::margin::{self, CalibrationMargins};
+
+/// The threshold of one segment of deployment queries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct Segment {
+    /// First deployment query (column index of the deployment matrix).
+    pub start: usize,
+    /// One past the last deployment query.
+    pub end: usize,
+    /// The weighted-median quantile of the segment's queries.
+    pub quantile: f64,
+    /// That quantile of the segment's scores: accept a match when `score >= threshold`.
+    pub threshold: f64,
+}
+
+/// Result of [`Calibration::transfer`].
+#[derive(Debug, Clone)]
+pub struct Transfer {
+    /// One threshold per segment, in order.
+    pub segments: Vec<Segment>,
+    /// Per deployment query: the quantile `q_j` of its subset threshold.
+    pub query_quantiles: Vec<f64>,
+    /// Per deployment query: its subset threshold `t_j` (`inf` for reject-all).
+    pub query_thresholds: Vec<f64>,
+    /// Per deployment query: its weight `w_j`.
+    pub query_weights: Vec<f64>,
+    /// |Qval| x min(k, |Qcal|): each query's calibration neighbours, most correlated first.
+    pub neighbours: Array2<usize>,
+    /// With the margin gate (semantics §13): `m*`, the margin a query's best match needs
+    /// besides a score at or above its segment's threshold (`inf`: reject-all).
+    pub gate: Option<f64>,
+    /// With the margin gate: every deployment query's margin.
+    pub query_margins: Option<Vec<f64>>,
+    /// In single matching (semantics §14): every deployment query's confidence, the
+    /// calibration's hit rate at its margin (NaN for a calibration without a decision);
+    /// `None` in multi matching or with fewer than 2 database images.
+    pub query_confidences: Option<Vec<f64>>,
+    /// Beside [`Transfer::query_confidences`]: the one-sided 95% Clopper-Pearson lower
+    /// bound of each.
+    pub query_confidences_lower95: Option<Vec<f64>>,
+}
+
+/// Every field equal, a NaN confidence (a calibration without a decision) equal to a
+/// NaN confidence, so that transfers compare as values.
+impl PartialEq for Transfer {
+    fn eq(&self, other: &Self) -> bool {
+        let same = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>| match (a, b) {
+            (Some(a), Some(b)) => {
+                a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+            }
+            (a, b) => a.is_none() && b.is_none(),
+        };
+        self.segments == other.segments
+            && self.query_quantiles == other.query_quantiles
+            && self.query_thresholds == other.query_thresholds
+            && self.query_weights == other.query_weights
+            && self.neighbours == other.neighbours
+            && self.gate == other.gate
+            && self.query_margins == other.query_margins
+            && same(&self.query_confidences, &other.query_confidences)
+            && same(&self.query_confidences_lower95, &other.query_confidences_lower95)
+    }
+}
+
+/// A calibration traverse with ground truth, ready to transfer thresholds.
+///
+/// Built by [`Calibration::new`], it keeps its input besides what the transfer needs
+/// (the raw scores in their own type and the ground truth) so that it can be saved as a
+/// calibration file (`Calibration::save`, feature `npy`) and loaded with bit-identical
+/// results. That costs one more copy of the calibration matrix (|DB| x |Qcal| scores of
+/// 4 or 8 bytes) and one byte per entry for the ground truth, beside the ranked profiles
+/// (the same size again) and their screen (2 KiB a profile). Built by
+/// [`Calibration::for_transfer`], it keeps only the profiles, the screen and the
+/// candidates (see `docs/performance.md`).
+pub struct Calibration {
+    matching: Matching,
+    /// The ranked profiles, ascending, in the input's own type, with their
+    /// standardisation (for correlations).
+    profiles: Box<dyn Profiles>,
+    /// The profiles' block summaries, which bound every correlation.
+    screen: Screen,
+    candidates: Candidates,
+    n_db: usize,
+    /// The input, kept to be saved (`None` for [`Calibration::for_transfer`]).
+    input: Option<(ScoreMatrix, GroundTruth)>,
+    /// The defaults of a calibration file's `params`.
+    defaults: Defaults,
+    /// The single-match decisions with their margins, for the gate's `m*`: found on the
+    /// first request for a gate (a pass over every profile that a calibration never
+    /// gated should not pay).
+    margins: OnceLock<CalibrationMargins>,
+    /// The confidence map of semantics §14, fitted to those decisions on the first
+    /// request for a confidence.
+    confidence: OnceLock<ConfidenceMap>,
+}
+
+/// What the calibration gives one deployment query (semantics §4 and §5).
+#[derive(Debug, Clone)]
+pub(crate) struct QueryTransfer {
+    /// Its calibration neighbours, most correlated first.
+    pub(crate) neighbours: Vec<usize>,
+    /// Its weight `w_j`.
+    pub(crate) weight: f64,
+    /// Its subset threshold `t_j` (`inf` for reject-all).
+    pub(crate) threshold: f64,
+    /// The quantile `q_j` of that threshold.
+    pub(crate) quantile: f64,
+    /// Its margin (semantics §13), when the gate or the confidence (semantics §14) asks
+    /// for it.
+    pub(crate) margin: Option<f64>,
+}
+
+/// What the transfer asks of the calibration profiles, whatever their score type.
+trait Profiles: Send + Sync {
+    /// The quantile of a subset threshold `t` among sorted calibration columns.
+    fn quantile(&self, columns: &[usize], t: f64) -> f64;
+    /// The `f64` correlations of calibration queries `is` with a standardised profile
+    /// `u`, into `out`.
+    fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]);
+    /// The margin (semantics §13) of calibration query `i`.
+    fn margin(&self, i: usize) -> f64;
+}
+
+impl<T: Score> Profiles for Ranked<T> {
+    fn quantile(&self, columns: &[usize], t: f64) -> f64 {
+        subset_quantile(columns.iter().map(|&i| self.column(i)), t)
+    }
+    fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]) {
+        Ranked::correlations(self, is, u, out)
+    }
+    fn margin(&self, i: usize) -> f64 {
+        margin::of_sorted(self.column(i))
+    }
+}
+
+impl Calibration {
+    /// Prepare calibration similarity `scores` (|DB| x |Qcal|) with its ground truth:
+    /// a matrix, or descriptors, whose similarity is computed in memory (the
+    /// calibration keeps it anyway), bit for bit as
+    /// [`cosine_similarity`](crate::cosine_similarity) computes those columns.
+    ///
+    /// # Errors
+    /// Empty or non-finite scores, a range of descriptor queries that is empty or
+    /// beyond |Q|, or ground truth of another shape.
+    pub fn new<'s, 'd: 's>(
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        gt: &GroundTruth,
+        matching: Matching,
+    ) -> Result<Self> {
+        match scores.into() {
+            ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
+                let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+                check_gt_shape(gt, Input::CalSimilarity, s.dim())?;
+                Ok(Self::from_ranked(ranked, Score::to_matrix(s), gt.clone(), matching))
+            })),
+            ScoreSource::Descriptors(d, queries) => {
+                d.check_range(&queries)?;
+                check_gt_shape(gt, Input::CalSimilarity, (d.shape().0, queries.len()))?;
+                // The computed matrix becomes the calibration's own copy: no second one.
+                let s = d.similarity(queries)?;
+                let ranked = Ranked::new(Input::CalSimilarity, s.view(), 0)?;
+                Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
+            }
+        }
+    }
+
+    /// A calibration that only transfers: the same thresholds, neighbours and records as
+    /// [`Calibration::new`] of the same input, bit for bit, but it keeps neither its
+    /// scores nor its ground truth, so it cannot be saved. It takes the ground truth by
+    /// value and drops it as soon as the candidates of semantics §2 are found.
+    ///
+    /// From descriptors, the |DB| x |Qcal| similarity is never held beside the ranked
+    /// profiles: it is computed twice, a few columns at a time, once for the candidates
+    /// (under the ground truth) and once straight into the profiles, where it is
+    /// sorted. What such a calibration holds is then its profiles (4 bytes a score),
+    /// their screen and its candidates; while it is built, the ground truth or the
+    /// profiles, and a few columns.
+    ///
+    /// # Errors
+    /// As [`Calibration::new`].
+    pub fn for_transfer<'s, 'd: 's>(
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        gt: GroundTruth,
+        matching: Matching,
+    ) -> Result<Self> {
+        match scores.into() {
+            ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
+                let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+                check_gt_shape(&gt, Input::CalSimilarity, s.dim())?;
+                let candidates = Candidates::new(s, gt.view(), matching);
+                Ok(Self::from_parts(ranked, candidates, matching, None))
+            })),
+            ScoreSource::Descriptors(d, queries) => {
+                d.check_range(&queries)?;
+                let n_db = d.shape().0;
+                check_gt_shape(&gt, Input::CalSimilarity, (n_db, queries.len()))?;
+                // Groups of about a chunk of scores, at least a tile of columns. Two
+                // passes, so that the ground truth and the profiles are never held at
+                // once: the candidates under the ground truth, then the profiles.
+                let (n, width) = (queries.len(), (CHUNK_SCORES / n_db).max(TILE));
+                let groups: Vec<Range<usize>> = (0..n).step_by(width).map(|a| a..(a + width).min(n)).collect();
+                let mut columns = DescriptorColumns::new(d, queries.start);
+                let mut candidates = Candidates::none();
+                for r in &groups {
+                    let mut group = Array2::zeros((n_db, r.len()).f());
+                    columns.fill(r.clone(), group.view_mut());
+                    let labels = gt.view().slice_move(ndarray::s![.., r.clone()]);
+                    candidates.append(Candidates::new(group.view(), labels, matching));
+                }
+                drop(gt);
+                let mut ranked = Ranked::with_capacity(Input::CalSimilarity, n_db, queries.len())?;
+                let mut columns = DescriptorColumns::new(d, queries.start);
+                for r in groups {
+                    let (n, first) = (r.len(), r.start);
+                    ranked.extend_with(Input::CalSimilarity, n, first, |out| {
+                        columns.fill(r, column_major((n_db, n), out));
+                    })?;
+                }
+                Ok(Self::from_parts(ranked, candidates, matching, None))
+            }
+        }
+    }
+
+    /// [`Calibration::for_transfer`] of a matrix, on labels already known to have the
+    /// shape of `s` (the evaluation protocol's, never saved).
+    pub(crate) fn with_labels<T: Score>(
+        s: ArrayView2<'_, T>,
+        gt: ArrayView2<'_, Truth>,
+        matching: Matching,
+    ) -> Result<Self> {
+        let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
+        Ok(Self::from_parts(
+            ranked,
+            Candidates::new(s, gt, matching),
+            matching,
+            None,
+        ))
+    }
+
+    /// The calibration of profiles `ranked`; `scores` is the calibration similarity they
+    /// were ranked from, kept to be saved with `gt`.
+    fn from_ranked<T: Score>(ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
+        let candidates = with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching));
+        Self::from_parts(ranked, candidates, matching, Some((scores, gt)))
+    }
+
+    /// The calibration of profiles `ranked` with their screen.
+    fn from_parts<T: Score>(
+        ranked: Ranked<T>,
+        candidates: Candidates,
+        matching: Matching,
+        input: Option<(ScoreMatrix, GroundTruth)>,
+    ) -> Self {
+        Self {
+            matching,
+            screen: Screen::new(&ranked),
+            n_db: ranked.view().nrows(),
+            profiles: Box::new(ranked),
+            candidates,
+            input,
+            defaults: Defaults::default(),
+            margins: OnceLock::new(),
+            confidence: OnceLock::new(),
+        }
+    }
+
+    /// The same calibration with the defaults a calibration file stores in its
+    /// `params` (what `Calibration::load` gives a loaded one).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1], a window of 0,
+    /// or a margin gate on a calibration that cannot have one (`margin::check`).
+    pub fn with_defaults(mut self, defaults: Defaults) -> Result<Self> {
+        self.check_defaults(&defaults)?;
+        self.defaults = defaults;
+        Ok(self)
+    }
+
+    /// Check `defaults` for this calibration: [`Defaults::validate`], and a margin gate
+    /// only where it applies (`margin::check`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the parameter.
+    pub fn check_defaults(&self, defaults: &Defaults) -> Result<()> {
+        defaults.validate()?;
+        self.check_gate(defaults.gate)
+    }
+
+    /// Check that decisions on this calibration can be gated with `gate`.
+    ///
+    /// # Errors
+    /// `margin::check` when the gate is on.
+    pub fn check_gate(&self, gate: Gate) -> Result<()> {
+        if gate.is_on() {
+            margin::check(self.matching, self.n_db)?;
+        }
+        Ok(())
+    }
+
+    /// The defaults this calibration was loaded with ([`Defaults::default`] for one built
+    /// by [`Calibration::new`]).
+    pub fn defaults(&self) -> &Defaults {
+        &self.defaults
+    }
+
+    /// |DB|: the number of database images (rows) of the calibration.
+    pub fn db_size(&self) -> usize {
+        self.n_db
+    }
+
+    /// The calibration similarity as given, |DB| x |Qcal|, in its own type (`None` for
+    /// [`Calibration::for_transfer`], which does not keep it).
+    pub fn scores(&self) -> Option<&ScoreMatrix> {
+        self.input.as_ref().map(|(s, _)| s)
+    }
+
+    /// The calibration ground truth as given, hard with soft entries as ignored (`None`
+    /// for [`Calibration::for_transfer`], which does not keep it).
+    pub fn ground_truth(&self) -> Option<&GroundTruth> {
+        self.input.as_ref().map(|(_, gt)| gt)
+    }
+
+    /// Gather, check, sort and standardise the deployment columns `s` into `ranked`.
+    /// `first_col` is the deployment index of `s`'s first column, for errors.
+    pub(crate) fn rank<T: Score>(&self, ranked: &mut Ranked<T>, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
+        ranked.refill(Input::DeploymentSimilarity, s, first_col)
+    }
+
+    /// semantics §4 and §5 for every column of a block ranked by
+    /// [`Calibration::rank`]: each query's `k` neighbours (their correlations computed
+    /// in `f64` where the screen's bounds leave doubt) and weight, their
+    /// subset threshold at `precision`, and its quantile (and its margin when `margin`,
+    /// for the gate or the confidence). The one place a deployment
+    /// query's `q_j` and `w_j` are computed, for the batch transfer and for
+    /// [`crate::Online`] alike; in parallel over the block.
+    pub(crate) fn queries<T: Score>(
+        &self,
+        ranked: &Ranked<T>,
+        k: usize,
+        precision: f64,
+        margin: bool,
+    ) -> Vec<QueryTransfer> {
+        threads::install(|| {
+            (0..ranked.ncols())
+                .into_par_iter()
+                .map_init(
+                    || vec![0.0; self.n_db],
+                    |u, j| self.query(ranked, j, k, precision, margin, u),
+                )
+                .collect()
+        })
+    }
+
+    /// [`Calibration::queries`] for column `j` alone, with `u` (|DB| long) to hold its
+    /// standardised profile.
+    pub(crate) fn query<T: Score>(
+        &self,
+        ranked: &Ranked<T>,
+        j: usize,
+        k: usize,
+        precision: f64,
+        margin: bool,
+        u: &mut [f64],
+    ) -> QueryTransfer {
+        ranked.profile(j, u);
+        let (neighbours, weight) = self
+            .screen
+            .top_k(u, k, |is, out| self.profiles.correlations(is, u, out));
+        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
+        let quantile = self.profiles.quantile(&neighbours, threshold);
+        QueryTransfer {
+            neighbours,
+            weight,
+            threshold,
+            quantile,
+            margin: margin.then(|| margin::of_sorted(ranked.column(j))),
+        }
+    }
+
+    /// Number of calibration queries.
+    pub fn len(&self) -> usize {
+        self.candidates.ncols()
+    }
+
+    /// Always false: a calibration has at least one query.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The matching mode the calibration was built for.
+    pub fn matching(&self) -> Matching {
+        self.matching
+    }
+
+    /// The semantics §3 threshold of the whole calibration set (today's practice of a
+    /// threshold tuned once offline).
+    ///
+    /// # Errors
+    /// tau outside (0, 1].
+    pub fn threshold(&self, precision: f64) -> Result<f64> {
+        check_precision(precision)?;
+        let all: Vec<usize> = (0..self.len()).collect();
+        Ok(subset_threshold(&self.candidates, &all, precision))
+    }
+
+    /// The margin gate `m*` of semantics §13 at precision target `precision`: the
+    /// semantics §3 threshold of the calibration's single-match decisions with their
+    /// margins in place of their scores (`+inf`: reject-all).
+    ///
+    /// # Errors
+    /// A multi-match calibration or one of fewer than 2 database images
+    /// (`margin::check`); tau outside (0, 1].
+    pub fn gate(&self, precision: f64) -> Result<f64> {
+        margin::check(self.matching, self.n_db)?;
+        check_precision(precision)?;
+        Ok(self.calibration_margins().gate(precision))
+    }
+
+    /// The calibration's single-match decisions with their margins, found on the first
+    /// request (for the gate or the confidence). Single matching with |DB| >= 2 only.
+    fn calibration_margins(&self) -> &CalibrationMargins {
+        self.margins.get_or_init(|| {
+            let of_columns: Vec<f64> = threads::install(|| {
+                (0..self.len())
+                    .into_par_iter()
+                    .map(|i| self.profiles.margin(i))
+                    .collect()
+            });
+            CalibrationMargins::new(&of_columns, &self.candidates)
+        })
+    }
+
+    /// The confidence map of semantics §14: the isotonic fit of the calibration's
+    /// single-match decisions (soft-only best matches left out) on their margins,
+    /// found on the first request. Without a decision it has no blocks, and gives NaN.
+    ///
+    /// # Errors
+    /// A multi-match calibration or one of fewer than 2 database images
+    /// (`confidence::check`).
+    pub fn confidence_map(&self) -> Result<&ConfidenceMap> {
+        confidence::check(self.matching, self.n_db)?;
+        Ok(self
+            .confidence
+            .get_or_init(|| ConfidenceMap::fit(self.calibration_margins().pairs())))
+    }
+
+    /// The map when this calibration's decisions have a confidence (single matching,
+    /// |DB| >= 2), else `None`: what a decision record reads.
+    pub(crate) fn confidence_of_decisions(&self) -> Option<&ConfidenceMap> {
+        self.confidence_map().ok()
+    }
+
+    /// `Some(m*)` when `gate` is on, checked against this calibration.
+    pub(crate) fn gate_of(&self, gate: Gate, precision: f64) -> Result<Option<f64>> {
+        gate.is_on().then(|| self.gate(precision)).transpose()
+    }
+
+    /// Transfer thresholds to the deployment similarity `scores` (|DB| x |Qval|): a
+    /// matrix, or descriptors. Segments and query indices count from the source's
+    /// first query. `options` are the [`Params`] (`&params`), and a progress callback
+    /// called as `progress(done, total)` as deployment queries are processed
+    /// ([`Options::progress`]).
+    ///
+    /// Descriptors are never held as a |DB| x |Qval| similarity: each chunk of columns
+    /// is computed when the transfer needs it, with the kernel of
+    /// [`cosine_similarity`](crate::cosine_similarity), so the result is exactly the
+    /// transfer of those columns of `cosine_similarity(db, q)`. Each chunk holds whole
+    /// segments (one segment when a segment is larger than the base chunk of about
+    /// 2^22 scores), computed where it is sorted, so memory beyond the descriptors and
+    /// the calibration is one chunk of scores and fewer than a tile
+    /// ([`similarity::TILE`](crate::extensions::similarity::TILE)) of columns computed ahead.
+    ///
+    /// # Errors
+    /// Invalid parameters, empty or non-finite scores, a |DB| that differs from the
+    /// calibration's, a segment size of 0 or above |Qval|, or a range of descriptor
+    /// queries that is empty or beyond |Q|.
+    pub fn transfer<'s, 'd: 's, 'p>(
+        &self,
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        options: impl Into<Options<'p, Params>>,
+    ) -> Result<Transfer> {
+        self.transfer_in_chunks(scores.into(), &options.into(), CHUNK_SCORES)
+    }
+
+    /// [`Calibration::transfer`] of a block of a larger deployment set: the columns of
+    /// `scores` are its queries `first_query..first_query + |Qval|`. Segments (of
+    /// `params.segment_size` queries from the block's first) and the column of a
+    /// non-finite score count in the larger set, so that a scheduler that cuts the set
+    /// into blocks of whole segments has the transfer of the whole by concatenation.
+    ///
+    /// # Errors
+    /// As [`Calibration::transfer`] of the block.
+    pub fn transfer_at<'s, 'd: 's, 'p>(
+        &self,
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        options: impl Into<Options<'p, Params>>,
+        first_query: usize,
+    ) -> Result<Transfer> {
+        let mut out = self.transfer(scores, options).map_err(|e| e.shifted(first_query))?;
+        for segment in &mut out.segments {
+            segment.start += first_query;
+            segment.end += first_query;
+        }
+        Ok(out)
+    }
+
+    /// What [`Calibration::transfer`] of a deployment similarity of shape `shape`
+    /// (|DB| x |Qval|) refuses before it reads a score, in the same order: invalid
+    /// parameters, an empty matrix, a |DB| other than the calibration's, a segment size
+    /// of 0 or above |Qval|, a margin gate the calibration cannot have. A scheduler that transfers blocks of the matrix
+    /// ([`Calibration::transfer_at`]) checks the whole request with it first.
+    ///
+    /// # Errors
+    /// Those of [`Calibration::transfer`] listed above.
+    pub fn check_transfer(&self, shape: (usize, usize), params: &Params) -> Result<()> {
+        params.validate()?;
+        check_nonempty(Input::DeploymentSimilarity, shape)?;
+        if shape.0 != self.n_db {
+            return Err(Error::DatabaseMismatch {
+                calibration: self.n_db,
+                deployment: shape.0,
+            });
+        }
+        segments(shape.1, params.segment_size)?;
+        self.check_gate(params.gate)
+    }
+
+    /// The transfer, with deployment chunks of about `chunk_scores` scores.
+    fn transfer_in_chunks(
+        &self,
+        source: ScoreSource<'_, '_>,
+        options: &Options<'_, Params>,
+        chunk_scores: usize,
+    ) -> Result<Transfer> {
+        let params = &options.params;
+        params.validate()?;
+        let progress = |done, total| options.report(done, total);
+        match source {
+            ScoreSource::Matrix(s) => {
+                check_nonempty(Input::DeploymentSimilarity, s.dim())?;
+                with_scores!(s, |s| self.transfer_from(s, params, progress, chunk_scores))
+            }
+            ScoreSource::Descriptors(d, queries) => {
+                d.check_range(&queries)?;
+                let columns = Fused {
+                    dim: (d.shape().0, queries.len()),
+                    columns: DescriptorColumns::new(d, queries.start),
+                };
+                self.transfer_from(columns, params, progress, chunk_scores)
+            }
+        }
+    }
+
+    /// The transfer, reading deployment scores from `source` in chunks of about
+    /// `chunk_scores` scores.
+    fn transfer_from<S: Chunks>(
+        &self,
+        mut source: S,
+        params: &Params,
+        progress: impl Fn(usize, usize),
+        chunk_scores: usize,
+    ) -> Result<Transfer> {
+        let (n_db, n_val) = source.dim();
+        if n_db != self.n_db {
+            return Err(Error::DatabaseMismatch {
+                calibration: self.n_db,
+                deployment: n_db,
+            });
+        }
+        let ranges = segments(n_val, params.segment_size)?;
+        let k = params.k.min(self.len());
+        let gate = self.gate_of(params.gate, params.precision)?;
+        let mut query_margins = gate.map(|_| vec![0.0; n_val]);
+        // Found before the parallel loops, which only read it.
+        let confidence = self.confidence_of_decisions();
+        let mut query_confidences = confidence.map(|_| (vec![0.0; n_val], vec![0.0; n_val]));
+        let with_margin = gate.is_some() || confidence.is_some();
+
+        let mut query_quantiles = vec![0.0; n_val];
+        let mut query_thresholds = vec![0.0; n_val];
+        let mut query_weights = vec![0.0; n_val];
+        let mut neighbours = Array2::zeros((n_val, k));
+        let mut segments = Vec::with_capacity(ranges.len());
+        // Chunks bound the working memory whatever the matrix size. Where segments are
+        // smaller, a chunk holds whole segments, whose thresholds are then read off the
+        // chunk's sorted columns while they are at hand: one pass over the data. A source
+        // without random access (descriptors) always works so, a chunk of one segment
+        // when segments are larger.
+        let base = (chunk_scores / self.n_db).clamp(16, 4096);
+        let segment_size = ranges[0].len();
+        let in_chunks = segment_size <= base || source.whole().is_none();
+        let chunk = if segment_size <= base {
+            base / segment_size * segment_size
+        } else if in_chunks {
+            segment_size
+        } else {
+            base
+        };
+        let mut ranked = Ranked::default();
+        for start in (0..n_val).step_by(chunk) {
+            let end = (start + chunk).min(n_val);
+            source.rank(&mut ranked, start..end)?;
+            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, with_margin)) {
+                neighbours
+                    .row_mut(j)
+                    .iter_mut()
+                    .zip(r.neighbours)
+                    .for_each(|(d, i)| *d = i);
+                (query_weights[j], query_thresholds[j], query_quantiles[j]) = (r.weight, r.threshold, r.quantile);
+                if let (Some(m), Some(margin)) = (query_margins.as_mut(), r.margin) {
+                    m[j] = margin;
+                }
+                if let (Some((c, lower)), Some(map), Some(margin)) = (query_confidences.as_mut(), confidence, r.margin)
+                {
+                    (c[j], lower[j]) = map.of(margin);
+                }
+            }
+            if in_chunks {
+                let sorted = ranked.view();
+                let here: Vec<&Range<usize>> = ranges.iter().filter(|r| r.start >= start && r.end <= end).collect();
+                let local = |r: &Range<usize>| sorted.slice(ndarray::s![.., r.start - start..r.end - start]);
+                threads::install(|| {
+                    segments.par_extend(here.into_par_iter().map(|r| {
+                        segment(r.clone(), &query_quantiles, &query_weights, |q| {
+                            sorted_columns_threshold(local(r), q)
+                        })
+                    }));
+                });
+            }
+            progress(end, n_val);
+        }
+        if let (false, Some(s)) = (in_chunks, source.whole()) {
+            segments = threads::install(|| {
+                ranges
+                    .into_par_iter()
+                    .map(|r| {
+                        let scores = s.slice(ndarray::s![.., r.clone()]);
+                        segment(r, &query_quantiles, &query_weights, |q| deployment_threshold(scores, q))
+                    })
+                    .collect()
+            });
+        }
+        Ok(Transfer {
+            segments,
+            query_quantiles,
+            query_thresholds,
+            query_weights,
+            neighbours,
+            gate,
+            query_margins,
+            query_confidences: query_confidences.as_ref().map(|c| c.0.clone()),
+            query_confidences_lower95: query_confidences.map(|c| c.1),
+        })
+    }
+}
+
+/// Where a transfer reads its deployment scores: a matrix (random access), or
+/// descriptors whose columns are computed chunk by chunk, left to right.
+trait Chunks {
+    /// The score type.
+    type T: Score;
+    /// (|DB|, |Qval|).
+    fn dim(&self) -> (usize, usize);
+    /// Every score, when the source holds them (a matrix): a source without it is read
+    /// only in consecutive chunks.
+    fn whole(&self) -> Option<ArrayView2<'_, Self::T>>;
+    /// Gather, check, sort and standardise the scores of deployment queries `r` into
+    /// `ranked`.
+    fn rank(&mut self, ranked: &mut Ranked<Self::T>, r: Range<usize>) -> Result<()>;
+}
+
+impl<T: Score> Chunks for ArrayView2<'_, T> {
+    type T = T;
+    fn dim(&self) -> (usize, usize) {
+        ArrayView2::dim(self)
+    }
+    fn whole(&self) -> Option<ArrayView2<'_, T>> {
+        Some(self.view())
+    }
+    fn rank(&mut self, ranked: &mut Ranked<T>, r: Range<usize>) -> Result<()> {
+        let first = r.start;
+        ranked.refill(Input::DeploymentSimilarity, self.slice(ndarray::s![.., r]), first)
+    }
+}
+
+/// The deployment similarity of a range of query descriptors.
+struct Fused<'d, 'a> {
+    columns: DescriptorColumns<'d, 'a>,
+    dim: (usize, usize),
+}
+
+impl Chunks for Fused<'_, '_> {
+    type T = f32;
+    fn dim(&self) -> (usize, usize) {
+        self.dim
+    }
+    fn whole(&self) -> Option<ArrayView2<'_, f32>> {
+        None
+    }
+    fn rank(&mut self, ranked: &mut Ranked<f32>, r: Range<usize>) -> Result<()> {
+        // Computed where they are sorted: the chunk is never copied.
+        let shape = (self.dim.0, r.len());
+        ranked.refill_with(Input::DeploymentSimilarity, shape, r.start, |out| {
+            self.columns.fill(r, column_major(shape, out));
+        })
+    }
+}
+
+/// A column-major `shape` view of `out`.
+fn column_major(shape: (usize, usize), out: &mut [f32]) -> ArrayViewMut2<'_, f32> {
+    ArrayViewMut2::from_shape(shape.f(), out).expect("a buffer of the shape")
+}
+
+/// Deployment scores per chunk (32 MB of f64 working memory).
+pub(crate) const CHUNK_SCORES: usize = 1 << 22;
+
+/// The segment `r` of deployment queries, given the threshold of a quantile of its scores.
+fn segment(r: Range<usize>, q: &[f64], w: &[f64], threshold: impl FnOnce(f64) -> f64) -> Segment {
+    let quantile = weighted_median(&q[r.clone()], &w[r.clone()]);
+    Segment {
+        start: r.start,
+        end: r.end,
+        quantile,
+        threshold: threshold(quantile),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extensions::similarity::Descriptors;
+    use ndarray::{Array2, array};
+
+    /// |DB| = 3, two calibration and two deployment queries (columns).
+    ///
+    /// - cal q0 = [3, 1, 2], hard GT rows 0 and 2; profile [3, 2, 1] (centred [1, 0, -1]).
+    ///   Multi candidates: 3 T, 2 T, 1 F.
+    /// - cal q1 = [1, 4, 1], hard GT rows 0 and 1; profile [4, 1, 1] (centred [2, -1, -1]).
+    ///   Multi candidates: 4 T, 1 T, 1 F (rows 0 and 2 tie at 1).
+    /// - val v0 = [2, 6, 4]: profile [6, 4, 2], centred [2, 0, -2]: r = 1 with q0,
+    ///   6 / sqrt 48 = 0.866 with q1.
+    /// - val v1 = [2, 5, 2]: profile [5, 2, 2], centred [2, -1, -1]: r = 1 with q1,
+    ///   3 / sqrt 12 = 0.866 with q0.
+    fn example() -> (Calibration, Array2<f64>) {
+        let s_cal = array![[3.0, 1.0], [1.0, 4.0], [2.0, 1.0]];
+        let gt = GroundTruth::new(array![[1, 1], [0, 1], [1, 0]].view()).unwrap();
+        let cal = Calibration::new(s_cal.view(), &gt, Matching::Multi).unwrap();
+        (cal, array![[2.0, 2.0], [6.0, 5.0], [4.0, 2.0]])
+    }
+
+    fn params(k: usize, segment_size: Option<usize>) -> Params {
+        Params {
+            k,
+            precision: 1.0,
+            segment_size,
+            gate: Gate::None,
+        }
+    }
+
+    #[test]
+    fn one_neighbour_each() {
+        let (cal, s_val) = example();
+        let out = cal.transfer(s_val.view(), &params(1, None)).unwrap();
+        assert_eq!(out.neighbours, array![[0], [1]]);
+        // v0 -> q0: tau = 1 threshold 2 (3 T, 2 T, then 1 F). Sample {3, 1, 2}: c(<= 2) = 2,
+        //   q = (2 - 1) / (3 - 1) = 0.5.
+        // v1 -> q1: 4 T | 1 T, 1 F: the 1-group holds a FP, so t = 4, the sample maximum:
+        //   c = 3, q = 1.
+        assert_eq!(out.query_thresholds, vec![2.0, 4.0]);
+        assert_eq!(out.query_quantiles, vec![0.5, 1.0]);
+        assert!(out.query_weights.iter().all(|w| (w - 1.0).abs() < 1e-12));
+        // One batch: weights 1, 1; lower median of {0.5, 1} is 0.5. Deployment scores
+        // ascending [2, 2, 2, 4, 5, 6], h = 5 * 0.5 = 2.5 -> 2 + 0.5 * (4 - 2) = 3.
+        assert_eq!(
+            out.segments,
+            vec![Segment {
+                start: 0,
+                end: 2,
+                quantile: 0.5,
+                threshold: 3.0
+            }]
+        );
+    }
+
+    #[test]
+    fn segments_of_one() {
+        let (cal, s_val) = example();
+        let out = cal.transfer(s_val.view(), &params(1, Some(1))).unwrap();
+        // v0 alone: q = 0.5 of [2, 4, 6] -> h = 1 -> 4. v1 alone: q = 1 -> just above its max 5.
+        assert_eq!(
+            out.segments,
+            vec![
+                Segment {
+                    start: 0,
+                    end: 1,
+                    quantile: 0.5,
+                    threshold: 4.0
+                },
+                Segment {
+                    start: 1,
+                    end: 2,
+                    quantile: 1.0,
+                    threshold: 5.0f64.next_up()
+                },
+            ]
+        );
+    }
+
+    #[test]
+    fn k_larger_than_the_calibration_is_clipped() {
+        let (cal, s_val) = example();
+        let out = cal.transfer(s_val.view(), &params(5, None)).unwrap();
+        assert_eq!(out.neighbours, array![[0, 1], [1, 0]]);
+        // Both queries use both columns: candidates 4 T, 3 T, 2 T, 1 T, 1 F, 1 F -> t = 2.
+        // Sample {3, 1, 2, 1, 4, 1}: c(<= 2) = 4, q = 3 / 5. Batch threshold: h = 5 * 0.6 = 3
+        // -> the fourth smallest deployment score, 4.
+        assert_eq!(out.query_thresholds, vec![2.0, 2.0]);
+        assert_eq!(out.query_quantiles, vec![0.6, 0.6]);
+        let w = (1.0 + 6.0 / 48f64.sqrt()) / 2.0;
+        assert!(
+            out.query_weights.iter().all(|x| (x - w).abs() < 1e-12),
+            "{:?}",
+            out.query_weights
+        );
+        assert_eq!(out.segments[0].threshold, 4.0);
+        assert_eq!(cal.threshold(1.0).unwrap(), 2.0);
+    }
+
+    #[test]
+    fn lower_precision_target() {
+        // tau = 0.6, k = 1: v1 -> q1: the 1-group gives (2, 1), 2 >= 1.8, so t = 1 and
+        // c(<= 1) = 2 of 3 -> q = 0.5. v0 unchanged (t = 2, q = 0.5).
+        let (cal, s_val) = example();
+        let out = cal
+            .transfer(
+                s_val.view(),
+                &Params {
+                    k: 1,
+                    precision: 0.6,
+                    segment_size: None,
+                    gate: Gate::None,
+                },
+            )
+            .unwrap();
+        assert_eq!(out.query_thresholds, vec![2.0, 1.0]);
+        assert_eq!(out.query_quantiles, vec![0.5, 0.5]);
+    }
+
+    #[test]
+    fn orientation_and_dtype_do_not_matter() {
+        let (cal, s_val) = example();
+        let a = cal.transfer(s_val.view(), &params(1, None)).unwrap();
+        let f32_val = s_val.mapv(|x| x as f32);
+        assert_eq!(cal.transfer(f32_val.view(), &params(1, None)).unwrap(), a);
+        let query_major = s_val.t().to_owned();
+        assert_eq!(cal.transfer(query_major.t(), &params(1, None)).unwrap(), a);
+    }
+
+    #[test]
+    fn chunking_does_not_change_results() {
+        // 7 x 45 deployment queries scored with a fixed LCG; chunks of at least 16 queries.
+        let mut x = 99u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f64 / 1000.0
+        };
+        let s_cal = Array2::from_shape_fn((7, 9), |_| next());
+        let gt = GroundTruth::new(Array2::from_shape_fn((7, 9), |(i, j)| i == j % 7).view()).unwrap();
+        let s_val = Array2::from_shape_fn((7, 45), |_| next());
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Calibration::new(s_cal.view(), &gt, matching).unwrap();
+            // Segments of 3 fit in chunks (chunks of 15); 20 and the whole batch do not.
+            for segment_size in [Some(3), Some(20), None] {
+                let p = Params {
+                    k: 4,
+                    precision: 0.8,
+                    segment_size,
+                    gate: Gate::None,
+                };
+                let one = cal
+                    .transfer_in_chunks(s_val.view().into(), &(&p).into(), usize::MAX)
+                    .unwrap();
+                let many = cal.transfer_in_chunks(s_val.view().into(), &(&p).into(), 0).unwrap();
+                assert_eq!(one, many, "{matching:?} {segment_size:?}");
+                let calls = std::cell::Cell::new(0);
+                let count = |done, total| {
+                    calls.set(calls.get() + 1);
+                    assert_eq!(total, 45);
+                    assert!(done <= total);
+                };
+                cal.transfer_in_chunks(s_val.view().into(), &Options::new(p).progress(&count), 0)
+                    .unwrap();
+                assert_eq!(calls.get(), 3, "45 queries in chunks of 16 (or 15)");
+            }
+        }
+    }
+
+    #[test]
+    fn a_calibration_for_transfer_from_descriptors_is_built_a_group_at_a_time() {
+        // |DB| = CHUNK_SCORES / TILE rows, so that a group is one tile of queries: 33
+        // calibration queries are ranked in groups of 16, 16 and 1 (each group's
+        // candidates first, under the ground truth), and transfer as the matrix path.
+        let n_db = CHUNK_SCORES / TILE;
+        let mut x = 11u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f32 / 1000.0 - 0.5
+        };
+        let db = Array2::from_shape_fn((n_db, 3), |_| next());
+        let q = Array2::from_shape_fn((50, 3), |_| next());
+        let s = crate::extensions::similarity::cosine_similarity(db.view(), q.view()).unwrap();
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        let gt = GroundTruth::new(Array2::from_shape_fn((n_db, 33), |(i, j)| i % 1000 == j).view()).unwrap();
+        let p = params(5, Some(6));
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Calibration::new(s.slice(ndarray::s![.., ..33]), &gt, matching).unwrap();
+            let lean = Calibration::for_transfer(ScoreSource::Descriptors(&d, 0..33), gt.clone(), matching).unwrap();
+            assert_eq!(lean.len(), 33);
+            assert_eq!(lean.db_size(), n_db);
+            let want = cal.transfer(s.slice(ndarray::s![.., 33..]), &p).unwrap();
+            assert_eq!(lean.transfer(ScoreSource::Descriptors(&d, 33..50), &p).unwrap(), want);
+            assert_eq!(lean.threshold(1.0).unwrap(), cal.threshold(1.0).unwrap());
+        }
+    }
+
+    #[test]
+    fn descriptors_give_the_bits_of_their_matrix() {
+        // 40 database and 130 query descriptors (3 tiles of 64) of dimension 5 from a
+        // fixed LCG; the first 23 queries calibrate, 107 deploy. With base chunks of 16
+        // queries (chunk_scores 0), segments of 3 and 7 fit chunks, segments of 20 and
+        // the whole batch of 107 do not: the fused transfer then takes one segment per
+        // chunk where the matrix path reads each segment again where it lies.
+        let mut x = 7u64;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((x >> 33) % 1000) as f64 / 1000.0 - 0.5
+        };
+        let db = Array2::from_shape_fn((40, 5), |_| next());
+        let q = Array2::from_shape_fn((130, 5), |_| next()).mapv(|v| v as f32);
+        let s = crate::extensions::similarity::cosine_similarity(db.view(), q.view()).unwrap();
+        let d = Descriptors::new(db.view(), q.view()).unwrap();
+        let gt = GroundTruth::new(Array2::from_shape_fn((40, 23), |(i, j)| i % 23 == j).view()).unwrap();
+        for matching in [Matching::Single, Matching::Multi] {
+            let cal = Calibration::new(s.slice(ndarray::s![.., ..23]), &gt, matching).unwrap();
+            let fused_cal = Calibration::new(ScoreSource::Descriptors(&d, 0..23), &gt, matching).unwrap();
+            assert_eq!(fused_cal.scores(), cal.scores());
+            // Calibrations that keep nothing to save, from the matrix and the descriptors.
+            let lean = [
+                Calibration::for_transfer(s.slice(ndarray::s![.., ..23]), gt.clone(), matching).unwrap(),
+                Calibration::for_transfer(ScoreSource::Descriptors(&d, 0..23), gt.clone(), matching).unwrap(),
+            ];
+            assert!(lean.iter().all(|c| c.scores().is_none() && c.ground_truth().is_none()));
+            for segment_size in [Some(3), Some(7), Some(20), None] {
+                let p = Params {
+                    k: 4,
+                    precision: 0.8,
+                    segment_size,
+                    gate: Gate::None,
+                };
+                let want = cal.transfer(s.slice(ndarray::s![.., 23..]), &p).unwrap();
+                for c in &lean {
+                    assert_eq!(c.transfer(ScoreSource::Descriptors(&d, 23..130), &p).unwrap(), want);
+                    assert_eq!(c.threshold(0.8).unwrap(), cal.threshold(0.8).unwrap());
+                }
+                for chunk_scores in [0, usize::MAX] {
+                    let calls = std::cell::RefCell::new(vec![]);
+                    let record = |a, _| calls.borrow_mut().push(a);
+                    let got = fused_cal
+                        .transfer_in_chunks(
+                            ScoreSource::Descriptors(&d, 23..130),
+                            &Options::new(p).progress(&record),
+                            chunk_scores,
+                        )
+                        .unwrap();
+                    assert_eq!(got, want, "{matching:?} {segment_size:?} {chunk_scores}");
+                    // Chunks of 16 queries hold 5 segments of 3 (15) or 2 of 7 (14);
+                    // segments of 20 are a chunk each; the batch is one chunk.
+                    let last = calls.borrow().last().copied();
+                    assert_eq!(last, Some(107));
+                    if chunk_scores == 0 {
+                        let first = calls.borrow()[0];
+                        assert_eq!(
+                            first,
+                            [15, 14, 20, 107][[Some(3), Some(7), Some(20), None]
+                                .iter()
+                                .position(|&x| x == segment_size)
+                                .unwrap()]
+                        );
+                    }
+                }
+            }
+        }
+        // Errors: a range beyond the queries, an empty range, another database.
+        let p = params(1, None);
+        let cal = Calibration::new(ScoreSource::Descriptors(&d, 0..23), &gt, Matching::Single).unwrap();
+        assert_eq!(
+            cal.transfer(ScoreSource::Descriptors(&d, 100..131), &p)
+                .unwrap_err()
+                .to_string(),
+            "queries must be a non-empty range of the 130 query descriptors, got 100..131"
+        );
+        assert!(cal.transfer(ScoreSource::Descriptors(&d, 5..5), &p).is_err());
+        assert!(Calibration::new(ScoreSource::Descriptors(&d, 0..22), &gt, Matching::Single).is_err());
+        for source in [
+            ScoreSource::Descriptors(&d, 0..22),
+            s.slice(ndarray::s![.., ..22]).into(),
+        ] {
+            assert!(matches!(
+                Calibration::for_transfer(source, gt.clone(), Matching::Single),
+                Err(Error::ShapeMismatch { .. })
+            ));
+        }
+        assert!(
+            Calibration::for_transfer(ScoreSource::Descriptors(&d, 120..131), gt.clone(), Matching::Single).is_err()
+        );
+        let small = Descriptors::new(db.slice(ndarray::s![..39, ..]), q.view()).unwrap();
+        assert_eq!(
+            cal.transfer(ScoreSource::Descriptors(&small, 23..130), &p).unwrap_err(),
+            Error::DatabaseMismatch {
+                calibration: 40,
+                deployment: 39
+            }
+        );
+    }
+
+    #[test]
+    fn bad_parameters_and_input() {
+        let (cal, s_val) = example();
+        let msg = |p: Params| cal.transfer(s_val.view(), &p).unwrap_err().to_string();
+        assert_eq!(msg(params(0, None)), "k must be >= 1, got 0");
+        assert_eq!(
+            msg(Params {
+                precision: 1.5,
+                ..params(1, None)
+            }),
+            "precision must be in (0, 1], got 1.5"
+        );
+        assert_eq!(
+            msg(Params {
+                precision: f64::NAN,
+                ..params(1, None)
+            }),
+            "precision must be in (0, 1], got NaN"
+        );
+        assert!(msg(params(1, Some(0))).starts_with("segment size must be between 1 and"));
+        assert!(msg(params(1, Some(3))).ends_with("(2), got 3"));
+        let err = cal.transfer(array![[1.0], [2.0]].view(), &params(1, None)).unwrap_err();
+        assert_eq!(
+            err,
+            Error::DatabaseMismatch {
+                calibration: 3,
+                deployment: 2
+            }
+        );
+        let err = cal
+            .transfer(array![[1.0], [f64::INFINITY], [0.0]].view(), &params(1, None))
+            .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "deployment similarity contains inf at row 1, column 0; scores must be finite"
+        );
+        let gt = GroundTruth::new(array![[true]].view()).unwrap();
+        let err = Calibration::new(array![[1.0, 2.0]].view(), &gt, Matching::Single)
+            .err()
+            .unwrap();
+        assert_eq!(
+            err.to_string(),
+            "ground truth shape 1x1 does not match calibration similarity shape 1x2"
+        );
+    }
+}
