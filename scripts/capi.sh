@@ -12,8 +12,9 @@
 # include/qtvpr.h is current is checked by
 # `cargo test` (crates/qtvpr-capi/tests/header.rs).
 #
-# Called by scripts/test.sh; runs alone from a fresh clone too. Needs cc, c++, python3
-# and valgrind (installed with apt-get when missing and running as root).
+# Called by scripts/test.sh; runs alone from a fresh clone too. Needs cc, c++ and
+# python3; the valgrind step says it is skipped when valgrind is missing (test.sh's
+# set-up installs it with apt-get when running as root).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -166,13 +167,10 @@ hostile=("$work/hostile" "$work/tmp" "$work/small.npz" "$work/crc.npz" "$work/bo
 (ulimit -v 1000000 && exec "${hostile[@]}")
 
 step "valgrind: the error test, the hostile-file test and a stream"
+# scripts/test.sh's set-up installs it (apt, as root); this script installs nothing.
 if ! command -v valgrind > /dev/null; then
-    if [ "$(id -u)" = 0 ] && command -v apt-get > /dev/null; then
-        apt-get update -qq && apt-get install -y -qq valgrind > /dev/null
-    else
-        echo "valgrind is missing: apt-get install valgrind" >&2
-        exit 1
-    fi
+    echo "skipped: valgrind is not installed (apt-get install valgrind, or run scripts/test.sh as root)"
+    exit 0
 fi
 # examples/c/valgrind.supp says what it suppresses and why (rayon's threads at exit).
 vg=(valgrind --quiet --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite,indirect,possible

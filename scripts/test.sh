@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Every check of the project, from a fresh clone: Rust format, lints and tests, then the
-# wheel built into a virtualenv, its stubs checked, the Python code linted, and the
-# Python tests (wheel, reference and CLI).
-# Installs what it needs from crates.io and PyPI. Run from anywhere.
+# Every check of behaviour, from a fresh clone: the Rust tests, the C interface, then the
+# wheel built into a virtualenv, its stubs checked against it, and the Python tests
+# (wheel, reference, CLI, the documents' examples). scripts/lint.sh reads the code
+# (formatting, clippy, rustdoc, the fuzz targets' check, ruff); .ci/run runs both.
+# Installs what it needs from crates.io, PyPI and apt (valgrind, as root). Run from anywhere.
 #
-# One build of the workspace serves everything: `cargo test` builds the CLI binary
+# One build of the workspace serves everything: the Rust tests build the CLI binary
 # (dev profile: the project's crates at opt-level 1, dependencies at 2) that the Python
 # tests run, and the C library and the wheel are built with the same profile and, through
 # crates/workspace-hack, the same features into the same target directory, so they
@@ -22,45 +23,22 @@ step() {
     step_name="$*" step_start=$SECONDS
     printf '\n== %s\n' "$*"
 }
-checks=""
 finish() {
     [ -z "$step_name" ] || printf "== %s: %d s (total %d s)\n" "$step_name" $((SECONDS - step_start)) $SECONDS
-    # A failure before the background checks were waited for ends them too.
-    if [ -n "$checks" ] && kill -0 "$checks" 2> /dev/null; then
-        pkill -P "$checks" 2> /dev/null || true
-        kill "$checks" 2> /dev/null || true
-    fi
 }
 trap finish EXIT
 target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 
-step "cargo fmt --check"
-cargo fmt --all -- --check
-
-# The checks that only type-check (clippy, rustdoc, the fuzz targets) run beside the
-# build and the tests, in a target directory of their own (cargo locks one per build):
-# they compile the dependencies in check mode, which the tests' build cannot reuse, and
-# on 2 cores they fill what the build leaves idle. Their output is printed when they
-# are waited for, below.
-mkdir -p "$target"
-check_log="$target/checks.log"
-(
-    set -euo pipefail
-    export CARGO_TARGET_DIR="$target/check"
-    start=$SECONDS
-    cargo clippy --workspace --all-targets --locked -- -D warnings
-    echo "== cargo clippy --workspace --all-targets -- -D warnings: $((SECONDS - start)) s" && start=$SECONDS
-    # Broken or private intra-doc links fail. The C library's crate is named `qtvpr` too
-    # (libqtvpr.so), so its docs would overwrite the core's: include/qtvpr.h documents it.
-    RUSTDOCFLAGS="-D warnings" cargo doc --workspace --exclude qtvpr-capi --no-deps --locked
-    echo "== rustdoc: $((SECONDS - start)) s" && start=$SECONDS
-    # fuzz/ is not a workspace member (libFuzzer needs a sanitizer build to run); stable
-    # can check that its targets compile. Its own target directory, fuzz/target.
-    unset CARGO_TARGET_DIR
-    cargo check --manifest-path fuzz/Cargo.toml --locked
-    echo "== fuzz targets compile: $((SECONDS - start)) s"
-) > "$check_log" 2>&1 &
-checks=$!
+step "set-up: valgrind for the C checks (apt, as root)"
+# scripts/capi.sh runs the C examples under valgrind; without it (not root, no apt) it
+# says so and skips that part alone.
+if command -v valgrind > /dev/null; then
+    valgrind --version
+elif [ "$(id -u)" = 0 ] && command -v apt-get > /dev/null; then
+    apt-get update -qq && apt-get install -y -qq valgrind > /dev/null && valgrind --version
+else
+    echo "valgrind is missing and cannot be installed here (not root, or no apt-get): scripts/capi.sh will skip its valgrind step"
+fi
 
 step "no AES, bzip2, zstd or LZMA crate in the build"
 # Semantics §12: an .npz holds stored or deflated members, and its zip layer (rawzip,
@@ -71,46 +49,53 @@ if [ -n "$banned" ]; then
     echo "crates the zip layer must not bring: $banned" >&2
     exit 1
 fi
-step "cargo test"
+step "cargo nextest run (cargo test without cargo-nextest), then the doc tests"
 # The zip layer's fixed fuzzing budget (the fuzz target npz_archive's function, without
 # libFuzzer): 3000 structured mutations of each of ~45 valid and hostile archives, in
 # the test npy::archive::tests::the_zip_layer_survives_a_fixed_fuzzing_budget (300 when
 # cargo test runs alone).
 export QTVPR_FUZZ_ITERATIONS=3000
-# The tests on the real data of ../shared/data are #[ignore]d (cargo test reports them
-# as such without it): they run when it is there.
-if [ -d ../shared/data ]; then
-    cargo test --workspace --locked -- --include-ignored
+# The tests on the real data of ../shared/data are #[ignore]d (reported as such without
+# it): they run when it is there.
+[ -d ../shared/data ] || echo "../shared/data is absent: the tests that need it are reported ignored"
+# cargo-nextest runs every test binary's tests side by side, each in its own process
+# (cargo test runs the binaries one after another); it runs no doc tests, cargo test
+# --doc does. Without it, cargo test runs everything.
+if cargo nextest --version > /dev/null 2>&1; then
+    ignored=(); [ ! -d ../shared/data ] || ignored=(--run-ignored all)
+    cargo nextest run --workspace --locked --no-fail-fast "${ignored[@]}"
+    cargo test --workspace --locked --doc
 else
-    echo "../shared/data is absent: the tests that need it are reported ignored"
-    cargo test --workspace --locked
+    echo "cargo-nextest is not installed (cargo install --locked cargo-nextest): cargo test runs the tests"
+    ignored=(); [ ! -d ../shared/data ] || ignored=(-- --include-ignored)
+    cargo test --workspace --locked "${ignored[@]}"
 fi
-step "the C library and the CLI alone compile nothing cargo test did not"
+step "the C library and the CLI alone compile nothing the tests did not"
 # A dependency compiled again would mean other features in that build than in the
 # tests': crates/workspace-hack is stale (`cargo hakari generate`), and the C checks
 # and the wheel would each compile most of the tree again.
-again=$(cargo build --locked -p qtvpr-capi -p qtvpr-cli 2>&1 | sed -n 's/^ *Compiling \([^ ]*\) .*/\1/p' | grep -vx 'qtvpr-capi' || true)
-if [ -n "$again" ]; then
-    echo "compiled again with other features: $again; regenerate crates/workspace-hack (cargo hakari generate)" >&2
-    exit 1
-fi
+# Read from cargo's JSON messages: one compiler-artifact per unit, `fresh` when nothing
+# was compiled. No artifact at all means the check could not see the build, and fails.
+cargo build --locked -p qtvpr-capi -p qtvpr-cli --message-format json-render-diagnostics > "$target/rebuild.json"
+python3 - "$target/rebuild.json" <<'PY'
+import json, sys
+from pathlib import Path
+
+units = [m for m in map(json.loads, open(sys.argv[1])) if m.get("reason") == "compiler-artifact"]
+if not units:
+    sys.exit("the rebuild check read no compiler-artifact message from cargo: it cannot tell what was compiled")
+# A unit's package by its manifest's folder (the C library's target is named qtvpr too).
+package = {id(u): Path(u["manifest_path"]).parent.name for u in units}
+again = sorted({f"{package[id(u)]} ({u['target']['name']})" for u in units if not u["fresh"]} - {"qtvpr-capi (qtvpr)"})
+if again:
+    sys.exit(f"compiled again with other features: {', '.join(again)}; regenerate crates/workspace-hack (cargo hakari generate)")
+print(f"{len(units)} units, none compiled again but the C library's own")
+PY
 step "the README's Rust example, from the repository root"
-# Built by cargo test above (the workspace's features include npy), run as a reader would.
+# Built by the tests above (the workspace's features include npy), run as a reader would.
 "$target/debug/examples/readme"
 step "C interface"
 scripts/capi.sh   # the C interface: C/C++ examples (shared, static) against the CLI, error paths, valgrind
-
-step "clippy, rustdoc and the fuzz targets' check (started beside the build)"
-status=0
-wait "$checks" || status=$?
-checks=""
-if [ "$status" != 0 ]; then
-    cat "$check_log"
-    echo "clippy, rustdoc or the fuzz targets' check failed: its output is above" >&2
-    exit 1
-fi
-# Their warnings and timings; not the hundreds of "Checking" lines.
-grep -vE '^ *(Checking|Compiling|Documenting|Finished|Generated|Locking|Adding|Downloaded|Downloading) ' "$check_log" || true
 
 step "wheel into a virtualenv"
 venv="$target/test-venv"
@@ -131,11 +116,10 @@ else
     echo "not CPython 3.11: no ROS 2 Jazzy wheels, tests/test_ros.py will skip"
 fi
 
-step "stubtest and ruff"
+step "stubtest"
 # The stubs against the installed compiled module (from the repository root, where
-# `qtvpr` is not importable from source), then the lint of every Python file.
+# `qtvpr` is not importable from source).
 "$venv/bin/python" -m mypy.stubtest --mypy-config-file pyproject.toml qtvpr._native
-"$venv/bin/ruff" check py tests benches scripts
 
 step "pytest"
 # Run from tests/ so that the installed wheel, not the source tree, is imported.
