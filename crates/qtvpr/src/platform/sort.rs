@@ -35,7 +35,7 @@ pub(crate) fn sort_f32(v: &mut [f32]) {
         let keys: &mut [u32] = pulp::bytemuck::cast_slice_mut(v);
         return pulp::Simd::vectorize(simd, avx512::Quicksort(simd, keys, depth_limit(keys.len())));
     }
-    radsort::sort(v);
+    scalar_f32(v);
 }
 
 /// Sort `v` ascending in IEEE total order.
@@ -45,6 +45,16 @@ pub(crate) fn sort_f64(v: &mut [f64]) {
         let keys: &mut [u64] = pulp::bytemuck::cast_slice_mut(v);
         return pulp::Simd::vectorize(simd, avx512::Quicksort(simd, keys, depth_limit(keys.len())));
     }
+    scalar_f64(v);
+}
+
+/// The sort of a CPU without AVX-512 (and of every range past the depth limit).
+fn scalar_f32(v: &mut [f32]) {
+    radsort::sort(v);
+}
+
+/// [`scalar_f32`] for `f64` scores.
+fn scalar_f64(v: &mut [f64]) {
     radsort::sort(v);
 }
 
@@ -584,13 +594,31 @@ mod avx512 {
 
 #[cfg(test)]
 mod tests {
+    //! The vectorised sort is compared with the scalar one, and the scalar one with the
+    //! standard library's `total_cmp` order. The first needs AVX-512: on a CPU without
+    //! it, its tests are reported ignored (`build.rs` sets `qtvpr_no_avx512`), and if
+    //! run all the same (`--include-ignored`) each says it skipped; the scalar tests
+    //! run everywhere.
     use proptest::prelude::*;
 
-    /// `v` sorted by the vectorised sort with the given depth limit and by `radsort`:
-    /// the same bits. False without AVX-512 (nothing to compare).
+    /// Why a vector-sort test does not run on this machine.
+    const NO_AVX512: &str = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)";
+
+    /// Whether the vectorised sort runs here; if not, says so on stderr.
+    fn vector_sort_runs() -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if pulp::x86::V4::try_new().is_some() {
+            return true;
+        }
+        eprintln!("skipped: {NO_AVX512}");
+        false
+    }
+
+    /// `v` sorted by the vectorised sort with the given depth limit and by
+    /// [`super::scalar_f32`]: the same bits. False without AVX-512 (nothing compared).
     fn agrees_f32(v: &[f32], depth: u32) -> bool {
         let mut want = v.to_vec();
-        radsort::sort(&mut want);
+        super::scalar_f32(&mut want);
         let mut got: Vec<u32> = v.iter().map(|x| x.to_bits()).collect();
         #[cfg(target_arch = "x86_64")]
         if super::avx512::sort_with_depth(&mut got, depth) {
@@ -604,7 +632,7 @@ mod tests {
     /// [`agrees_f32`] for `f64` scores.
     fn agrees_f64(v: &[f64], depth: u32) -> bool {
         let mut want = v.to_vec();
-        radsort::sort(&mut want);
+        super::scalar_f64(&mut want);
         let mut got: Vec<u64> = v.iter().map(|x| x.to_bits()).collect();
         #[cfg(target_arch = "x86_64")]
         if super::avx512::sort_with_depth(&mut got, depth) {
@@ -651,20 +679,96 @@ mod tests {
         super::depth_limit(n)
     }
 
-    #[test]
-    fn every_length_gives_radsorts_bits() {
-        let lengths = (0..=700).chain([1000, 4097, 27_592, 100_003]);
-        let mut ran = false;
-        for (seed, n) in lengths.enumerate() {
-            ran |= agrees(&scores(n, seed as u64));
+    /// The scalar sort of `v` is the standard library's `total_cmp` order, bit for bit,
+    /// in both widths; and so is [`super::sort_f32`] / [`super::sort_f64`], whichever
+    /// path this CPU takes.
+    fn in_total_order(v: &[f32]) {
+        let mut want = v.to_vec();
+        want.sort_by(f32::total_cmp);
+        let want: Vec<u32> = want.iter().map(|x| x.to_bits()).collect();
+        let mut wide_want: Vec<f64> = v.iter().map(|&x| f64::from(x)).collect();
+        wide_want.sort_by(f64::total_cmp);
+        let wide_want: Vec<u64> = wide_want.iter().map(|x| x.to_bits()).collect();
+        for sort in [super::scalar_f32 as fn(&mut [f32]), super::sort_f32] {
+            let mut got = v.to_vec();
+            sort(&mut got);
+            assert_eq!(
+                got.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                want,
+                "{} f32 scores",
+                v.len()
+            );
         }
-        if !ran {
-            eprintln!("skipped: this CPU has no AVX-512, and the core's sort is radsort itself");
+        for sort in [super::scalar_f64 as fn(&mut [f64]), super::sort_f64] {
+            let mut got: Vec<f64> = v.iter().map(|&x| f64::from(x)).collect();
+            sort(&mut got);
+            assert_eq!(
+                got.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                wide_want,
+                "{} f64 scores",
+                v.len()
+            );
         }
     }
 
     #[test]
-    fn float64_bits_beyond_float32_sort_as_radsort_sorts_them() {
+    fn the_scalar_sort_is_total_order_at_every_length() {
+        for (seed, n) in (0..=300).chain([1000, 4097, 27_592]).enumerate() {
+            in_total_order(&scores(n, seed as u64));
+        }
+        // Its order, written out: -NaN, -inf, negatives, -0, +0, subnormals, positives,
+        // +inf, NaN.
+        let mut v = [
+            f32::NAN,
+            1.0,
+            -0.0,
+            f32::INFINITY,
+            0.0,
+            -f32::NAN,
+            -2.0,
+            f32::MIN_POSITIVE / 2.0,
+            f32::NEG_INFINITY,
+        ];
+        super::scalar_f32(&mut v);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let want = [
+            -f32::NAN,
+            f32::NEG_INFINITY,
+            -2.0,
+            -0.0,
+            0.0,
+            f32::MIN_POSITIVE / 2.0,
+            1.0,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        assert_eq!(bits(&v), bits(&want));
+    }
+
+    #[test]
+    #[cfg_attr(
+        qtvpr_no_avx512,
+        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
+    )]
+    fn every_length_gives_the_scalar_sorts_bits() {
+        if !vector_sort_runs() {
+            return;
+        }
+        let lengths = (0..=700).chain([1000, 4097, 27_592, 100_003]);
+        for (seed, n) in lengths.enumerate() {
+            assert!(agrees(&scores(n, seed as u64)));
+        }
+    }
+
+    #[test]
+    #[cfg_attr(
+        qtvpr_no_avx512,
+        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
+    )]
+    fn float64_bits_beyond_float32_sort_as_the_scalar_sort_sorts_them() {
+        if !vector_sort_runs() {
+            return;
+        }
         let mut x = 3u64;
         let v: Vec<f64> = (0..20_000)
             .map(|i| {
@@ -677,13 +781,13 @@ mod tests {
                 }
             })
             .collect();
-        agrees_f64(&v, depth(v.len()));
+        assert!(agrees_f64(&v, depth(v.len())));
     }
 
-    #[test]
-    fn columns_of_few_values_and_ordered_columns() {
+    /// Columns of few values and ordered columns, the vectorised sort's hard cases.
+    fn hard_columns() -> Vec<Vec<f32>> {
         let n = 5000;
-        let cases: Vec<Vec<f32>> = vec![
+        vec![
             vec![0.25; n],
             vec![-0.0; n],
             (0..n).map(|i| if i % 3 == 0 { -0.0 } else { 0.0 }).collect(),
@@ -697,35 +801,63 @@ mod tests {
             vec![f32::NAN; n],
             // Keys at the top of the range (-NaN's key is the largest).
             vec![-f32::NAN; n],
-        ];
-        for v in &cases {
-            agrees(v);
+        ]
+    }
+
+    #[test]
+    fn the_scalar_sort_orders_columns_of_few_values_and_ordered_columns() {
+        for v in &hard_columns() {
+            in_total_order(v);
         }
     }
 
     #[test]
-    fn ranges_past_the_depth_limit_go_to_radsort() {
+    #[cfg_attr(
+        qtvpr_no_avx512,
+        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
+    )]
+    fn columns_of_few_values_and_ordered_columns() {
+        if !vector_sort_runs() {
+            return;
+        }
+        for v in &hard_columns() {
+            assert!(agrees(v));
+        }
+    }
+
+    #[test]
+    #[cfg_attr(
+        qtvpr_no_avx512,
+        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
+    )]
+    fn ranges_past_the_depth_limit_go_to_the_scalar_sort() {
+        if !vector_sort_runs() {
+            return;
+        }
         for d in 0..4 {
             for v in [scores(3000, 9), (0..3000).map(|i| (i % 5) as f32).collect()] {
                 let wide: Vec<f64> = v.iter().map(|&x| f64::from(x)).collect();
-                agrees_f32(&v, d);
-                agrees_f64(&wide, d);
+                assert!(agrees_f32(&v, d));
+                assert!(agrees_f64(&wide, d));
             }
         }
     }
 
     proptest! {
         #[test]
-        fn any_bits_sort_as_radsort_sorts_them(bits in proptest::collection::vec(any::<u64>(), 0..2000)) {
+        fn any_bits_sort_in_total_order(bits in proptest::collection::vec(any::<u64>(), 0..2000)) {
             let v: Vec<f32> = bits.iter().map(|&b| f32::from_bits(b as u32)).collect();
+            in_total_order(&v);
+            // The vectorised sort where it runs (these cases run on every CPU).
             agrees_f32(&v, depth(v.len()));
             let v: Vec<f64> = bits.into_iter().map(f64::from_bits).collect();
             agrees_f64(&v, depth(v.len()));
         }
 
         #[test]
-        fn few_distinct_scores_sort_as_radsort_sorts_them(ix in proptest::collection::vec(0usize..4, 0..3000)) {
+        fn few_distinct_scores_sort_in_total_order(ix in proptest::collection::vec(0usize..4, 0..3000)) {
             let v: Vec<f32> = ix.into_iter().map(|i| [-0.0, 0.0, 0.5, 0.5000001][i]).collect();
+            in_total_order(&v);
             agrees(&v);
         }
     }

@@ -443,4 +443,162 @@ mod tests {
         };
         assert_eq!(hint(&unknown, false, "--query-major"), None);
     }
+
+    /// Whether [`hint`] must advise on `err`, read the wrong way round. The match has
+    /// no `_` arm: a new variant does not compile here until it is classified, and a
+    /// variant classified as advised fails the test below if [`hint`] has no advice.
+    fn advised(err: &Error) -> bool {
+        match err {
+            // The shape errors an orientation explains.
+            Error::ShapeMismatch { .. }
+            | Error::DatabaseMismatch { .. }
+            | Error::SplitTruthShape { .. }
+            | Error::CalibrationSize { .. }
+            | Error::PositionCount { .. } => true,
+            Error::InFile { error, .. } => advised(error),
+            // Shape errors no switch of orientation explains: one pushed column (no
+            // matrix), descriptor dimensions and coordinates per position (columns of
+            // the extensions' inputs, read the same way whatever the switch), an empty
+            // matrix (empty either way round).
+            Error::ColumnLength { .. }
+            | Error::ColumnMismatch { .. }
+            | Error::PositionColumns { .. }
+            | Error::Empty { .. }
+            // Not about shapes.
+            | Error::NotFinite { .. }
+            | Error::BadLabel { .. }
+            | Error::Io { .. }
+            | Error::Write { .. }
+            | Error::File { .. }
+            | Error::Allocation { .. }
+            | Error::Dtype { .. }
+            | Error::UnknownMethod { .. }
+            | Error::Protocol(_)
+            | Error::InvalidParameter { .. }
+            | Error::ZeroNorm { .. }
+            | Error::ImageName { .. } => false,
+        }
+    }
+
+    #[test]
+    fn every_shape_error_an_orientation_explains_has_advice() {
+        let errors = [
+            Error::ShapeMismatch {
+                what: Input::GroundTruth,
+                shape: (111, 100),
+                other: Input::CalSimilarity,
+                other_shape: (100, 111),
+            },
+            Error::DatabaseMismatch {
+                calibration: 111,
+                deployment: 120,
+            },
+            Error::SplitTruthShape {
+                shape: (4, 2),
+                similarity_shape: (2, 4),
+                calibration: 1,
+            },
+            Error::CalibrationSize {
+                calibration: 50,
+                queries: 11,
+                database: Some(111),
+            },
+            Error::PositionCount {
+                db: 111,
+                queries: 100,
+                shape: (100, 111),
+            },
+            Error::ColumnLength {
+                query: 0,
+                len: 3,
+                db: 4,
+            },
+            Error::ColumnMismatch {
+                what: Input::QueryDescriptors,
+                cols: 3,
+                other: Input::DbDescriptors,
+                other_cols: 4,
+            },
+            Error::PositionColumns {
+                what: Input::DbPositions,
+                cols: 5,
+            },
+            Error::Empty {
+                what: Input::Similarity,
+                rows: 0,
+                cols: 3,
+            },
+            Error::NotFinite {
+                what: Input::Similarity,
+                row: 0,
+                col: 0,
+                value: f64::NAN,
+            },
+            Error::BadLabel {
+                what: Input::GroundTruth,
+                row: 0,
+                col: 0,
+                value: 2,
+            },
+            Error::Io {
+                path: "s.npy".into(),
+                kind: std::io::ErrorKind::NotFound,
+                message: "not found".into(),
+            },
+            Error::Write {
+                path: "out.json".into(),
+                kind: std::io::ErrorKind::PermissionDenied,
+                message: "denied".into(),
+            },
+            Error::File {
+                path: "s.npy".into(),
+                message: "is truncated".into(),
+            },
+            Error::Allocation {
+                bytes: 1 << 40,
+                what: "s.npy".into(),
+            },
+            Error::Dtype {
+                path: "s.npy".into(),
+                dtype: "<c16".into(),
+                expected: "expected float32 or float64 scores",
+            },
+            Error::UnknownMethod {
+                name: "x".into(),
+                expected: vec!["qt"],
+            },
+            Error::Protocol("no full segment".into()),
+            Error::InvalidParameter {
+                name: "k",
+                message: "must be >= 1, got 0".into(),
+            },
+            Error::ZeroNorm {
+                what: Input::DbDescriptors,
+                row: 0,
+            },
+            Error::ImageName {
+                at: crate::error::NameAt::Index(0),
+                name: "a.jpg".into(),
+                problem: "has fewer than two '@'".into(),
+            },
+        ];
+        let mut with_advice = 0;
+        for err in errors {
+            let nested = Error::InFile {
+                path: "GT.npz".into(),
+                error: Box::new(err.clone()),
+            };
+            for err in [err, nested] {
+                // Each example is what a forgotten switch gives: advice to pass it.
+                let given = hint(&err, false, "--query-major");
+                assert_eq!(given.is_some(), advised(&err), "{err:?}: {given:?}");
+                if let Some(advice) = given {
+                    assert!(advice.contains("--query-major"), "{advice}");
+                    with_advice += 1;
+                }
+            }
+        }
+        // Five variants, alone and inside a file.
+        assert_eq!(with_advice, 10);
+    }
 }

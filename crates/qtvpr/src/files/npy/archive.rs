@@ -10,7 +10,8 @@
 //! - stored (0) or deflated (8), in the directory and the local header alike;
 //! - not encrypted: no encryption flag (ZipCrypto), no strong encryption, no masked
 //!   header, no AES extra field (WinZip AE-1/AE-2, method 99);
-//! - one member per name;
+//! - one member per name (names compared as the bytes the archive holds: a name that is
+//!   not UTF-8 is a name like any other, shown lossily in messages only);
 //! - the local header agrees with the directory (name, method, CRC-32 and sizes; with a
 //!   data descriptor, the descriptor does);
 //! - a stored member's compressed and uncompressed sizes are equal.
@@ -18,6 +19,7 @@
 //! A member is then read through [`Member`]: never decompressed past the size the
 //! directory declares, and its CRC-32 and size compared when its last byte is read.
 
+use std::collections::HashSet;
 use std::fs::File;
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
@@ -53,8 +55,9 @@ impl ReaderAt for Source {
 
 /// One member, as its directory entry declares it (checked against its local header).
 struct Entry {
-    /// Its name in the archive, e.g. `s.npy`.
-    name: String,
+    /// Its name in the archive, e.g. `s.npy`, as the bytes the directory holds (not
+    /// necessarily UTF-8).
+    name: Vec<u8>,
     wayfinder: ZipArchiveEntryWayfinder,
     deflated: bool,
     /// Its uncompressed size.
@@ -76,6 +79,12 @@ pub(crate) fn member_label(path: &Path, member: &str) -> PathBuf {
         Some(array) => PathBuf::from(format!("{} (array {array})", path.display())),
         None => PathBuf::from(format!("{} (member {member})", path.display())),
     }
+}
+
+/// [`member_label`] of a name as the archive holds it: bytes that are not UTF-8 are
+/// shown as U+FFFD, in the message only.
+fn entry_label(path: &Path, name: &[u8]) -> PathBuf {
+    member_label(path, &String::from_utf8_lossy(name))
 }
 
 fn not_an_archive(path: &Path, e: impl std::fmt::Display) -> Error {
@@ -109,14 +118,17 @@ impl<R: ReaderAt> Archive<R> {
             .locate_in_reader(reader, &mut buffer, end)
             .map_err(|(_, e)| not_an_archive(path, e))?;
         let mut entries: Vec<Entry> = Vec::new();
+        // The names seen, as bytes: two names that differ only in bytes that are not
+        // UTF-8 are two members, though their messages show them alike.
+        let mut names: HashSet<Vec<u8>> = HashSet::new();
         let mut records = zip.entries(&mut buffer);
         while let Some(record) = records.next_entry().map_err(|e| not_an_archive(path, e))? {
             if entries.len() == MAX_MEMBERS {
                 return Err(not_an_archive(path, format!("it has more than {MAX_MEMBERS} members")));
             }
-            let name = String::from_utf8_lossy(record.file_path().as_ref()).into_owned();
-            let label = member_label(path, &name);
-            if entries.iter().any(|e| e.name == name) {
+            let name: Vec<u8> = record.file_path().as_ref().to_vec();
+            let label = entry_label(path, &name);
+            if !names.insert(name.clone()) {
                 return Err(file_error(&label, "is in the archive twice"));
             }
             check_method(record.compression_method(), &label)?;
@@ -166,7 +178,7 @@ impl<R: ReaderAt> Archive<R> {
     /// The local header of `entry` (and its data descriptor, if it has one) against its
     /// directory entry.
     fn check_local_header(&self, entry: &Entry, buffer: &mut [u8]) -> Result<()> {
-        let label = member_label(&self.path, &entry.name);
+        let label = entry_label(&self.path, &entry.name);
         let zip_error = |e: rawzip::Error| corrupt(&label, format!("its local header cannot be read: {e}"));
         let data = self.zip.get_entry(entry.wayfinder).map_err(zip_error)?;
         let local = data.local_header(buffer).map_err(zip_error)?;
@@ -176,7 +188,7 @@ impl<R: ReaderAt> Archive<R> {
                 format!("its local header and the zip directory disagree on its {what}"),
             )
         };
-        if local.file_path().as_ref() != entry.name.as_bytes() {
+        if local.file_path().as_ref() != entry.name.as_slice() {
             return Err(disagree("name"));
         }
         check_method(local.compression_method(), &label)?;
@@ -219,10 +231,15 @@ impl<R: ReaderAt> Archive<R> {
     /// # Errors
     /// [`Error::File`] naming the member when its data cannot be found.
     pub(crate) fn member(&self, name: &str) -> Result<Option<(Member<'_, R>, u64)>> {
-        let Some(entry) = self.entries.iter().find(|e| e.name == name) else {
+        let Some(entry) = self.entries.iter().find(|e| e.name == name.as_bytes()) else {
             return Ok(None);
         };
-        let label = member_label(&self.path, name);
+        self.open(entry).map(Some)
+    }
+
+    /// The stream of `entry`'s uncompressed bytes, and its declared size ([`Archive::member`]).
+    fn open(&self, entry: &Entry) -> Result<(Member<'_, R>, u64)> {
+        let label = entry_label(&self.path, &entry.name);
         let data = self
             .zip
             .get_entry(entry.wayfinder)
@@ -240,7 +257,7 @@ impl<R: ReaderAt> Archive<R> {
             size: entry.size,
             expected_crc: entry.crc,
         };
-        Ok(Some((member, entry.size)))
+        Ok((member, entry.size))
     }
 }
 
@@ -257,8 +274,8 @@ pub fn read_every_member(bytes: &[u8]) -> Result<u64> {
     let archive = Archive::new(bytes, bytes.len() as u64, path)?;
     let mut total = 0;
     for entry in &archive.entries {
-        let (mut member, _) = archive.member(&entry.name)?.expect("a listed member");
-        total += io::copy(&mut member, &mut io::sink()).map_err(|e| corrupt(&member_label(path, &entry.name), e))?;
+        let (mut member, _) = archive.open(entry)?;
+        total += io::copy(&mut member, &mut io::sink()).map_err(|e| corrupt(&entry_label(path, &entry.name), e))?;
     }
     Ok(total)
 }
@@ -356,10 +373,17 @@ pub(crate) struct Member<'a, R> {
 impl<R: ReaderAt> Read for Member<'_, R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let invalid = |message: String| io::Error::new(io::ErrorKind::InvalidData, message);
+        let past = |size: u64| invalid(format!("it decompresses past its declared {size} bytes"));
+        // Once past the declared size (the error below), every further read is the same
+        // error: the stream is not read on, and `read` stays above `size`.
+        if self.read > self.size {
+            return Err(past(self.size));
+        }
         if buf.is_empty() {
             return Ok(0);
         }
-        // One byte past the declared size, to tell a member that expands further.
+        // One byte past the declared size, to tell a member that expands further
+        // (`read <= size` here).
         let room = (self.size - self.read).saturating_add(1);
         let want = buf.len().min(usize::try_from(room).unwrap_or(usize::MAX));
         let n = match &mut self.decoder {
@@ -373,10 +397,7 @@ impl<R: ReaderAt> Read for Member<'_, R> {
         let n = n.min(want);
         self.read += n as u64;
         if self.read > self.size {
-            return Err(invalid(format!(
-                "it decompresses past its declared {} bytes",
-                self.size
-            )));
+            return Err(past(self.size));
         }
         self.crc.update(&buf[..n]);
         if n == 0 && self.read < self.size {
@@ -425,7 +446,11 @@ fn read_stream(mut file: File, path: &Path) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
 
+    use std::io::Read;
+    use std::path::Path;
+
     use super::super::test_zip::{self, Members, hostile, unzip};
+    use super::{Archive, read_every_member};
     use crate::files::npy::{NpyArray, ground_truth_from_bytes, read_ground_truth, write_npz_to};
     use crate::input::GroundTruth;
     use crate::input::params::Defaults;
@@ -447,6 +472,121 @@ mod tests {
         )
         .unwrap();
         (unzip(&cal.to_bytes(&Defaults::default()).unwrap()), unzip(&tutorial))
+    }
+
+    /// `bytes` (an archive of [`test_zip::zip`], not zip64) with every member named
+    /// `from` renamed `to` (as long), in its directory record and its local header, or
+    /// in its local header alone: how a name that is not UTF-8 is written, since the
+    /// writer takes a `&str`.
+    fn rename(mut bytes: Vec<u8>, from: &[u8], to: &[u8], local_only: bool) -> Vec<u8> {
+        assert_eq!(from.len(), to.len());
+        let u16_at = |b: &[u8], at: usize| usize::from(u16::from_le_bytes([b[at], b[at + 1]]));
+        let u32_at = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
+        // The end record: the directory's entry count (offset 10) and start (16).
+        let end = bytes.windows(4).rposition(|w| w == b"PK\x05\x06").unwrap();
+        let (count, mut at) = (u16_at(&bytes, end + 10), u32_at(&bytes, end + 16));
+        let mut renamed = 0;
+        for _ in 0..count {
+            assert_eq!(&bytes[at..at + 4], b"PK\x01\x02");
+            let n = u16_at(&bytes, at + 28);
+            let record = 46 + n + u16_at(&bytes, at + 30) + u16_at(&bytes, at + 32);
+            if bytes[at + 46..at + 46 + n] == *from {
+                let local = u32_at(&bytes, at + 42);
+                assert_eq!(&bytes[local..local + 4], b"PK\x03\x04");
+                bytes[local + 30..local + 30 + n].copy_from_slice(to);
+                if !local_only {
+                    bytes[at + 46..at + 46 + n].copy_from_slice(to);
+                }
+                renamed += 1;
+            }
+            at += record;
+        }
+        assert!(renamed > 0, "no member {}", String::from_utf8_lossy(from));
+        bytes
+    }
+
+    #[test]
+    fn two_names_that_differ_only_in_bytes_that_are_not_utf8_are_two_members() {
+        // 0xFF and 0xFE are not UTF-8: both names show as "\u{FFFD}x.npy", yet they
+        // are two members, each read to its end: 5 + 7 = 12 bytes.
+        let b = test_zip::zip(&[
+            test_zip::Member::stored("ax.npy", b"first"),
+            test_zip::Member::deflated("bx.npy", b"second!"),
+        ]);
+        let b = rename(
+            rename(b, b"ax.npy", b"\xFFx.npy", false),
+            b"bx.npy",
+            b"\xFEx.npy",
+            false,
+        );
+        assert_eq!(read_every_member(&b), Ok(12));
+    }
+
+    #[test]
+    fn the_same_name_that_is_not_utf8_twice_is_a_duplicate() {
+        let b = test_zip::zip(&[
+            test_zip::Member::stored("ax.npy", b"first"),
+            test_zip::Member::stored("ax.npy", b"second!"),
+        ]);
+        let b = rename(b, b"ax.npy", b"\xFFx.npy", false);
+        let e = Archive::new(b.as_slice(), b.len() as u64, Path::new("n.npz"))
+            .err()
+            .unwrap();
+        assert_eq!(e.to_string(), "n.npz (array \u{FFFD}x) is in the archive twice");
+    }
+
+    #[test]
+    fn a_name_that_is_not_utf8_agrees_with_itself_in_both_headers() {
+        let b = test_zip::zip(&[test_zip::Member::deflated("ax.npy", b"first")]);
+        let same = rename(b, b"ax.npy", b"\xFFx.npy", false);
+        let archive = Archive::new(same.as_slice(), same.len() as u64, Path::new("n.npz")).unwrap();
+        // Found by its bytes only: its name as shown is not its name.
+        assert!(archive.member("\u{FFFD}x.npy").unwrap().is_none());
+        assert_eq!(read_every_member(&same), Ok(5));
+        // 0xFF in the directory, 0xFE in the local header: shown alike, yet two names.
+        let other = rename(same, b"\xFFx.npy", b"\xFEx.npy", true);
+        let e = Archive::new(other.as_slice(), other.len() as u64, Path::new("n.npz"))
+            .err()
+            .unwrap();
+        assert_eq!(
+            e.to_string(),
+            "n.npz (array \u{FFFD}x) is corrupt: its local header and the zip directory disagree on its name"
+        );
+    }
+
+    #[test]
+    fn every_read_after_a_member_decompresses_past_its_size_is_the_same_error() {
+        // 100 bytes deflated, declared as 10: the reads stop at byte 11 of them.
+        let data: Vec<u8> = (0..100).collect();
+        let mut b = test_zip::zip(&[test_zip::Member::deflated("m.npy", &data)]);
+        test_zip::declare_size(&mut b, "m.npy", 10);
+        let archive = Archive::new(b.as_slice(), b.len() as u64, Path::new("n.npz")).unwrap();
+        let (mut member, size) = archive.member("m.npy").unwrap().unwrap();
+        assert_eq!(size, 10);
+        let mut buf = [0u8; 64];
+        let mut got = 0;
+        let first = loop {
+            match member.read(&mut buf) {
+                Ok(n) => {
+                    assert!(n > 0 && got + n <= 10, "{got} + {n}");
+                    got += n;
+                }
+                Err(e) => break e,
+            }
+        };
+        let expected = "it decompresses past its declared 10 bytes";
+        assert_eq!(
+            (first.kind(), first.to_string().as_str()),
+            (std::io::ErrorKind::InvalidData, expected)
+        );
+        for len in [64, 1, 0, 64] {
+            let e = member.read(&mut buf[..len]).unwrap_err();
+            assert_eq!(
+                (e.kind(), e.to_string().as_str()),
+                (std::io::ErrorKind::InvalidData, expected),
+                "{len}"
+            );
+        }
     }
 
     /// A fixed fuzzing budget on the zip layer ([`super::read_every_member`]), the
