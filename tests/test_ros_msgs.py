@@ -47,3 +47,12 @@ def test_every_decision_field_is_documented() -> None:
 
 def test_scores_msg_holds_both_float_types() -> None:
     assert fields("Scores") == [("std_msgs/Header", "header"), ("float32[]", "scores"), ("float64[]", "scores64")]
+
+
+def test_the_docs_show_the_launch_and_parameter_files_the_tests_run() -> None:
+    """docs/deployment.md's YAML blocks are docs/ros/qtvpr.launch.yaml and
+    qtvpr.params.yaml, which tests/test_ros.py starts."""
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    text = (docs / "deployment.md").read_text()
+    blocks = [block.split("```", 1)[0] for block in text.split("```yaml\n")[1:]]
+    assert blocks == [(docs / "ros" / name).read_text() for name in ("qtvpr.launch.yaml", "qtvpr.params.yaml")]
