@@ -64,6 +64,11 @@ SHARED = REPO.parent / "shared" / "data"
 QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
 
 
+def stamper(arrived: list[int]):  # type: ignore[no-untyped-def]
+    """A callback that appends each message's arrival time to ``arrived``."""
+    return lambda _: arrived.append(time.perf_counter_ns())
+
+
 def measure(name: str, s_cal: np.ndarray, gt_cal: np.ndarray, s_val: np.ndarray, window: int, n: int) -> dict:
     """Latencies (ms) of ``n`` messages on each interface, the columns of ``s_val`` in
     turn, float32; and of ``n`` pushes of the same columns."""
@@ -88,40 +93,37 @@ def measure(name: str, s_cal: np.ndarray, gt_cal: np.ndarray, s_val: np.ndarray,
         node = rclpy.create_node("qtvpr_bench", context=context)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
-        arrived: dict[str, list[int]] = {"array": [], "typed": []}
-        pubs = {
-            "array": node.create_publisher(Float32MultiArray, "/qtvpr/scores", QOS),
-            "typed": node.create_publisher(Scores, "/qtvpr/scores_msg", QOS),
+        # One interface at a time, as its user sees it: only its decision topic is
+        # subscribed (rclpy's executor runs one callback per spin, so a second one would
+        # delay the first's arrival).
+        interfaces = {
+            "array": (Float32MultiArray, "/qtvpr/scores", Float64MultiArray, "/qtvpr/decision"),
+            "typed": (Scores, "/qtvpr/scores_msg", Decision, "/qtvpr/decision_msg"),
         }
-        subs = [
-            node.create_subscription(
-                Float64MultiArray, "/qtvpr/decision", lambda _: arrived["array"].append(time.perf_counter_ns()), QOS
-            ),
-            node.create_subscription(
-                Decision, "/qtvpr/decision_msg", lambda _: arrived["typed"].append(time.perf_counter_ns()), QOS
-            ),
-        ]
-        while any(p.get_subscription_count() == 0 for p in pubs.values()) or any(
-            s.get_publisher_count() == 0 for s in subs
-        ):
-            if proc.poll() is not None:
-                sys.exit(f"the node exited with status {proc.returncode}")
-            executor.spin_once(timeout_sec=0.05)
-        latency: dict[str, list[int]] = {"array": [], "typed": []}
-        for kind in ("array", "typed"):
-            # Both decisions of the previous message are in before the next one is sent.
+        latency: dict[str, list[int]] = {}
+        for kind, (in_type, in_topic, out_type, out_topic) in interfaces.items():
+            arrived: list[int] = []
+            pub = node.create_publisher(in_type, in_topic, QOS)
+            sub = node.create_subscription(out_type, out_topic, stamper(arrived), QOS)
+            while pub.get_subscription_count() == 0 or sub.get_publisher_count() == 0:
+                if proc.poll() is not None:
+                    sys.exit(f"the node exited with status {proc.returncode}")
+                executor.spin_once(timeout_sec=0.05)
+            latency[kind] = []
             for c in columns:
                 if kind == "array":
                     msg = Float32MultiArray(data=array.array("f", c.tobytes()))
                 else:
                     stamp = node.get_clock().now().to_msg()
                     msg = Scores(header=Header(stamp=stamp), scores=array.array("f", c.tobytes()))
-                counts = {k: len(v) for k, v in arrived.items()}
+                count = len(arrived)
                 t = time.perf_counter_ns()
-                pubs[kind].publish(msg)
-                while any(len(arrived[k]) == counts[k] for k in arrived):
+                pub.publish(msg)
+                while len(arrived) == count:
                     executor.spin_once(timeout_sec=1.0)
-                latency[kind].append(arrived[kind][-1] - t)
+                latency[kind].append(arrived[-1] - t)
+            node.destroy_subscription(sub)
+            node.destroy_publisher(pub)
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=20)
         executor.shutdown()
@@ -161,13 +163,16 @@ def main() -> None:
             s_cal, gt_cal, s_val = synthetic_case(Path(tmp), 27592, 2760, 500)
             rows.append(measure("Nordland, paper scale (synthetic)", s_cal, gt_cal, s_val, 28, 500))
 
+    load = os.getloadavg()[0]
     lines = [
-        f"Measured by `benches/ros_latency.py` on {machine()}, ROS 2 Jazzy (rclpy, Fast DDS, from PyPI), "
+        f"Measured by `benches/ros_latency.py` on {machine()} (1-minute load average {load:.1f} at the "
+        "end: other processes shared the cores), ROS 2 Jazzy (rclpy, Fast DDS, from PyPI), "
         "the node and the publisher in two processes, discovery on localhost; float32 columns, k = 10, "
         "tau = 1, one message in flight; the messages after the window first fills, on each interface: "
         "*array* (`~/scores` to `~/decision`, `std_msgs`) and *typed* (`~/scores_msg` to `~/decision_msg`, "
         "`qtvpr_msgs`). *push* is `qtvpr.Online.push` alone on the same columns, in the publisher's "
-        "process (a push runs on the calling thread); *x push*: a median over the push's, same run.",
+        "process (a push runs on the calling thread); *x push*: a median over the push's, same run. "
+        "Corridor's push is negligible: its row is the floor of two rclpy executors and Fast DDS.",
         "",
         "| case | \\|DB\\| | calibration queries | window | messages | push: median (99th pct.) "
         "| array: median (99th pct.) | x push | typed: median (99th pct.) | x push |",
