@@ -102,7 +102,8 @@ def expected(cli: Path, cal: Path, val: Path, *flags: str) -> list[list[float]]:
         [cli, "stream", "--calibration", cal, "--val", val, *flags], check=True, capture_output=True, text=True
     ).stdout
     lines = [json.loads(line) for line in out.splitlines()]
-    return [[float(rec[f]) if f in rec else math.nan for f in DECISION_FIELDS] for rec in lines]
+    # A field that does not apply: absent (no gate) or null (confidence, multi matching).
+    return [[math.nan if rec.get(f) is None else float(rec[f]) for f in DECISION_FIELDS] for rec in lines]
 
 
 class Client:
@@ -184,9 +185,15 @@ def stamped(j: int) -> Header:
     return Header(stamp=Time(sec=1_700_000_000 + j, nanosec=(7919 * j) % 1_000_000_000), frame_id=f"camera_{j}")
 
 
-def check_decisions(client: Client, want: list[list[float]], headers: list[Header] | None = None) -> None:
+def check_decisions(
+    client: Client,
+    want: list[list[float]],
+    headers: list[Header] | None = None,
+    accepted_indices: list[list[int]] | None = None,
+) -> None:
     """The node's decisions on all three topics are ``want`` (``stream``'s), bit for bit;
-    the typed ones carry ``headers`` when given."""
+    the typed ones carry ``headers`` and ``accepted_indices`` when given (single
+    matching: the best match, if accepted)."""
     n = len(want)
     client.spin_until(lambda: min(len(client.decisions), len(client.accepts), len(client.typed)) >= n, "decisions")
     time.sleep(0.5)  # nothing more comes
@@ -204,8 +211,11 @@ def check_decisions(client: Client, want: list[list[float]], headers: list[Heade
         got = [float(getattr(typed, f)) for f in DECISION_FIELDS]
         assert np.asarray(got).tobytes() == np.asarray(row).tobytes(), (j, got, row)
         assert isinstance(typed.query, int) and isinstance(typed.accept, bool)
-        best = int(row[DECISION_FIELDS.index("best")])
-        assert list(typed.accepted_indices) == ([best] if typed.accept else [])
+        if accepted_indices is None:
+            best = int(row[DECISION_FIELDS.index("best")])
+            assert list(typed.accepted_indices) == ([best] if typed.accept else [])
+        else:
+            assert list(typed.accepted_indices) == accepted_indices[j], j
     if headers is not None:
         assert [t.header.frame_id for t in client.typed] == [h.frame_id for h in headers]
         stamps = [(t.header.stamp.sec, t.header.stamp.nanosec) for t in client.typed]
@@ -341,6 +351,36 @@ def test_typed_scores_decided_as_stream_with_their_headers(
     assert f"scores message 44 ({name}, 110 scores, stamp 1699999960.999683240; 40 queries decided)" in errors[3]
     assert "has 110 scores but the calibration has 111 database images" in errors[3]
     assert all("not decided, the window is unchanged" in e for e in errors)
+
+
+def test_typed_decisions_of_multi_matching(
+    client: Client, ros_env: dict[str, str], cli: Path, tmp_path: Path
+) -> None:
+    """Multi matching: every accepted index, and a NaN confidence (stream's null)."""
+    cal = tmp_path / "multi.npz"
+    subprocess.run(
+        [cli, "calibrate", "--cal", CORRIDOR / "cal_S.npy", "--cal-gt", CORRIDOR / "cal_GT.npy",
+         "--window", "10", "--matching", "multi", "--output", cal],
+        check=True,
+    )
+    val = CORRIDOR / "deploy_S.npy"
+    s_val = np.load(val)
+    want = expected(cli, cal, val)
+    online = qtvpr.Online(qtvpr.Calibration.load(cal))
+    indices = [online.push(s_val[:, j]).accepted_indices.tolist() for j in range(s_val.shape[1])]
+    assert max(len(i) for i in indices) > 1 and math.isnan(want[0][DECISION_FIELDS.index("confidence")])
+
+    proc = node(cal, ros_env, f"qos_depth:={DEPTH}")
+    client.wait_for(proc)
+    headers = [stamped(j) for j in range(s_val.shape[1])]
+    for j in range(s_val.shape[1]):
+        client.scores_msg.publish(scores_msg(s_val[:, j], headers[j]))
+    check_decisions(client, want, headers, indices)
+    stop(proc)
+    for j, typed in enumerate(client.typed):
+        column = s_val[:, j]
+        assert list(typed.accepted_indices) == np.flatnonzero(column >= typed.threshold).tolist()
+        assert typed.accepted == len(typed.accepted_indices)
 
 
 def test_array_and_typed_topics_feed_one_stream(
