@@ -493,3 +493,14 @@ def test_start_up_errors_exit_1(
     (line,) = [line for line in proc.stderr.splitlines() if "[ERROR]" in line]
     assert "[qtvpr]: cannot start: " in line
     assert message in line, line
+
+
+def test_start_up_error_of_a_remapped_node_names_it(ros_env: dict[str, str], cal: Path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "qtvpr.ros", "--ros-args", "-p", f"calibration:={cal}", "-p", "k:=0",
+         "-r", "__node:=other", "-r", "__ns:=/robot1"],
+        env=ros_env, capture_output=True, text=True, timeout=60,
+    )
+    assert proc.returncode == 1, proc.stderr
+    (line,) = [line for line in proc.stderr.splitlines() if "[ERROR]" in line]
+    assert "[robot1.other]: cannot start: parameters {'k': 0}: k must be >= 1, got 0" in line, line

@@ -103,6 +103,9 @@ QOS_DEPTH = 100
 class StartupError(Exception):
     """A calibration or parameter the node cannot start with; its message says which."""
 
+    #: The logger of the node that could not start (its resolved name).
+    logger_name: str = NODE_NAME
+
 
 def decision_array(decision: OnlineDecision) -> list[float]:
     """The values of ``decision`` in the order of :data:`DECISION_FIELDS`, as float64
@@ -129,6 +132,14 @@ class QtvprNode(Node):  # type: ignore[misc]
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
+        try:
+            self._start()
+        except StartupError as err:
+            err.logger_name = self.get_logger().name  # the node's own, after -r __node:=...
+            raise
+
+    def _start(self) -> None:
+        """Parameters, calibration, ``Online``, topics; :class:`StartupError` if it cannot."""
         untyped = ParameterDescriptor(dynamic_typing=True)
         # Declared without a value: unset means "the file's", decided by the core.
         self.declare_parameter("calibration", None, untyped)
@@ -228,7 +239,7 @@ def main(args: list[str] | None = None) -> int:
         try:
             node = QtvprNode()
         except StartupError as err:
-            rclpy.logging.get_logger(NODE_NAME).error(f"cannot start: {err}")
+            rclpy.logging.get_logger(err.logger_name).error(f"cannot start: {err}")
             return 1
         try:
             rclpy.spin(node)
