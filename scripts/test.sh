@@ -112,6 +112,7 @@ pip=("$venv/bin/python" -m pip install --quiet --disable-pip-version-check)
 # tests/test_ros.py skips and says why (pytest -rs).
 if "$venv/bin/python" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then
     "${pip[@]}" "$wheel[ros]"
+    "${pip[@]}" ./ros/qtvpr_msgs   # the interface package: ROS 2's generators run in pip's build (ros/qtvpr_msgs)
 else
     echo "not CPython 3.11: no ROS 2 Jazzy wheels, tests/test_ros.py will skip"
 fi

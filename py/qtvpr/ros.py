@@ -17,28 +17,35 @@ Parameters (``--ros-args -p name:=value``):
 
 Topics (relative to the node: ``/qtvpr/...`` by default; remap them as any ROS topic):
 
-- subscribes ``~/scores`` (``std_msgs/Float32MultiArray``) and ``~/scores64``
-  (``std_msgs/Float64MultiArray``): one query's |DB| scores in ``data``, in the
-  matcher's own type (float64 scores rounded to float32 are other scores). Both feed
-  the one stream, in arrival order.
-- publishes ``~/decision`` (``std_msgs/Float64MultiArray``): the decision record, its
-  ``data`` in the order of :data:`DECISION_FIELDS`, and ``~/accept`` (``std_msgs/Bool``):
-  its ``accept``.
+- subscribes ``~/scores_msg`` (``qtvpr_msgs/Scores``): a header (the query's stamp and
+  frame) and one query's |DB| scores in the matcher's own type: ``scores`` (float32) or
+  ``scores64`` (float64), exactly one of them non-empty (float64 scores rounded to
+  float32 are other scores). Also ``~/scores`` (``std_msgs/Float32MultiArray``) and
+  ``~/scores64`` (``std_msgs/Float64MultiArray``), the scores in ``data`` and no header.
+  All three feed the one stream, in arrival order.
+- publishes, for every decision, ``~/decision_msg`` (``qtvpr_msgs/Decision``): the
+  record field for field, named as :data:`DECISION_FIELDS` (then ``accepted_indices``),
+  its header the query's (the stamp and frame_id of its ``Scores``; after an array
+  message, which has none, the node's clock at its arrival and an empty frame_id);
+  ``~/decision`` (``std_msgs/Float64MultiArray``): the record's ``data`` in the order of
+  :data:`DECISION_FIELDS`; and ``~/accept`` (``std_msgs/Bool``): its ``accept``.
 
 A decision as float64: ``query``, ``best`` and ``accepted`` are integers below 2**53,
 exact as float64; ``accept`` is 1.0 or 0.0; ``margin`` and ``gate`` are NaN when the
-stream has no margin gate. The layout has one dimension, labelled with the field names
-joined by commas (``layout.dim[0].label``), of size ``len(DECISION_FIELDS)``.
+stream has no margin gate (in both messages). The layout has one dimension, labelled
+with the field names joined by commas (``layout.dim[0].label``), of size
+``len(DECISION_FIELDS)``.
 
 A message the core refuses (another length than |DB|, a NaN or infinite score, an
-empty array) is logged as one error line naming the message, the queries decided so
-far and the problem; it gets no decision, the window is unchanged, and the node goes
-on. A missing, unreadable or corrupt calibration file, or invalid parameters, are
-logged and the process exits with status 1 at start-up.
+empty array; a ``Scores`` with both arrays filled or both empty) is logged as one error
+line naming the message (its stamp, if it has one), the queries decided so far and the
+problem; it gets no decision, the window is unchanged, and the node goes on. A
+missing, unreadable or corrupt calibration file, or invalid parameters, are logged and
+the process exits with status 1 at start-up.
 
-Needs ROS 2 Jazzy's Python client and messages, from PyPI (wheels for CPython 3.11):
-``pip install ".[ros]"`` from a clone, or ``pip install "ros-jazzy-rclpy[fastrtps]"
-ros-jazzy-std-msgs``.
+Needs ROS 2 Jazzy's Python client and messages, from PyPI (wheels for CPython 3.11), and
+the interface package of the clone's ``ros/qtvpr_msgs``, which pip builds with ROS 2's
+generators: ``pip install ".[ros]" ./ros/qtvpr_msgs`` from a clone (docs/deployment.md).
 """
 
 from __future__ import annotations
@@ -53,29 +60,34 @@ import numpy as np
 from qtvpr._native import Calibration, Online, OnlineDecision
 
 _NEEDS = (
-    "qtvpr.ros needs ROS 2 Jazzy's rclpy and std_msgs: pip install "
-    '"ros-jazzy-rclpy[fastrtps]" ros-jazzy-std-msgs (the ros extra of qtvpr; wheels for CPython 3.11 only)'
+    "qtvpr.ros needs ROS 2 Jazzy's rclpy and std_msgs and the qtvpr_msgs interface: from a clone, "
+    'pip install ".[ros]" ./ros/qtvpr_msgs (wheels for CPython 3.11 only)'
 )
 
 try:
     import rclpy
+    from qtvpr_msgs.msg import Decision, Scores
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from std_msgs.msg import Bool, Float32MultiArray, Float64MultiArray, MultiArrayDimension
+    from std_msgs.msg import Bool, Float32MultiArray, Float64MultiArray, Header, MultiArrayDimension
 except ImportError as err:  # pragma: no cover - exercised only without the extra
     if __name__ == "__main__":
         print(f"error: {_NEEDS} ({err})", file=sys.stderr)
         sys.exit(2)
     raise ImportError(_NEEDS) from err
 
-__all__ = ["DECISION_FIELDS", "NODE_NAME", "ONLINE_PARAMETERS", "QOS_DEPTH", "QtvprNode", "main"]
+__all__ = ["DECISION_FIELDS", "DECISION_MSG_FIELDS", "NODE_NAME", "ONLINE_PARAMETERS", "QOS_DEPTH", "QtvprNode", "main"]
 
 #: The fields of a ``~/decision`` message's ``data``, in order: the core's record
 #: (:attr:`qtvpr.OnlineDecision.FIELDS`), then its margin-gate fields
 #: (:attr:`qtvpr.OnlineDecision.GATE_FIELDS`), NaN without the gate.
 DECISION_FIELDS: tuple[str, ...] = OnlineDecision.FIELDS + OnlineDecision.GATE_FIELDS
+
+#: The fields of a ``qtvpr_msgs/Decision`` (``~/decision_msg``), in order: its header,
+#: :data:`DECISION_FIELDS`, and the record's ``accepted_indices``.
+DECISION_MSG_FIELDS: tuple[str, ...] = ("header", *DECISION_FIELDS, "accepted_indices")
 
 #: The node's name.
 NODE_NAME = "qtvpr"
@@ -91,6 +103,9 @@ QOS_DEPTH = 100
 class StartupError(Exception):
     """A calibration or parameter the node cannot start with; its message says which."""
 
+    #: The logger of the node that could not start (its resolved name).
+    logger_name: str = NODE_NAME
+
 
 def decision_array(decision: OnlineDecision) -> list[float]:
     """The values of ``decision`` in the order of :data:`DECISION_FIELDS`, as float64
@@ -99,12 +114,32 @@ def decision_array(decision: OnlineDecision) -> list[float]:
     return [math.nan if v is None else float(v) for v in values]
 
 
+def decision_msg(decision: OnlineDecision, header: Header) -> Decision:
+    """``decision`` as a ``qtvpr_msgs/Decision`` with ``header`` (``None``, a field of the
+    margin gate without it, is NaN)."""
+    msg = Decision(header=header)
+    for name in DECISION_FIELDS:
+        value = getattr(decision, name)
+        setattr(msg, name, math.nan if value is None else value)
+    # Indices below |DB|: the same bytes as uint64.
+    msg.accepted_indices = array.array("Q", decision.accepted_indices.tobytes())
+    return msg
+
+
 class QtvprNode(Node):  # type: ignore[misc]
     """The ``qtvpr`` node: reads its parameters, loads the calibration and builds the
     :class:`qtvpr.Online` state. Raises :class:`StartupError` when it cannot."""
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
+        try:
+            self._start()
+        except StartupError as err:
+            err.logger_name = self.get_logger().name  # the node's own, after -r __node:=...
+            raise
+
+    def _start(self) -> None:
+        """Parameters, calibration, ``Online``, topics; :class:`StartupError` if it cannot."""
         untyped = ParameterDescriptor(dynamic_typing=True)
         # Declared without a value: unset means "the file's", decided by the core.
         self.declare_parameter("calibration", None, untyped)
@@ -132,40 +167,68 @@ class QtvprNode(Node):  # type: ignore[misc]
         qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=depth)
         self.db_size = calibration.db_size
         self.messages = 0
+        self._decision_msg = self.create_publisher(Decision, "~/decision_msg", qos)
         self._decision = self.create_publisher(Float64MultiArray, "~/decision", qos)
         self._accept = self.create_publisher(Bool, "~/accept", qos)
         self._layout = [
             MultiArrayDimension(label=",".join(DECISION_FIELDS), size=len(DECISION_FIELDS), stride=len(DECISION_FIELDS))
         ]
-        self.create_subscription(Float32MultiArray, "~/scores", self._on_scores(np.float32), qos)
-        self.create_subscription(Float64MultiArray, "~/scores64", self._on_scores(np.float64), qos)
+        subscriptions = [
+            self.create_subscription(Scores, "~/scores_msg", self._on_scores_msg, qos),
+            self.create_subscription(Float32MultiArray, "~/scores", self._on_array(np.float32), qos),
+            self.create_subscription(Float64MultiArray, "~/scores64", self._on_array(np.float64), qos),
+        ]
+        # The resolved names: namespace, node name and remappings applied.
+        inputs = ", ".join(sub.topic_name for sub in subscriptions)
+        outputs = ", ".join(pub.topic_name for pub in (self._decision_msg, self._decision, self._accept))
         self.get_logger().info(
-            f"deciding {self.get_namespace().rstrip('/')}/{NODE_NAME}/scores and scores64 with {self.online!r} "
+            f"deciding {inputs} into {outputs} with {self.online!r} "
             f"(|DB| = {self.db_size}, calibration {path}, qos_depth {depth})"
         )
 
-    def _on_scores(self, dtype: type[np.floating[Any]]) -> Any:
-        """The callback of a scores topic whose ``data`` holds ``dtype`` values."""
+    def _on_array(self, dtype: type[np.floating[Any]]) -> Any:
+        """The callback of an array topic whose ``data`` holds ``dtype`` values."""
 
         def callback(msg: Any) -> None:
             self.messages += 1
+            # No header: the decision's is the arrival time, no frame.
+            header = Header(stamp=self.get_clock().now().to_msg())
             # msg.data is an array.array of the message's own type: read in place.
-            column = np.frombuffer(msg.data, dtype=dtype)
-            try:
-                decision = self.online.push(column)
-            except (TypeError, ValueError) as err:
-                self.get_logger().error(
-                    f"scores message {self.messages} ({np.dtype(dtype).name}, {column.size} scores; "
-                    f"{self.online.pushed} queries decided): {err}; not decided, the window is unchanged"
-                )
-                return
-            out = Float64MultiArray()
-            out.layout.dim = self._layout
-            out.data = array.array("d", decision_array(decision))
-            self._decision.publish(out)
-            self._accept.publish(Bool(data=decision.accept))
+            self._decide(np.frombuffer(msg.data, dtype=dtype), header, "")
 
         return callback
+
+    def _on_scores_msg(self, msg: Any) -> None:
+        """The callback of ``~/scores_msg``: the one non-empty array, in its own type."""
+        self.messages += 1
+        n32, n64 = len(msg.scores), len(msg.scores64)
+        stamp = f", stamp {msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}"
+        if (n32 == 0) == (n64 == 0):
+            self.get_logger().error(
+                f"scores message {self.messages} (qtvpr_msgs/Scores{stamp}; {self.online.pushed} queries decided): "
+                f"exactly one of scores (float32) and scores64 (float64) must hold the column, "
+                f"not {n32} and {n64} scores; not decided, the window is unchanged"
+            )
+            return
+        column = np.frombuffer(msg.scores, dtype=np.float32) if n32 else np.frombuffer(msg.scores64, dtype=np.float64)
+        self._decide(column, msg.header, stamp)
+
+    def _decide(self, column: np.ndarray, header: Header, stamp: str) -> None:
+        """Push ``column``; publish its decision on every output topic, or log why not."""
+        try:
+            decision = self.online.push(column)
+        except (TypeError, ValueError) as err:
+            self.get_logger().error(
+                f"scores message {self.messages} ({column.dtype.name}, {column.size} scores{stamp}; "
+                f"{self.online.pushed} queries decided): {err}; not decided, the window is unchanged"
+            )
+            return
+        self._decision_msg.publish(decision_msg(decision, header))
+        out = Float64MultiArray()
+        out.layout.dim = self._layout
+        out.data = array.array("d", decision_array(decision))
+        self._decision.publish(out)
+        self._accept.publish(Bool(data=decision.accept))
 
 
 def main(args: list[str] | None = None) -> int:
@@ -176,7 +239,7 @@ def main(args: list[str] | None = None) -> int:
         try:
             node = QtvprNode()
         except StartupError as err:
-            rclpy.logging.get_logger(NODE_NAME).error(f"cannot start: {err}")
+            rclpy.logging.get_logger(err.logger_name).error(f"cannot start: {err}")
             return 1
         try:
             rclpy.spin(node)
