@@ -5,19 +5,7 @@
 # Installs what it needs from crates.io and PyPI. Run from anywhere.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-[ -z "${CI:-}" ] || export CARGO_INCREMENTAL=0
-
-step_name="" step_start=$SECONDS
-step() {
-    [ -z "$step_name" ] || printf '== %s: %d s\n' "$step_name" $((SECONDS - step_start))
-    step_name="$*" step_start=$SECONDS
-    printf '\n== %s\n' "$*"
-}
-finish() {
-    [ -z "$step_name" ] || printf "== %s: %d s (total %d s)\n" "$step_name" $((SECONDS - step_start)) $SECONDS
-}
-trap finish EXIT
-target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+source scripts/steps.sh   # CARGO_INCREMENTAL on CI, `step`, `target`
 # Check mode compiles the dependencies as metadata only, which a test build cannot
 # reuse: a directory of its own keeps the two from invalidating each other.
 export CARGO_TARGET_DIR="$target/check"

@@ -12,22 +12,7 @@
 # compile only their own crates (and pyo3). CONTRIBUTING.md says how long each step takes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# A fresh clone builds everything once: incremental compilation's caches would only
-# cost time there (and disk). A developer's repeated local runs keep them.
-[ -z "${CI:-}" ] || export CARGO_INCREMENTAL=0
-
-# Each step says how long the one before it took (CONTRIBUTING.md quotes these).
-step_name="" step_start=$SECONDS
-step() {
-    [ -z "$step_name" ] || printf '== %s: %d s\n' "$step_name" $((SECONDS - step_start))
-    step_name="$*" step_start=$SECONDS
-    printf '\n== %s\n' "$*"
-}
-finish() {
-    [ -z "$step_name" ] || printf "== %s: %d s (total %d s)\n" "$step_name" $((SECONDS - step_start)) $SECONDS
-}
-trap finish EXIT
-target=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+source scripts/steps.sh   # CARGO_INCREMENTAL on CI, `step`, `target`
 
 step "set-up: valgrind for the C checks (apt, as root)"
 # scripts/capi.sh runs the C examples under valgrind; without it (not root, no apt) it
@@ -84,9 +69,10 @@ from pathlib import Path
 units = [m for m in map(json.loads, open(sys.argv[1])) if m.get("reason") == "compiler-artifact"]
 if not units:
     sys.exit("the rebuild check read no compiler-artifact message from cargo: it cannot tell what was compiled")
-# A unit's package by its manifest's folder (the C library's target is named qtvpr too).
-package = {id(u): Path(u["manifest_path"]).parent.name for u in units}
-again = sorted({f"{package[id(u)]} ({u['target']['name']})" for u in units if not u["fresh"]} - {"qtvpr-capi (qtvpr)"})
+# A unit named by its manifest's folder and its target (the C library's target is named
+# qtvpr too); the C library's own crate is the one compiled.
+again = {f"{Path(u['manifest_path']).parent.name} ({u['target']['name']})" for u in units if not u["fresh"]}
+again = sorted(again - {"qtvpr-capi (qtvpr)"})
 if again:
     sys.exit(f"compiled again with other features: {', '.join(again)}; regenerate crates/workspace-hack (cargo hakari generate)")
 print(f"{len(units)} units, none compiled again but the C library's own")
