@@ -601,17 +601,26 @@ mod tests {
     //! run everywhere.
     use proptest::prelude::*;
 
-    /// Why a vector-sort test does not run on this machine.
-    const NO_AVX512: &str = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)";
-
-    /// Whether the vectorised sort runs here; if not, says so on stderr.
-    fn vector_sort_runs() -> bool {
+    /// Whether the vectorised sort runs here; if not, says why on stderr.
+    fn vector_sort_runs(why_not: &str) -> bool {
         #[cfg(target_arch = "x86_64")]
         if pulp::x86::V4::try_new().is_some() {
             return true;
         }
-        eprintln!("skipped: {NO_AVX512}");
+        eprintln!("skipped: {why_not}");
         false
+    }
+
+    /// Tests of the vectorised sort: each reported ignored, for `$why_not`, where
+    /// `build.rs` found no AVX-512, and a skip saying so if run there all the same.
+    macro_rules! vector_sort_tests {
+        ($why_not:literal; $(fn $name:ident() $body:block)*) => {$(
+            #[test]
+            #[cfg_attr(qtvpr_no_avx512, ignore = $why_not)]
+            fn $name() {
+                if vector_sort_runs($why_not) $body
+            }
+        )*};
     }
 
     /// `v` sorted by the vectorised sort with the given depth limit and by
@@ -745,45 +754,6 @@ mod tests {
         assert_eq!(bits(&v), bits(&want));
     }
 
-    #[test]
-    #[cfg_attr(
-        qtvpr_no_avx512,
-        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
-    )]
-    fn every_length_gives_the_scalar_sorts_bits() {
-        if !vector_sort_runs() {
-            return;
-        }
-        let lengths = (0..=700).chain([1000, 4097, 27_592, 100_003]);
-        for (seed, n) in lengths.enumerate() {
-            assert!(agrees(&scores(n, seed as u64)));
-        }
-    }
-
-    #[test]
-    #[cfg_attr(
-        qtvpr_no_avx512,
-        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
-    )]
-    fn float64_bits_beyond_float32_sort_as_the_scalar_sort_sorts_them() {
-        if !vector_sort_runs() {
-            return;
-        }
-        let mut x = 3u64;
-        let v: Vec<f64> = (0..20_000)
-            .map(|i| {
-                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                // Neighbours that differ only in the low bits, and arbitrary bits.
-                if i % 2 == 0 {
-                    0.5 + (x >> 40) as f64 * f64::EPSILON
-                } else {
-                    f64::from_bits(x)
-                }
-            })
-            .collect();
-        assert!(agrees_f64(&v, depth(v.len())));
-    }
-
     /// Columns of few values and ordered columns, the vectorised sort's hard cases.
     fn hard_columns() -> Vec<Vec<f32>> {
         let n = 5000;
@@ -811,34 +781,45 @@ mod tests {
         }
     }
 
-    #[test]
-    #[cfg_attr(
-        qtvpr_no_avx512,
-        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
-    )]
-    fn columns_of_few_values_and_ordered_columns() {
-        if !vector_sort_runs() {
-            return;
-        }
-        for v in &hard_columns() {
-            assert!(agrees(v));
-        }
-    }
+    vector_sort_tests! {
+        "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)";
 
-    #[test]
-    #[cfg_attr(
-        qtvpr_no_avx512,
-        ignore = "this CPU has no AVX-512: the vectorised sort cannot run (the scalar sort's tests do)"
-    )]
-    fn ranges_past_the_depth_limit_go_to_the_scalar_sort() {
-        if !vector_sort_runs() {
-            return;
+        fn every_length_gives_the_scalar_sorts_bits() {
+            let lengths = (0..=700).chain([1000, 4097, 27_592, 100_003]);
+            for (seed, n) in lengths.enumerate() {
+                assert!(agrees(&scores(n, seed as u64)));
+            }
         }
-        for d in 0..4 {
-            for v in [scores(3000, 9), (0..3000).map(|i| (i % 5) as f32).collect()] {
-                let wide: Vec<f64> = v.iter().map(|&x| f64::from(x)).collect();
-                assert!(agrees_f32(&v, d));
-                assert!(agrees_f64(&wide, d));
+
+        fn float64_bits_beyond_float32_sort_as_the_scalar_sort_sorts_them() {
+            let mut x = 3u64;
+            let v: Vec<f64> = (0..20_000)
+                .map(|i| {
+                    x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    // Neighbours that differ only in the low bits, and arbitrary bits.
+                    if i % 2 == 0 {
+                        0.5 + (x >> 40) as f64 * f64::EPSILON
+                    } else {
+                        f64::from_bits(x)
+                    }
+                })
+                .collect();
+            assert!(agrees_f64(&v, depth(v.len())));
+        }
+
+        fn columns_of_few_values_and_ordered_columns() {
+            for v in &hard_columns() {
+                assert!(agrees(v));
+            }
+        }
+
+        fn ranges_past_the_depth_limit_go_to_the_scalar_sort() {
+            for d in 0..4 {
+                for v in [scores(3000, 9), (0..3000).map(|i| (i % 5) as f32).collect()] {
+                    let wide: Vec<f64> = v.iter().map(|&x| f64::from(x)).collect();
+                    assert!(agrees_f32(&v, d));
+                    assert!(agrees_f64(&wide, d));
+                }
             }
         }
     }
