@@ -217,7 +217,7 @@ typedef struct {
     double gate;
     /**
      * The probability that the best match is right: the calibration's hit rate at the
-     * query's margin, whatever the gate. NaN in multi matching (or for a calibration
+     * query's PA-score, whatever the gate. NaN in multi matching (or for a calibration
      * without a decision).
      */
     double confidence;

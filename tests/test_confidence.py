@@ -1,7 +1,8 @@
-"""Confidence (semantics §14) in Python: the NumPy reference's pool-adjacent-violators
-fit by hand and its properties, then the wheel against the reference (its blocks, the
-batch transfer's ``query_confidences``, ``Online``) and against the CLI's ``stream``, on
-the embedded Corridor data and, where present, the real matrices of ``../shared/data``.
+"""Confidence (semantics §14) in Python: the NumPy reference's PA-score, its two
+pooling passes and its centred isotonic map by hand, and their properties; then the
+wheel against the reference (its blocks, the batch transfer's ``query_confidences``,
+``Online``) and against the CLI's ``stream``, on the embedded Corridor data and, where
+present, the real matrices of ``../shared/data``.
 
 The same scenarios are tested in Rust (crates/qtvpr/src/signals/confidence.rs,
 crates/qtvpr/tests/confidence.rs, crates/qtvpr-cli/tests/online.rs).
@@ -29,9 +30,9 @@ MULTI_WHY = "confidence needs single matching"
 
 
 def blocks(pairs):
-    m = np.array([p[0] for p in pairs], dtype=np.float64)
+    r = np.array([p[0] for p in pairs], dtype=np.float64)
     c = np.array([p[1] for p in pairs], dtype=bool)
-    return ref._isotonic_blocks(m, c)
+    return [(round(centre, 12), n, x) for centre, n, x in ref._pooled_blocks(r, c)]
 
 
 def close(a, b, tol=1e-9):
@@ -45,50 +46,70 @@ def close(a, b, tol=1e-9):
 # ---------------------------------------------------------------------------------------
 
 
-def test_pava_by_hand():
+def test_pa_score_by_hand():
+    # The Rust scenario (crates/qtvpr/src/signals/confidence.rs, pa_score_by_hand).
+    # Columns: s1 = 0.875, s2 = 0.5 gives sqrt(0.25) / 1; the largest twice gives 1;
+    # both at or above 1 (d = 0) give 1; only the best at 1 gives 0; below -1,
+    # sqrt(4) / sqrt(8).
+    s = np.array([[0.875, 0.3, 1.5, 1.0, -1.0], [0.5, 0.3, 1.2, 0.5, -3.0], [0.1, 0.2, 0.0, 0.0, -5.0]])
+    close(ref._pa_scores(s), [0.5, 1.0, 1.0, 0.0, 2 / math.sqrt(8)], 1e-15)
+
+
+def test_pooling_by_hand():
+    # The Rust scenario (two_passes_of_pooling). Descending PA-score: 0.9 (0 of 1), 0.5
+    # (1 of 10): apart by x/n (0 < 0.1), pooled by (x + 1) / (n + 2) (1/3 >= 2/12).
+    assert blocks([(0.9, 0), (0.5, 1)] + [(0.5, 0)] * 9) == [(round(5.9 / 11, 12), 11, 1)]
+    # Equal Laplace values merge: 0 of 1 and 1 of 4 are 1/3 and 2/6.
+    assert blocks([(0.9, 0), (0.4, 1)] + [(0.4, 0)] * 3) == [(0.5, 5, 1)]
+    # A tie is one point, pooled whole: (0.8: 1/1) and (0.2: 0/2) violate, 1 of 3.
+    assert blocks([(0.8, 1), (0.2, 0), (0.2, 0)]) == [(0.4, 3, 1)]
+    # Increasing values stay apart: 1/4, 2/4, 4/5 by Laplace.
+    pairs = [(0.8, 0), (0.8, 0), (0.6, 1), (0.6, 0), (0.1, 1), (0.1, 1), (0.1, 1)]
+    assert blocks(pairs) == [(0.8, 2, 0), (0.6, 2, 1), (0.1, 3, 3)]
     # One pair: one block.
-    assert blocks([(0.7, 1)]) == [(0.7, 1, 1)]
-    # All correct, all wrong: one block each, at the lowest margin.
-    assert blocks([(2.0, 1), (0.5, 1), (1.0, 1), (3.0, 1)]) == [(0.5, 4, 4)]
-    assert blocks([(2.0, 0), (0.5, 0), (1.0, 0)]) == [(0.5, 3, 0)]
-    # Ties are one point: (1: 1/2), (2: 2/3), increasing, two blocks.
-    assert blocks([(1.0, 0), (2.0, 1), (1.0, 1), (2.0, 0), (2.0, 1)]) == [(1.0, 2, 1), (2.0, 3, 2)]
-    # Equal values at distinct margins merge: (1: 1/2), (2: 1/2), (3: 1/1).
-    assert blocks([(1.0, 1), (1.0, 0), (2.0, 0), (2.0, 1), (3.0, 1)]) == [(1.0, 4, 2), (3.0, 1, 1)]
-    # A tie is pooled whole: (1: 1/1) and (2: 1/2) violate, 2/3.
-    assert blocks([(1.0, 1), (2.0, 0), (2.0, 1)]) == [(1.0, 3, 2)]
-    # A violator chain, c = 1 0 1 0 0 1 at margins 1..6: 2/5 from 1, then 1/1 at 6.
-    assert blocks([(i + 1.0, c) for i, c in enumerate([1, 0, 1, 0, 0, 1])]) == [(1.0, 5, 2), (6.0, 1, 1)]
+    assert blocks([(0.5, 1)]) == [(0.5, 1, 1)]
 
 
-def test_confidence_of_a_margin_by_hand():
-    b = [(1.0, 5, 2), (6.0, 1, 1)]
-    assert ref._confidence_of(b, 0.0) == (0.4, ref.precision_lower95(2, 3))  # below all: the first
-    assert ref._confidence_of(b, 5.9)[0] == 0.4
-    # 1 of 1: the bound is 0.05^(1/1).
-    assert ref._confidence_of(b, 6.0) == (1.0, pytest.approx(0.05, abs=1e-15))
-    # 1 of 2: the 0.05 quantile of Beta(1, 2), 1 - sqrt(0.95).
-    assert ref._confidence_of([(0.0, 2, 1)], 3.0)[1] == pytest.approx(1 - math.sqrt(0.95), abs=1e-15)
-    assert ref._confidence_of([(0.0, 3, 0)], 3.0) == (0.0, 0.0)
-    nan = ref._confidence_of([], 1.0)
+def test_map_by_hand():
+    # The Rust scenarios (one_pair_goes_on_to_its_bounds,
+    # linear_between_centres_and_the_lower_bound_of_the_less_confident).
+    one = [(0.5, 1, 1)]  # 2/3 at 0.5; on to 0.05 (0.05^(1/1)) at 1 and to 1 at 0
+    assert ref._confidence_of(one, 0.5)[0] == 2 / 3
+    assert ref._confidence_of(one, 0.75)[0] == pytest.approx((0.05 + 2 / 3) / 2, abs=1e-12)
+    assert ref._confidence_of(one, 0.25)[0] == pytest.approx((2 / 3 + 1) / 2, abs=1e-12)
+    assert ref._confidence_of(one, 0.0)[0] == 1.0
+    assert all(ref._confidence_of(one, r)[1] == pytest.approx(0.05, abs=1e-15) for r in (0.0, 0.3, 0.9, 1.0))
+    wrong = [(0.5, 1, 0)]  # 1/3, from 0 to 0.95
+    assert ref._confidence_of(wrong, 1.0) == (0.0, 0.0)
+    assert ref._confidence_of(wrong, 0.0)[0] == pytest.approx(0.95, abs=1e-15)
+    b = [(0.8, 2, 0), (0.6, 2, 1), (0.1, 3, 3)]  # knots (1: 0), (0.8: 1/4), (0.6: 1/2), (0.1: 4/5), (0: 1)
+    assert ref._confidence_of(b, 1.0) == (0.0, 0.0)
+    assert ref._confidence_of(b, 0.9)[0] == pytest.approx(0.125, abs=1e-12)
+    assert ref._confidence_of(b, 0.7) == (pytest.approx(0.375, abs=1e-12), 0.0)
+    assert ref._confidence_of(b, 0.35) == (pytest.approx(0.65, abs=1e-12), pytest.approx(1 - math.sqrt(0.95), abs=1e-15))
+    assert ref._confidence_of(b, 0.05) == (pytest.approx(0.9, abs=1e-12), pytest.approx(0.05 ** (1 / 3), abs=1e-12))
+    assert ref._confidence_of(b, 0.0)[0] == 1.0
+    nan = ref._confidence_of([], 0.5)
     assert math.isnan(nan[0]) and math.isnan(nan[1])
 
 
 @settings(max_examples=200, deadline=None, derandomize=True)
 @given(
-    st.lists(st.tuples(st.integers(0, 11), st.booleans()), min_size=1, max_size=40),
-    st.lists(st.floats(-1.0, 7.0), min_size=1, max_size=20),
+    st.lists(st.tuples(st.integers(0, 10), st.booleans()), min_size=1, max_size=40),
+    st.lists(st.integers(0, 1000), min_size=2, max_size=20, unique=True),
 )
 def test_reference_properties(pairs, probes):
-    b = blocks([(m / 2, c) for m, c in pairs])
+    # The Rust property (strictly_decreasing_bounded_and_lower_below).
+    b = ref._pooled_blocks(np.array([r / 10 for r, _ in pairs]), np.array([c for _, c in pairs], dtype=bool))
     assert sum(n for _, n, _ in b) == len(pairs) and sum(x for *_, x in b) == sum(c for _, c in pairs)
-    values = [x / n for _, n, x in b]
+    values = [(x + 1) / (n + 2) for _, n, x in b]
     assert all(a < z for a, z in zip(values, values[1:], strict=False))  # maximal, increasing
-    last = 0.0
-    for m in sorted(probes):
-        c, lower = ref._confidence_of(b, m)
+    assert all(a[0] > z[0] for a, z in zip(b, b[1:], strict=False))  # centres descending
+    last = math.inf
+    for r in sorted(p / 1000 for p in probes):  # apart by 1e-3, far above rounding
+        c, lower = ref._confidence_of(b, r)
         assert 0.0 <= lower <= c <= 1.0
-        assert c >= last
+        assert c < last  # a higher PA-score, a strictly lower confidence
         last = c
 
 
@@ -123,14 +144,16 @@ def check_parity(s_cal, gt_cal, s_val, window=7, segment_size=10):
 
 
 def test_wheel_equals_reference_on_the_embedded_corridor():
-    # The embedded deployment half calibrates (83 of its 100 best matches are right, six
+    # The embedded deployment half calibrates (83 of its 100 best matches are right, nine
     # blocks); the embedded calibration half is decided. And the other way round: the
     # calibration's 11 best matches are all right, one block.
     s_val, s_cal = np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "deploy_S.npy")
     gt_cal = np.load(CORRIDOR / "deploy_GT.npy")
     cal, d = check_parity(s_cal, gt_cal, s_val, window=4, segment_size=4)
-    assert [(n, x) for _, n, x in cal.confidence_blocks()] == [(2, 0), (2, 1), (31, 24), (25, 20), (28, 26), (12, 12)]
-    assert {0.0, 0.8, 1.0} <= set(d.confidences.tolist())
+    assert [(n, x) for _, n, x in cal.confidence_blocks()] == [(2, 0), (2, 1), (6, 4), (21, 15), (13, 11), (17, 15),
+                                                                (12, 11), (16, 15), (11, 11)]
+    # The 11 PA-scores, all distinct, give 11 distinct confidences.
+    assert len(set(d.confidences.tolist())) == 11
     cal, _ = check_parity(np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "cal_GT.npy"),
                           np.load(CORRIDOR / "deploy_S.npy"))
     assert [(n, x) for _, n, x in cal.confidence_blocks()] == [(11, 11)]
@@ -173,7 +196,7 @@ def test_multi_matching_has_none():
 
 
 def test_cli_stream_equals_the_wheel(cli, tmp_path):
-    # Calibrate on the embedded deployment half (six blocks), stream the calibration half.
+    # Calibrate on the embedded deployment half (nine blocks), stream the calibration half.
     cal_path = tmp_path / "cal.npz"
     s_cal, gt_cal = np.load(CORRIDOR / "deploy_S.npy"), np.load(CORRIDOR / "deploy_GT.npy")
     qtvpr.Calibration(s_cal, gt_cal).save(cal_path, window=4)
@@ -217,7 +240,7 @@ def assert_same_bins(got, want):
 
 
 def assert_same_signals(got, want):
-    assert list(got) == ["signals"] and list(got["signals"]) == ["score", "margin", "confidence"]
+    assert list(got) == ["signals"] and list(got["signals"]) == ["score", "margin", "pa_score", "confidence"]
     assert list(got["signals"]["confidence"]) == ["auroc", "brier", "ece", "bins"]
     for signal, figures in want["signals"].items():
         assert list(got["signals"][signal]) == list(figures)
@@ -246,17 +269,21 @@ def test_reliability_bins_by_hand():
 
 
 def test_evaluate_signals_on_the_embedded_corridor(cli):
-    # The 11 calibration queries' best matches are all right: one block, every
-    # confidence 1; 83 of the 100 deployment decisions are right, so the Brier score is
-    # 17/100, the ECE |1 - 0.83| and the confidence's AUROC 1/2 (all tied).
+    # The 11 calibration queries' best matches are all right: one block, 11 of 11. Its
+    # map still ranks the 100 deployment decisions (83 right) as their PA-scores do,
+    # from 0.05^(1/11) at PA-score 1 through 12/13 at the block's centre.
     s = np.concatenate([np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "deploy_S.npy")], axis=1)
     gt = np.concatenate([np.load(CORRIDOR / "cal_GT.npy"), np.load(CORRIDOR / "deploy_GT.npy")], axis=1)
     got, want = qtvpr.evaluate(s, gt)["confidence"], ref.evaluate(s, gt)["confidence"]
     assert_same_signals(got, want)
-    c = want["signals"]["confidence"]
-    assert c["auroc"] == 0.5 and c["brier"] == pytest.approx(0.17, abs=1e-12) and c["ece"] == pytest.approx(0.17)
-    # Every confidence 1: one reliability bin, the last, of all 100 decisions.
-    assert c["bins"] == [{"lower": 0.9, "upper": 1.0, "n": 100, "mean_confidence": 1.0, "hit_rate": 0.83}]
+    sig = want["signals"]
+    assert sig["confidence"]["auroc"] == sig["pa_score"]["auroc"] == pytest.approx(0.728561304, abs=1e-9)
+    assert sig["score"]["auroc"] == pytest.approx(0.810772502, abs=1e-9)
+    assert sig["margin"]["auroc"] == pytest.approx(0.678951099, abs=1e-9)
+    c = sig["confidence"]
+    # Against 0.17 for the constant 1 the step map gave.
+    assert c["brier"] == pytest.approx(0.133097700, abs=1e-9) and c["ece"] == pytest.approx(0.040881813, abs=1e-9)
+    assert [(b["lower"], b["n"]) for b in c["bins"]] == [(0.7, 16), (0.8, 43), (0.9, 41)]
     out = run_cli(cli, "evaluate", "--format", "json")  # the embedded demo data
     assert_same_signals(json.loads(out.stdout)["confidence"], want)
     # Multi matching: no signals.

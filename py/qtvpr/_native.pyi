@@ -129,6 +129,8 @@ class _Calibrated(TypedDict):
 class _SignalSet(TypedDict):
     score: _Auroc
     margin: _Auroc
+    # The PA-score's AUROC ranks a lower PA-score higher.
+    pa_score: _Auroc
     confidence: _Calibrated
 
 class _Signals(TypedDict):
@@ -251,6 +253,7 @@ class Calibration:
     ) -> TransferResult: ...
     def threshold(self, precision: float | None = None) -> float: ...
     def gate(self, precision: float | None = None) -> float: ...
+    # (centre PA-score, n, x) per block, by ascending confidence.
     def confidence_blocks(self) -> list[tuple[float, int, int]]: ...
     def save(
         self,

@@ -592,7 +592,7 @@ def quantile_transfer(
     query_confidences = query_lower = None
     if confident:
         blocks = _confidence_blocks(s_cal64, gt, ignored)
-        pairs = [_confidence_of(blocks, float(m)) for m in _margins(s_val64)]
+        pairs = [_confidence_of(blocks, float(r)) for r in _pa_scores(s_val64)]
         query_confidences = np.array([p[0] for p in pairs], dtype=np.float64)
         query_lower = np.array([p[1] for p in pairs], dtype=np.float64)
     return TransferResult(
@@ -682,69 +682,109 @@ def _check_confident(matching: str, n_db: int) -> None:
         )
 
 
+def _pa_scores(s: np.ndarray) -> np.ndarray:
+    """The PA-score of every column of a validated float64 matrix: d1 / d2 with
+    d = sqrt(max(0, 2 - 2 s)) for its largest and second-largest score (equal when the
+    largest occurs twice); 1 when d2 = 0."""
+    top2 = np.sort(s, axis=0)[-2:]
+    d2, d1 = np.sqrt(np.maximum(0.0, 2.0 - 2.0 * top2))
+    out = np.ones(s.shape[1])
+    apart = d2 > 0
+    out[apart] = d1[apart] / d2[apart]
+    return out
+
+
 def _confidence_blocks(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray) -> list[tuple[float, int, int]]:
-    """The maximal blocks ``(lowest margin, n, x)`` of the isotonic fit of the
-    calibration pairs: each calibration query's margin and whether its best match is a
-    hard positive (soft-only best matches left out, as for m*). See :func:`_isotonic_blocks`.
-    """
+    """The blocks ``(centre, n, x)`` of section 14's fit of the calibration pairs: each
+    calibration query's PA-score and whether its best match is a hard positive
+    (soft-only best matches left out, as for m*). See :func:`_pooled_blocks`."""
     best = np.argmax(s, axis=0)  # the first maximum
     cols = np.arange(s.shape[1])
     kept = ~ignored[best, cols]
-    return _isotonic_blocks(_margins(s)[kept], gt[best, cols][kept])
+    return _pooled_blocks(_pa_scores(s)[kept], gt[best, cols][kept])
 
 
-def _isotonic_blocks(m: np.ndarray, c: np.ndarray) -> list[tuple[float, int, int]]:
-    """The maximal blocks of the isotonic fit of pairs (margin ``m[i]``, 0/1 ``c[i]``).
+def _pooled_blocks(r: np.ndarray, c: np.ndarray) -> list[tuple[float, int, int]]:
+    """The blocks of pairs (PA-score ``r[i]``, 0/1 ``c[i]``), by descending PA-score.
 
-    Written as the spec says it, in three passes: equal margins become one point; plain
-    pool-adjacent-violators pools a block with the one before while the one before is
-    strictly greater; then adjacent blocks of equal value are merged. Values are
-    compared as fractions (``x1 * n2`` against ``x2 * n1``), exactly.
+    Written as the spec says it, pass by pass: equal PA-scores become one point; plain
+    pool-adjacent-violators on x/n (pool while the block before is strictly greater),
+    then adjacent blocks of equal x/n merged; then the same two passes on the Laplace
+    value (x + 1) / (n + 2). Values are compared as fractions, exactly. A block's
+    centre is the mean PA-score of its pairs.
     """
-    order = np.argsort(m, kind="stable")
-    points: list[list] = []  # [lowest margin, n, x]
+    order = np.argsort(-r, kind="stable")
+    points: list[list] = []  # [sum of PA-scores, n, x]
     for i in order:
-        if points and points[-1][0] == m[i]:
+        if points and points[-1][3] == r[i]:
+            points[-1][0] += float(r[i])
             points[-1][1] += 1
             points[-1][2] += int(c[i])
         else:
-            points.append([float(m[i]), 1, int(c[i])])
-    blocks: list[list] = []
-    for point in points:
-        blocks.append(list(point))
-        # The block before is a violator when its value x/n is greater than the last's.
-        while len(blocks) > 1 and blocks[-2][2] * blocks[-1][1] > blocks[-1][2] * blocks[-2][1]:
-            last = blocks.pop()
-            blocks[-1][1] += last[1]
-            blocks[-1][2] += last[2]
-    merged: list[list] = []
-    for block in blocks:
-        if merged and merged[-1][2] * block[1] == block[2] * merged[-1][1]:
-            merged[-1][1] += block[1]
-            merged[-1][2] += block[2]
-        else:
+            points.append([float(r[i]), 1, int(c[i]), float(r[i])])
+
+    def pool(blocks: list[list], prior: int) -> list[list]:
+        def value(b):  # (x + prior) / (n + 2 prior) as a fraction
+            return (b[2] + prior, b[1] + 2 * prior)
+
+        def join(a, b):
+            a[0] += b[0]
+            a[1] += b[1]
+            a[2] += b[2]
+
+        out: list[list] = []
+        for block in blocks:
+            out.append(list(block))
+            while len(out) > 1:
+                (xa, na), (xb, nb) = value(out[-2]), value(out[-1])
+                if xa * nb <= xb * na:
+                    break
+                join(out[-2], out.pop())
+        merged: list[list] = []
+        for block in out:
+            if merged:
+                (xa, na), (xb, nb) = value(merged[-1]), value(block)
+                if xa * nb == xb * na:
+                    join(merged[-1], block)
+                    continue
             merged.append(block)
-    return [(b[0], b[1], b[2]) for b in merged]
+        return merged
+
+    blocks = pool(pool(points, 0), 1)
+    return [(b[0] / b[1], b[1], b[2]) for b in blocks]
 
 
-def _confidence_of(blocks: list[tuple[float, int, int]], margin: float) -> tuple[float, float]:
-    """``(confidence, confidence_lower95)`` of a margin: the value x/n of the block with
-    the largest lowest margin <= it (the first block when it is below them all), and
-    section 8's Clopper-Pearson lower bound on that block's x of n; NaN without blocks."""
+def _confidence_of(blocks: list[tuple[float, int, int]], r: float) -> tuple[float, float]:
+    """``(confidence, confidence_lower95)`` of a PA-score: the map through each block's
+    (x + 1) / (n + 2) at its centre, linear between centres, and on to the first block's
+    Clopper-Pearson lower bound at PA-score 1 and the last block's upper bound at 0;
+    the lower bound that of the knot at or above r nearest it. NaN without blocks."""
     if not blocks:
         return math.nan, math.nan
-    chosen = blocks[0]
-    for block in blocks:
-        if block[0] <= margin:
-            chosen = block
-    _, n, x = chosen
-    lower = precision_lower95(x, n - x)  # x successes of n: Beta(x, n - x + 1); 0 when x = 0
-    return x / n, lower
+
+    def lower(n, x):
+        return precision_lower95(x, n - x)  # x successes of n: Beta(x, n - x + 1); 0 when x = 0
+
+    knots = [(centre, (x + 1) / (n + 2), lower(n, x)) for centre, n, x in blocks]
+    if blocks[0][0] < 1.0:
+        first = lower(blocks[0][1], blocks[0][2])
+        knots.insert(0, (1.0, first, first))
+    if blocks[-1][0] > 0.0:
+        n, x = blocks[-1][1], blocks[-1][2]
+        knots.append((0.0, 1.0 - lower(n, n - x), lower(n, x)))
+    if r >= knots[0][0]:
+        return knots[0][1], knots[0][2]
+    if r <= knots[-1][0]:
+        return knots[-1][1], knots[-1][2]
+    for (ra, pa, la), (rb, pb, _) in zip(knots, knots[1:]):
+        if ra >= r > rb:
+            return pa + (ra - r) / (ra - rb) * (pb - pa), la
+    raise AssertionError("a PA-score between the knots")
 
 
 def confidence_blocks(s_cal, gt_cal, *, gt_soft=None, query_major=False) -> list[tuple[float, int, int]]:
-    """The confidence map of a single-matching calibration (semantics §14): its maximal
-    blocks ``(lowest margin, n, x)`` by ascending margin; empty without a decision."""
+    """The confidence map of a single-matching calibration (semantics §14): its blocks
+    ``(centre PA-score, n, x)`` by ascending confidence; empty without a decision."""
     s64, gt, ignored = _inputs("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, query_major)
     _check_confident("single", s64.shape[0])
     return _confidence_blocks(s64, gt, ignored)
@@ -788,8 +828,8 @@ def _reliability(p: np.ndarray, c: np.ndarray) -> list[dict]:
 
 def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
     """Section 14's evaluation signals over the deployment columns given (soft-only best
-    matches left out): AUROC of s1, margin, confidence; the confidence's Brier, ECE and
-    reliability bins."""
+    matches left out): AUROC of s1, the margin, the PA-score (lower ranked higher) and
+    the confidence; the confidence's Brier, ECE and reliability bins."""
     blocks = _confidence_blocks(s_cal, gt_cal, ign_cal)
     best = np.argmax(s_dep, axis=0)
     cols = np.arange(s_dep.shape[1])
@@ -797,12 +837,14 @@ def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
     c = gt_dep[best, cols][kept]
     s1 = s_dep[best, cols][kept]
     m = _margins(s_dep)[kept]
-    p = np.array([_confidence_of(blocks, float(v))[0] for v in m], dtype=np.float64)
+    r = _pa_scores(s_dep)[kept]
+    p = np.array([_confidence_of(blocks, float(v))[0] for v in r], dtype=np.float64)
     calibrated = len(p) > 0 and len(blocks) > 0
     return {
         "signals": {
             "score": {"auroc": _auroc(s1, c)},
             "margin": {"auroc": _auroc(m, c)},
+            "pa_score": {"auroc": _auroc(-r, c)},
             "confidence": {
                 "auroc": _auroc(p, c) if calibrated else None,
                 "brier": float(np.mean((p - c) ** 2)) if calibrated else None,
@@ -1310,7 +1352,7 @@ class OnlineDecision:
     ascending. With the margin gate (section 13) ``margin`` is the column's margin and
     ``gate`` m*, and single matching accepts only when ``margin >= gate`` too; both are
     None without it. ``confidence`` and ``confidence_lower95`` (section 14) are the
-    calibration's hit rate at the column's margin and its lower bound, whatever the
+    calibration's hit rate at the column's PA-score and its lower bound, whatever the
     gate; NaN in multi matching.
     """
 
@@ -1443,7 +1485,7 @@ class Online:
         margin = None if self._m_star is None else float(_margins(column[:, None])[0])
         confidence = lower = math.nan
         if self._blocks is not None:
-            confidence, lower = _confidence_of(self._blocks, float(_margins(column[:, None])[0]))
+            confidence, lower = _confidence_of(self._blocks, float(_pa_scores(column[:, None])[0]))
         if cal.matching == "single":
             passes = margin is None or margin >= self._m_star
             indices = np.array([b] if column[b] >= threshold and passes else [], dtype=np.int64)
@@ -1591,7 +1633,7 @@ class Calibration:
         return _gate(self._s64, self._gt, self._ignored, _check_precision(precision))
 
     def confidence_blocks(self) -> list[tuple[float, int, int]]:
-        """The confidence map of section 14: its maximal blocks ``(lowest margin, n, x)``."""
+        """The confidence map of section 14: its blocks ``(centre PA-score, n, x)``."""
         _check_confident(self.matching, self.db_size)
         return _confidence_blocks(self._s64, self._gt, self._ignored)
 

@@ -387,6 +387,7 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
             writeln!(t, "\n| signal | AUROC | Brier | ECE |\n|:--|--:|--:|--:|").unwrap();
             writeln!(t, "| score | {} | | |", recall(c.score_auroc)).unwrap();
             writeln!(t, "| margin | {} | | |", recall(c.margin_auroc)).unwrap();
+            writeln!(t, "| pa_score | {} | | |", recall(c.pa_score_auroc)).unwrap();
             writeln!(
                 t,
                 "| confidence | {} | {} | {} |",
@@ -432,16 +433,17 @@ fn opt(x: Option<f64>) -> String {
 
 /// Semantics §14's signals of a run as CSV cells (empty in multi matching).
 fn signals(c: Option<&qtvpr::Signals>) -> String {
-    let cells = c.map(|c| [c.score_auroc, c.margin_auroc, c.confidence_auroc, c.brier, c.ece]);
-    cells.unwrap_or_default().map(opt).join(",")
+    c.map(qtvpr::Signals::figures).unwrap_or_default().map(opt).join(",")
 }
 
 fn csv(runs: &[Run]) -> String {
     let mut t = String::from(
         "k,calibration_queries,deployment_start,deployment_queries,segment_size,segments,method,\
          pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_precision,pooled_recall,\
-         pooled_precision_lower95,recall_at_1,auroc_score,auroc_margin,auroc_confidence,brier,ece\n",
+         pooled_precision_lower95,recall_at_1,",
     );
+    t += &qtvpr::Signals::FIGURES.join(",");
+    t.push('\n');
     for run in runs {
         let l = run.eval.layout;
         for m in &run.eval.methods {

@@ -224,16 +224,37 @@ fn hand_computed_json() {
         0.35 + 0.2 / 0.675 * Z
     ));
     // Semantics §14's reliability bins (the decisions of table_and_csv below):
-    // confidences 0 (d1, d2: both wrong) and 1 (d0 right, d3 wrong), so bin 0 holds two
-    // at mean 0 with hit rate 0, the last bin two at mean 1 with hit rate 1/2; the ECE,
-    // 2/4 |0 - 0| + 2/4 |1 - 1/2| = 0.25, is computed from them.
+    // confidences 0.2712 (d0, right), 0.1005 (d1), 0.0874 (d2) and 0.4856 (d3, wrong),
+    // one in each of bins 2, 1, 0 and 4; the ECE, the mean of their |p - c|,
+    // (0.7288 + 0.1005 + 0.0874 + 0.4856) / 4 = 0.35056, is computed from them.
     let c = &out["confidence"]["signals"]["confidence"];
-    assert_eq!(
-        c["bins"],
-        json!([{"lower": 0.0, "upper": 0.1, "n": 2, "mean_confidence": 0.0, "hit_rate": 0.0},
-               {"lower": 0.9, "upper": 1.0, "n": 2, "mean_confidence": 1.0, "hit_rate": 0.5}])
-    );
-    assert_eq!(c["ece"], 0.25);
+    let bins: Vec<(f64, u64, f64, f64)> = c["bins"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| {
+            let f = |k: &str| b[k].as_f64().unwrap();
+            (
+                f("lower"),
+                b["n"].as_u64().unwrap(),
+                f("mean_confidence"),
+                f("hit_rate"),
+            )
+        })
+        .collect();
+    let want = [
+        (0.0, 0.087_356_873_6),
+        (0.1, 0.100_488_901_9),
+        (0.2, 0.271_208_775_8),
+        (0.4, 0.485_593_591_1),
+    ];
+    assert_eq!(bins.len(), want.len(), "{bins:?}");
+    for (got, (lower, mean)) in bins.iter().zip(want) {
+        assert_eq!((got.0, got.1), (lower, 1));
+        assert!((got.2 - mean).abs() < 1e-9, "{got:?}");
+        assert_eq!(got.3, if lower == 0.2 { 1.0 } else { 0.0 });
+    }
+    assert!((c["ece"].as_f64().unwrap() - 0.350_557_647_7).abs() < 1e-9);
 }
 
 #[test]
@@ -261,17 +282,20 @@ fn table_and_csv() {
         lines[5],
         "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 0.000 | 0.000 |"
     );
-    // Semantics §14's signals. The calibration's best matches: query 0 right (margin
-    // 0.6 / 0.33993 = 1.765), query 1 wrong (0.55 / 0.31710 = 1.734): blocks 0 of 1 from
-    // 1.734, 1 of 1 from 1.765. Deployment queries 2..6: (s1, margin, c) = (0.7, 1.852,
-    // right), (0.6, 0.463, wrong), (0.5, 1.225, wrong), (0.9, 1.967, wrong); confidences
-    // 1, 0, 0, 1. AUROC: score and margin 2 of 3 pairs; confidence (2 + 1/2) / 3; Brier
-    // (0 + 0 + 0 + 1) / 4; ECE: bin 0 |0 - 0|, bin 9 |1 - 1/2| x 2/4 = 0.25.
+    // Semantics §14's signals. The calibration's best matches: query 0 right (PA-score
+    // sqrt(0.2 / 1.4) = 0.37796), query 1 wrong (sqrt(0.1 / 1.2) = 0.28868): a
+    // violator, one block of 1 of 2, centre 0.33332, value 2/4, from its lower bound
+    // 1 - sqrt(0.95) = 0.02532 at PA-score 1. Deployment queries 2..6: (s1, PA-score,
+    // c) = (0.7, 0.65465, right), (0.6, 0.89443, wrong), (0.5, 0.91287, wrong), (0.9,
+    // 0.35355, wrong); confidences 0.2712, 0.1005, 0.0874, 0.4856. AUROC: every signal
+    // 2 of 3 pairs; Brier (0.7288^2 + 0.1005^2 + 0.0874^2 + 0.4856^2) / 4 = 0.19617;
+    // ECE: one decision per bin, 0.35056.
     assert_eq!(lines[7], "| signal | AUROC | Brier | ECE |");
     assert_eq!(lines[9], "| score | 0.667 | | |");
     assert_eq!(lines[10], "| margin | 0.667 | | |");
-    assert_eq!(lines[11], "| confidence | 0.833 | 0.250 | 0.250 |");
-    assert_eq!(lines.len(), 12);
+    assert_eq!(lines[11], "| pa_score | 0.667 | | |");
+    assert_eq!(lines[12], "| confidence | 0.667 | 0.196 | 0.351 |");
+    assert_eq!(lines.len(), 13);
 
     let csv = case.ok(&["--format", "csv", "--method", "oracle", "--k", "1,2"]);
     let rows: Vec<&str> = csv.lines().collect();
@@ -283,9 +307,20 @@ fn table_and_csv() {
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
     // Nothing accepted (the oracle of a segment without positives is reject-all): no
     // bound; no deployment query with a hard match: no R@1.
-    // The signals: queries 4 and 5 are both wrong (no AUROC); confidences 0 and 1, so
-    // Brier (0 + 1) / 2 and ECE 1/2 |0 - 0| + 1/2 |1 - 0|.
-    assert!(rows[1].ends_with(",1,0,,,,,,0.5,0.5"), "{csv}");
+    // The signals: queries 4 and 5 are both wrong (no AUROC); confidences 0.08736 and
+    // 0.48559, so Brier (0.08736^2 + 0.48559^2) / 2 = 0.12171 and ECE (0.08736 +
+    // 0.48559) / 2 = 0.28648; no R@1 (nothing has a hard match).
+    assert!(
+        rows[0].ends_with(",auroc_score,auroc_margin,auroc_pa_score,auroc_confidence,brier,ece"),
+        "{csv}"
+    );
+    let cells: Vec<&str> = rows[1].rsplitn(8, ',').collect();
+    assert_eq!(cells[2..7], ["", "", "", "", ""], "{csv}");
+    let (ece, brier): (f64, f64) = (cells[0].parse().unwrap(), cells[1].parse().unwrap());
+    assert!(
+        (brier - 0.121_716_18).abs() < 1e-6 && (ece - 0.286_475_2).abs() < 1e-6,
+        "{csv}"
+    );
 }
 
 #[test]
@@ -411,12 +446,13 @@ fn embedded_demo_data_prints_a_table() {
         .lines()
         .filter(|l| l.starts_with("| ") && !l.starts_with("| method") && !l.starts_with("| signal"))
         .collect();
-    // Every method, the margin gate's two included (single matching); then the three
+    // Every method, the margin gate's two included (single matching); then the four
     // signals of semantics §14. The 11 calibration queries' best matches are all right:
-    // one block, every confidence 1, so its AUROC is 1/2, and with 83 of the 100
-    // deployment decisions right its Brier score is 17/100 and its ECE |1 - 0.83|.
-    assert_eq!(rows.len(), 11, "{text}");
-    assert_eq!(rows[10], "| confidence | 0.500 | 0.170 | 0.170 |", "{text}");
+    // one block, and yet the map ranks as the PA-score does (tests/test_confidence.py
+    // checks these figures against the NumPy reference).
+    assert_eq!(rows.len(), 12, "{text}");
+    assert_eq!(rows[10], "| pa_score | 0.729 | | |", "{text}");
+    assert_eq!(rows[11], "| confidence | 0.729 | 0.133 | 0.041 |", "{text}");
     assert!(rows[1].starts_with("| quantile-transfer-online | "), "{text}");
     assert!(rows[3].starts_with("| margin | "), "{text}");
     assert!(rows[7].starts_with("| oracle | 100.0 |"), "{text}");
@@ -451,17 +487,15 @@ fn reliability_diagram_has_a_point_per_bin() {
     let case = Case::new();
     let dir = case.path("figs");
     case.ok(&["--plot", dir.to_str().unwrap()]);
-    // Two non-empty bins (hand_computed_json): confidence 0, hit rate 0, and confidence
-    // 1, hit rate 1/2; two decisions each. One circle per point and one in the legend.
+    // Four non-empty bins (hand_computed_json), one decision each. One circle per point
+    // and one in the legend.
     let svg = std::fs::read_to_string(dir.join("reliability.svg")).unwrap();
-    assert_eq!(reliability_counts(&svg), ["n = 2", "n = 2"], "{svg}");
-    assert_eq!(svg.matches("<circle").count(), 3, "{svg}");
-    assert!(svg.contains("ECE 0.250, Brier 0.250"), "{svg}");
+    assert_eq!(reliability_counts(&svg), ["n = 1"; 4], "{svg}");
+    assert_eq!(svg.matches("<circle").count(), 5, "{svg}");
+    assert!(svg.contains("ECE 0.351, Brier 0.196"), "{svg}");
     assert!(svg.contains("perfect calibration"), "{svg}");
 
-    // The embedded data: the 11 calibration queries' best matches are all right, so
-    // every confidence is 1: one point, the last bin's, with all 100 decisions at hit
-    // rate 0.83 (ECE |1 - 0.83|).
+    // The embedded data: 100 decisions in bins 7, 8 and 9 (16, 43 and 41 of them).
     std::fs::remove_dir_all(&dir).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"))
         .args(["evaluate", "--plot", dir.to_str().unwrap()])
@@ -469,9 +503,9 @@ fn reliability_diagram_has_a_point_per_bin() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let svg = std::fs::read_to_string(dir.join("reliability.svg")).unwrap();
-    assert_eq!(reliability_counts(&svg), ["n = 100"], "{svg}");
-    assert_eq!(svg.matches("<circle").count(), 2, "{svg}");
-    assert!(svg.contains("ECE 0.170, Brier 0.170"), "{svg}");
+    assert_eq!(reliability_counts(&svg), ["n = 16", "n = 43", "n = 41"], "{svg}");
+    assert_eq!(svg.matches("<circle").count(), 4, "{svg}");
+    assert!(svg.contains("ECE 0.041, Brier 0.133"), "{svg}");
 
     // Multi matching has no confidence: no diagram, the other figures as before.
     std::fs::remove_dir_all(&dir).unwrap();

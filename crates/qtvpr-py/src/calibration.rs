@@ -400,16 +400,17 @@ impl PyCalibration {
         self.inner.gate(precision).map_err(|e| CAL_ARGS.error(e))
     }
 
-    /// The confidence map (semantics §14): the maximal blocks of the isotonic fit of
-    /// the calibration's single-match decisions (soft-only best matches left out) on
-    /// their margins, by ascending margin, each ``(lowest margin, n, x)``: a margin in
-    /// the block has confidence ``x / n``. Empty for a calibration without a decision.
+    /// The confidence map (semantics §14): the blocks of the fit of the calibration's
+    /// single-match decisions (soft-only best matches left out) on their PA-scores, by
+    /// ascending confidence, each ``(centre, n, x)``: the map passes through
+    /// ``(x + 1) / (n + 2)`` at the block's mean PA-score. Empty for a calibration
+    /// without a decision.
     /// Raises ``ValueError`` for a multi-matching calibration, which has no confidence.
     fn confidence_blocks(&self, py: Python<'_>) -> PyResult<Vec<(f64, usize, usize)>> {
         let map = py
             .detach(|| self.inner.confidence_map())
             .map_err(|e| CAL_ARGS.error(e))?;
-        Ok(map.blocks().iter().map(|b| (b.margin, b.n, b.x)).collect())
+        Ok(map.blocks().iter().map(|b| (b.pa_score, b.n, b.x)).collect())
     }
 
     /// The number of calibration queries.

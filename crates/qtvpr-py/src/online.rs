@@ -280,7 +280,7 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// ``margin >= gate``) and ``accept`` is ``accepted > 0``. ``margin`` (the query's
 /// margin) and ``gate`` (m*) are those of the margin gate, ``None`` without it.
 /// ``confidence`` is the probability that the best match is right (the calibration's
-/// hit rate at the query's margin, semantics §14), whatever the gate, and
+/// hit rate at the query's PA-score, semantics §14), whatever the gate, and
 /// ``confidence_lower95`` its one-sided 95% Clopper-Pearson lower bound; both NaN in
 /// ``"multi"`` matching or for a calibration without a decision.
 /// ``accepted_indices`` are the accepted database indices, ascending (int64).

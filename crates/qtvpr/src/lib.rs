@@ -99,6 +99,6 @@ pub use rules::best_threshold::best_threshold;
 pub use rules::decisions::{Counts, Matching, best_match, counts};
 pub use rules::deployment::deployment_threshold;
 pub use rules::ranked_correlation::{ranked_correlation, top_k};
-pub use signals::confidence::{ConfidenceMap, Signals};
+pub use signals::confidence::{Block as ConfidenceBlock, ConfidenceMap, Signal, Signals, pa_score};
 pub use signals::margin::margins;
 pub use signals::orientation::{Evidence, Orientation, hint as orientation_hint};

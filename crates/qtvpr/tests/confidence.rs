@@ -1,15 +1,15 @@
 //! Semantics §14 on real data: the embedded VPR-Bench Corridor matrices (`data/corridor`,
-//! AMOSNet, float64). The expected blocks were computed outside the library: margins by
-//! NumPy (`(s1 - s2) / std`), the pool-adjacent-violators fit by a separate loop in
-//! exact integer comparisons, and each Clopper-Pearson bound by bisection (60 steps, in
-//! exact rational arithmetic) of `P(Binomial(n, p) >= x) = 0.05` for `p`.
+//! AMOSNet, float64). The expected blocks were computed outside the library, by the
+//! NumPy reference (`py/qtvpr/reference.py`): PA-scores from `np.sort`, the two pooling
+//! passes as separate loops in exact integer comparisons, and each Clopper-Pearson
+//! bound by its own bisection.
 #![cfg(feature = "npy")]
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use qtvpr::npy::{read_ground_truth, read_scores};
-use qtvpr::{Calibration, Gate, Matching, Online, OnlineParams, Params};
+use qtvpr::{Calibration, Gate, Matching, Online, OnlineParams, Params, Score};
 
 fn corridor(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -25,53 +25,74 @@ fn calibration(s: &str, gt: &str, matching: Matching) -> Calibration {
 
 #[test]
 fn corridor_blocks_by_hand() {
-    // The 100 deployment queries as a calibration: 83 best matches are right.
+    // The 100 deployment queries as a calibration: 83 best matches are right. Their
+    // PA-scores lie in [0.964, 0.99996]: AMOSNet's scores are close to 1.
     let cal = calibration("deploy_S.npy", "deploy_GT.npy", Matching::Single);
     let map = cal.confidence_map().unwrap();
-    // (lowest margin, n, x, Clopper-Pearson lower bound).
+    // (centre, n, x, Clopper-Pearson lower bound), by ascending confidence.
     let want = [
-        (0.001_885_275_068_079_086_5, 2, 0, 0.0),
-        (0.012_858_028_793_346_37, 2, 1, 0.025_320_565_519_103_61), // 1 - sqrt(0.95)
-        (0.018_834_932_764_100_636, 31, 24, 0.617_389_769_083_018),
-        (0.143_073_607_179_773_13, 25, 20, 0.624_594_864_875_121_8),
-        (0.242_488_391_311_626_33, 28, 26, 0.791_795_286_820_588),
-        (0.458_727_958_161_801_84, 12, 12, 0.779_077_808_054_444), // 0.05^(1/12)
+        (0.999_953_119_130_735_6, 2, 0, 0.0),
+        (0.999_615_800_864_814_6, 2, 1, 0.025_320_565_519_103_61), // 1 - sqrt(0.95)
+        (0.999_130_857_079_570_5, 6, 4, 0.271_338_372_519_752_35),
+        (0.997_262_411_462_848_8, 21, 15, 0.512_611_208_301_130_5),
+        (0.995_185_342_819_018_6, 13, 11, 0.589_901_395_166_184),
+        (0.992_913_055_641_084_2, 17, 15, 0.673_806_936_916_521_6),
+        (0.989_716_457_042_989_8, 12, 11, 0.661_319_331_565_967_8),
+        (0.985_079_121_383_379_5, 16, 15, 0.736_042_602_711_431_5),
+        (0.975_029_549_984_444, 11, 11, 0.761_595_809_619_147_3), // 0.05^(1/11)
     ];
     let got = map.blocks();
     assert_eq!(got.len(), want.len(), "{got:?}");
-    for (b, &(margin, n, x, lower)) in got.iter().zip(&want) {
-        assert!((b.margin - margin).abs() < 1e-12 * margin, "{b:?}");
+    for (b, &(centre, n, x, lower)) in got.iter().zip(&want) {
+        assert!((b.pa_score - centre).abs() < 1e-12, "{b:?}");
         assert_eq!((b.n, b.x), (n, x), "{b:?}");
-        assert_eq!(map.confidence(b.margin), x as f64 / n as f64);
-        assert!((map.confidence_lower95(b.margin) - lower).abs() < 1e-9, "{b:?}");
+        // At its centre the map is the block's Laplace value, with its bound.
+        assert!((map.confidence(b.pa_score) - (x + 1) as f64 / (n + 2) as f64).abs() < 1e-12);
+        assert!((map.confidence_lower95(b.pa_score) - lower).abs() < 1e-9, "{b:?}");
     }
-    // Between blocks: the block below; below them all: the first; far above: the last.
-    assert_eq!(map.confidence(0.2), 0.8);
-    assert_eq!(map.confidence(0.0), 0.0);
-    assert_eq!(map.confidence(50.0), 1.0);
-    // The bound is not monotone where a block is small: 26 of 28 is surer than 12 of 12.
-    assert!(map.confidence_lower95(0.3) > map.confidence_lower95(1.0));
+    // Between centres, linear; beyond the first, on to its lower bound 0 at PA-score
+    // 1; beyond the last, on to 11 of 11's upper bound, 1, at 0.
+    assert!((map.confidence(0.99) - 0.855_809_000_628_199_2).abs() < 1e-9);
+    assert!((map.confidence(0.5) - 0.960_553_463_777_429).abs() < 1e-9);
+    assert_eq!((map.confidence(1.0), map.confidence(0.0)), (0.0, 1.0));
+    // The bound is not monotone where a block is small: 15 of 17 is surer than 11 of 12.
+    assert!(map.confidence_lower95(0.9925) > map.confidence_lower95(0.989));
 }
 
 #[test]
-fn corridor_calibration_is_one_block() {
+fn corridor_calibration_is_one_block_and_still_ranks() {
     // The embedded calibration's 11 best matches are all right: one block, 11 of 11,
-    // bound 0.05^(1/11) = exp(-2.995732 / 11) = 0.761596.
+    // value 12/13, bound 0.05^(1/11) = exp(-2.995732 / 11) = 0.761596.
     let cal = calibration("cal_S.npy", "cal_GT.npy", Matching::Single);
     let map = cal.confidence_map().unwrap();
     assert_eq!(map.blocks().len(), 1);
     assert_eq!((map.blocks()[0].n, map.blocks()[0].x), (11, 11));
     assert!((map.confidence_lower95(0.0) - 0.761_595_809_6).abs() < 1e-9);
+    // One block, and yet no two PA-scores share a confidence: from the bound at 1,
+    // through 12/13 at the centre, to 1 at 0.
+    assert!((map.confidence(1.0) - 0.761_595_809_6).abs() < 1e-9);
+    assert!((map.confidence(0.99) - 0.923_133_589_086_206_6).abs() < 1e-9);
+    assert!((map.confidence(0.5) - 0.961_178_580_346_569).abs() < 1e-9);
+    assert!(map.confidence(0.999) < map.confidence(0.998));
 }
 
 #[test]
 fn every_decision_carries_its_confidence() {
-    // Calibrate on the deployment half (whose map has six blocks) and decide the
+    // Calibrate on the deployment half (whose map has nine blocks) and decide the
     // embedded calibration's queries: online (gated or not) and in a batch alike, each
-    // carries the map's value at its margin.
+    // carries the map's value at its PA-score.
     let cal = Arc::new(calibration("deploy_S.npy", "deploy_GT.npy", Matching::Single));
     let s = read_scores(&corridor("cal_S.npy")).unwrap();
-    let margins = qtvpr::with_scores!(s.view(), |v| qtvpr::margins(v)).unwrap();
+    let pa_scores: Vec<f64> = qtvpr::with_scores!(s.view(), |v| {
+        v.columns()
+            .into_iter()
+            .map(|c| {
+                let mut c: Vec<f64> = c.iter().map(|x| x.to_f64()).collect();
+                c.sort_by(f64::total_cmp);
+                qtvpr::pa_score(c[c.len() - 1], c[c.len() - 2])
+            })
+            .collect()
+    });
     let map = cal.confidence_map().unwrap();
     for gate in [Gate::None, Gate::Margin] {
         let p = OnlineParams {
@@ -95,13 +116,16 @@ fn every_decision_carries_its_confidence() {
             batch.query_confidences_lower95.unwrap(),
         );
         for (j, d) in decisions.iter().enumerate() {
-            assert_eq!(d.confidence, map.confidence(margins[j]), "{gate} {j}");
-            assert_eq!(d.confidence_lower95, map.confidence_lower95(margins[j]));
+            assert_eq!(d.confidence, map.confidence(pa_scores[j]), "{gate} {j}");
+            assert_eq!(d.confidence_lower95, map.confidence_lower95(pa_scores[j]));
             assert_eq!((c[j], lower[j]), (d.confidence, d.confidence_lower95));
             assert_eq!(d.margin.is_some(), gate == Gate::Margin);
         }
-        // Margins 0.0026 .. 0.98 span the map: not every query has the same value.
-        assert!(decisions.iter().any(|d| d.confidence < 0.8) && decisions.iter().any(|d| d.confidence == 1.0));
+        // The 11 PA-scores, all distinct, give 11 distinct confidences.
+        let mut distinct: Vec<f64> = decisions.iter().map(|d| d.confidence).collect();
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup();
+        assert_eq!(distinct.len(), 11);
         #[cfg(feature = "serde")]
         {
             let json = serde_json::to_value(decisions[0]).unwrap();

@@ -61,7 +61,7 @@
 //!     `positives`, `precision` (1 when nothing is accepted), `recall` (0 without
 //!     positives), `precision_lower95` and `meets` (precision >= tau - 1e-12).
 //! - `confidence` (single matching with |DB| >= 2 only, semantics §14): `{"signals":
-//!   {"score": {"auroc"}, "margin": {"auroc"}, "confidence": {"auroc", "brier",
+//!   {"score": {"auroc"}, "margin": {"auroc"}, "pa_score": {"auroc"}, "confidence": {"auroc", "brier",
 //!   "ece", "bins"}}}` over the full segments' decisions ([`Signals`]); `bins` is the
 //!   reliability summary the ECE is computed from, the non-empty ones of 10 equal-width
 //!   bins of [0, 1], each `{"lower", "upper", "n", "mean_confidence", "hit_rate"}`

@@ -68,7 +68,7 @@ pub struct Decision {
     /// With the margin gate: `m*`, the margin the best match needs.
     pub gate: Option<f64>,
     /// semantics §14: the probability that the best match is right, the calibration's
-    /// hit rate at the column's margin, whatever the gate; NaN in multi matching, with
+    /// hit rate at the column's PA-score, whatever the gate; NaN in multi matching, with
     /// fewer than 2 database images, or when the calibration has no decision.
     pub confidence: f64,
     /// The one-sided 95% Clopper-Pearson lower bound on `confidence` (NaN where it is).
@@ -217,9 +217,9 @@ pub struct Online {
     threshold: Option<f64>,
     /// `m*` with the margin gate.
     gate: Option<f64>,
-    /// Whether a push finds its column's margin: with the gate, or for the confidence
-    /// (semantics §14: single matching, |DB| >= 2).
-    with_margin: bool,
+    /// Whether a push finds its column's margin and PA-score: with the gate, or for the
+    /// confidence (semantics §14: single matching, |DB| >= 2).
+    with_signals: bool,
     /// Buffers a push reuses (a fresh |DB|-long buffer per push would cost the kernel
     /// zeroing its pages every time): a [`Scratch`] of the type last pushed, and the
     /// standardised profile.
@@ -249,7 +249,7 @@ impl Online {
         params.validate()?;
         let gate = calibration.gate_of(params.gate, params.precision)?;
         // The confidence map is found here, once, not by the first push.
-        let with_margin = gate.is_some() || calibration.confidence_of_decisions().is_some();
+        let with_signals = gate.is_some() || calibration.confidence_of_decisions().is_some();
         let n_db = calibration.db_size();
         // The full window holds `window x |DB|` scores as f64 (and a q and w per
         // query): a window whose state exceeds what any allocation can hold would only
@@ -279,7 +279,7 @@ impl Online {
             accepted: Vec::new(),
             threshold: None,
             gate,
-            with_margin,
+            with_signals,
             scratch: None,
             profile: Vec::new(),
         })
@@ -325,7 +325,7 @@ impl Online {
         let p = &self.params;
         let r = self
             .calibration
-            .query(ranked, 0, p.k, p.precision, self.with_margin, &mut self.profile);
+            .query(ranked, 0, p.k, p.precision, self.with_signals, &mut self.profile);
         self.reserve()?;
         Ok(self.commit(ranked.column(0), column, r))
     }
@@ -447,7 +447,7 @@ impl Online {
 
     fn per_query<T: Score>(&self, ranked: &Ranked<T>) -> Vec<QueryTransfer> {
         let p = &self.params;
-        self.calibration.queries(ranked, p.k, p.precision, self.with_margin)
+        self.calibration.queries(ranked, p.k, p.precision, self.with_signals)
     }
 
     /// Make room for one more query while the window fills: doubling, up to the full
@@ -532,7 +532,7 @@ impl Online {
         self.pushed += 1;
         self.threshold = Some(threshold);
         let (confidence, confidence_lower95) = r
-            .margin
+            .pa_score
             .zip(self.calibration.confidence_of_decisions())
             .map_or((f64::NAN, f64::NAN), |(m, map)| map.of(m));
         Decision {

@@ -74,7 +74,7 @@ pub struct Transfer {
     /// With the margin gate: every deployment query's margin.
     pub query_margins: Option<Vec<f64>>,
     /// In single matching (semantics §14): every deployment query's confidence, the
-    /// calibration's hit rate at its margin (NaN for a calibration without a decision);
+    /// calibration's hit rate at its PA-score (NaN for a calibration without a decision);
     /// `None` in multi matching or with fewer than 2 database images.
     pub query_confidences: Option<Vec<f64>>,
     /// Beside [`Transfer::query_confidences`]: the one-sided 95% Clopper-Pearson lower
@@ -147,9 +147,10 @@ pub(crate) struct QueryTransfer {
     pub(crate) threshold: f64,
     /// The quantile `q_j` of that threshold.
     pub(crate) quantile: f64,
-    /// Its margin (semantics §13), when the gate or the confidence (semantics §14) asks
-    /// for it.
+    /// Its margin (semantics §13) and its PA-score (semantics §14), when the gate or the
+    /// confidence asks for them.
     pub(crate) margin: Option<f64>,
+    pub(crate) pa_score: Option<f64>,
 }
 
 /// What the transfer asks of the calibration profiles, whatever their score type.
@@ -161,6 +162,8 @@ trait Profiles: Send + Sync {
     fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]);
     /// The margin (semantics §13) of calibration query `i`.
     fn margin(&self, i: usize) -> f64;
+    /// The PA-score (semantics §14) of calibration query `i`.
+    fn pa_score(&self, i: usize) -> f64;
 }
 
 impl<T: Score> Profiles for Ranked<T> {
@@ -172,6 +175,9 @@ impl<T: Score> Profiles for Ranked<T> {
     }
     fn margin(&self, i: usize) -> f64 {
         margin::of_sorted(self.column(i))
+    }
+    fn pa_score(&self, i: usize) -> f64 {
+        confidence::pa_score_of_sorted(self.column(i))
     }
 }
 
@@ -371,8 +377,8 @@ impl Calibration {
     /// semantics §4 and §5 for every column of a block ranked by
     /// [`Calibration::rank`]: each query's `k` neighbours (their correlations computed
     /// in `f64` where the screen's bounds leave doubt) and weight, their
-    /// subset threshold at `precision`, and its quantile (and its margin when `margin`,
-    /// for the gate or the confidence). The one place a deployment
+    /// subset threshold at `precision`, and its quantile (and its margin and PA-score
+    /// when `signals`, for the gate or the confidence). The one place a deployment
     /// query's `q_j` and `w_j` are computed, for the batch transfer and for
     /// [`crate::Online`] alike; in parallel over the block.
     pub(crate) fn queries<T: Score>(
@@ -380,14 +386,14 @@ impl Calibration {
         ranked: &Ranked<T>,
         k: usize,
         precision: f64,
-        margin: bool,
+        signals: bool,
     ) -> Vec<QueryTransfer> {
         threads::install(|| {
             (0..ranked.ncols())
                 .into_par_iter()
                 .map_init(
                     || vec![0.0; self.n_db],
-                    |u, j| self.query(ranked, j, k, precision, margin, u),
+                    |u, j| self.query(ranked, j, k, precision, signals, u),
                 )
                 .collect()
         })
@@ -401,7 +407,7 @@ impl Calibration {
         j: usize,
         k: usize,
         precision: f64,
-        margin: bool,
+        signals: bool,
         u: &mut [f64],
     ) -> QueryTransfer {
         ranked.profile(j, u);
@@ -415,7 +421,8 @@ impl Calibration {
             weight,
             threshold,
             quantile,
-            margin: margin.then(|| margin::of_sorted(ranked.column(j))),
+            margin: signals.then(|| margin::of_sorted(ranked.column(j))),
+            pa_score: signals.then(|| confidence::pa_score_of_sorted(ranked.column(j))),
         }
     }
 
@@ -472,18 +479,19 @@ impl Calibration {
         })
     }
 
-    /// The confidence map of semantics §14: the isotonic fit of the calibration's
-    /// single-match decisions (soft-only best matches left out) on their margins,
-    /// found on the first request. Without a decision it has no blocks, and gives NaN.
+    /// The confidence map of semantics §14: the centred isotonic fit of the
+    /// calibration's single-match decisions (soft-only best matches left out) on their
+    /// PA-scores, found on the first request. Without a decision it has no blocks, and gives NaN.
     ///
     /// # Errors
     /// A multi-match calibration or one of fewer than 2 database images
     /// (`confidence::check`).
     pub fn confidence_map(&self) -> Result<&ConfidenceMap> {
         confidence::check(self.matching, self.n_db)?;
-        Ok(self
-            .confidence
-            .get_or_init(|| ConfidenceMap::fit(self.calibration_margins().pairs())))
+        Ok(self.confidence.get_or_init(|| {
+            let pa_scores: Vec<f64> = (0..self.len()).map(|i| self.profiles.pa_score(i)).collect();
+            ConfidenceMap::fit(confidence::pairs(&pa_scores, &self.candidates))
+        }))
     }
 
     /// The map when this calibration's decisions have a confidence (single matching,
@@ -616,7 +624,7 @@ impl Calibration {
         // Found before the parallel loops, which only read it.
         let confidence = self.confidence_of_decisions();
         let mut query_confidences = confidence.map(|_| (vec![0.0; n_val], vec![0.0; n_val]));
-        let with_margin = gate.is_some() || confidence.is_some();
+        let with_signals = gate.is_some() || confidence.is_some();
 
         let mut query_quantiles = vec![0.0; n_val];
         let mut query_thresholds = vec![0.0; n_val];
@@ -642,7 +650,7 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             source.rank(&mut ranked, start..end)?;
-            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, with_margin)) {
+            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, with_signals)) {
                 neighbours
                     .row_mut(j)
                     .iter_mut()
@@ -652,9 +660,8 @@ impl Calibration {
                 if let (Some(m), Some(margin)) = (query_margins.as_mut(), r.margin) {
                     m[j] = margin;
                 }
-                if let (Some((c, lower)), Some(map), Some(margin)) = (query_confidences.as_mut(), confidence, r.margin)
-                {
-                    (c[j], lower[j]) = map.of(margin);
+                if let (Some((c, lower)), Some(map), Some(r)) = (query_confidences.as_mut(), confidence, r.pa_score) {
+                    (c[j], lower[j]) = map.of(r);
                 }
             }
             if in_chunks {

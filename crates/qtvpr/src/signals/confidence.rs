@@ -2,41 +2,99 @@
 //! right.
 //!
 //! A SLAM back end weighs a loop closure by how likely it is to be right and wants a
-//! number in [0, 1], not a raw score. The margin of semantics §13 already separates
-//! right from wrong best matches, and is scale-free; this module maps it to the hit
-//! rate the calibration traverse shows at that margin.
+//! number in [0, 1], not a raw score. The confidence maps a query's *PA-score* to the
+//! hit rate the calibration traverse shows at that PA-score. The PA-score is Lowe's
+//! ratio on distances, `d1 / d2` with `d = sqrt(max(0, 2 - 2 s))`, the distance of a
+//! cosine similarity `s`, for the best score `s1` and the second-best `s2` (0 / 0 is 1):
+//! in [0, 1], lower is more distinctive. It was chosen over the margin of semantics §13
+//! by measurement (`benches/confidence.py`: it ranks right above wrong best matches
+//! better on the real matrices, and so does the map built on it).
 //!
 //! The *pairs* are the calibration's single-match decisions (each calibration query's
-//! best match, soft-only ones left out, as for the gate's `m*`): margin `m_j`, and
-//! `c_j = 1` when the best match is a hard positive. Sorted by margin, equal margins one
-//! point, a weighted pool-adjacent-violators fit gives the non-decreasing step function
-//! closest to the `c_j` in least squares (isotonic regression). Its *blocks* are
-//! maximal (no two adjacent blocks have the same value), each with its lowest margin,
-//! its count `n` and its successes `x`. A margin `m` falls in the block with the
-//! largest lowest margin `<= m` (the first block below them all); its confidence is
-//! that block's `x / n`, and its `confidence_lower95` the one-sided 95% Clopper-Pearson
-//! lower bound on it: the bound of semantics §8, computed by
-//! [`Counts::precision_lower95`](crate::Counts::precision_lower95) with `x` successes
-//! among `n`.
+//! best match, soft-only ones left out, as for the gate's `m*`): PA-score `r_j`, and
+//! `c_j = 1` when the best match is a hard positive. Sorted by descending PA-score
+//! (ascending distinctiveness), equal ones one point, they are pooled twice by
+//! pool-adjacent-violators: first by the least-squares rule (a block's value `x / n`,
+//! the isotonic regression), then by the Laplace rule (a block's value `(x + 1) /
+//! (n + 2)`, the posterior mean under a uniform prior, never 0 or 1 from a few
+//! pairs). Both pool while a block's value is at least the next one's, so the *blocks*
+//! are maximal and their Laplace values strictly increase. Each has its count `n`, its
+//! successes `x`, and its *centre*, the mean PA-score of its pairs.
 //!
-//! Values are compared as fractions in integers (`x1 n2` against `x2 n1`), so ties
-//! between blocks are exact, whatever the counts. The map is found once per
-//! calibration, on the first request ([`crate::Calibration::confidence_map`]), from the
-//! same margins as the gate: a calibration file need not store it.
+//! The map is centred isotonic regression (Oron and Flournoy, 2017): linear in the
+//! PA-score between adjacent centres, through each block's Laplace value at its centre.
+//! Beyond the end centres it goes on linearly to the ends of the PA-score's range: to
+//! the first block's one-sided 95% Clopper-Pearson lower bound at PA-score 1, and to
+//! the last block's upper bound at PA-score 0 (no further than the calibration's own
+//! evidence allows). So the map strictly decreases in the PA-score over its whole
+//! range, and the confidence ranks decisions as the PA-score does: a flat step or tail
+//! would tie them. `confidence_lower95` is the lower bound of the less confident of
+//! the two blocks a PA-score lies between (the first block's beyond it), the bound of
+//! semantics §8, computed by [`Counts::precision_lower95`](crate::Counts::precision_lower95).
+//!
+//! Values are compared as fractions in integers, so ties between blocks are exact,
+//! whatever the counts. The map is found once per calibration, on the first request
+//! ([`crate::Calibration::confidence_map`]), from the calibration's own scores: a
+//! calibration file need not store it.
 //!
 //! Multi matching accepts every entry above a threshold, not a best match, so it has no
 //! confidence ([`check`] says so); a decision record then carries NaN.
 
 use crate::error::{Error, Result};
-use crate::rules::decisions::{Counts, Matching};
+use crate::input::Score;
+use crate::rules::decisions::{Candidates, Counts, Matching};
 
-/// One block of the fitted step function: the calibration pairs of margins from
-/// `margin` up to (not including) the next block's.
+/// The PA-score of scores `s1 >= s2`, the best and the second-best of a column:
+/// `d1 / d2` with `d = sqrt(max(0, 2 - 2 s))` (a cosine similarity's distance), 1 when
+/// both distances are 0. In [0, 1]; lower is more distinctive.
+pub fn pa_score(s1: f64, s2: f64) -> f64 {
+    let distance = |s: f64| (2.0 - 2.0 * s).max(0.0).sqrt();
+    let (d1, d2) = (distance(s1), distance(s2));
+    if d2 > 0.0 { d1 / d2 } else { 1.0 }
+}
+
+/// The PA-score of a column sorted ascending, of at least 2 scores.
+pub(crate) fn pa_score_of_sorted<T: Score>(sorted: &[T]) -> f64 {
+    let n = sorted.len();
+    debug_assert!(n >= 2, "a PA-score needs 2 scores");
+    pa_score(sorted[n - 1].to_f64(), sorted[n - 2].to_f64())
+}
+
+/// The PA-score of every column of `s` (|DB| >= 2 x |Q|, finite), without sorting: its
+/// two largest scores (equal when the largest occurs twice).
+pub(crate) fn pa_scores_of_columns<T: Score>(s: ndarray::ArrayView2<'_, T>) -> Vec<f64> {
+    s.columns()
+        .into_iter()
+        .map(|column| {
+            let (mut s1, mut s2) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for v in column.iter().map(|v| v.to_f64()) {
+                if v > s1 {
+                    (s1, s2) = (v, s1);
+                } else if v > s2 {
+                    s2 = v;
+                }
+            }
+            pa_score(s1, s2)
+        })
+        .collect()
+}
+
+/// Semantics §14's pairs: `(PA-score, correct)` of each calibration query with a
+/// single-match decision (its best match not soft-only), from the PA-score of every
+/// calibration query.
+pub(crate) fn pairs<'a>(pa_scores: &'a [f64], candidates: &'a Candidates) -> impl Iterator<Item = (f64, bool)> + 'a {
+    pa_scores
+        .iter()
+        .enumerate()
+        .filter_map(|(j, &r)| candidates.column(j).1.first().map(|&correct| (r, correct)))
+}
+
+/// One block of the fit: calibration pairs of adjacent PA-scores.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Block {
-    /// The lowest margin of the block's pairs.
-    pub margin: f64,
+    /// Its centre: the mean PA-score of its pairs.
+    pub pa_score: f64,
     /// Its number of pairs.
     pub n: usize,
     /// Its number of correct pairs (`c = 1`).
@@ -44,12 +102,13 @@ pub struct Block {
 }
 
 impl Block {
-    /// `x / n`: the confidence of a margin in this block.
+    /// `(x + 1) / (n + 2)`: the map's value at the block's centre.
     pub fn confidence(&self) -> f64 {
-        self.x as f64 / self.n as f64
+        (self.x + 1) as f64 / (self.n + 2) as f64
     }
 
-    /// The one-sided 95% Clopper-Pearson lower bound on `x / n` (0 when `x` = 0).
+    /// The one-sided 95% Clopper-Pearson lower bound on the hit rate `x / n` (0 when
+    /// `x` = 0).
     pub fn confidence_lower95(&self) -> f64 {
         Counts {
             tp: self.x,
@@ -60,91 +119,135 @@ impl Block {
         .expect("a block holds at least one pair")
     }
 
-    /// Whether this block's value is at least `other`'s: `x / n >= x' / n'` in integers.
-    fn at_least(&self, other: &Block) -> bool {
-        self.x as u128 * other.n as u128 >= other.x as u128 * self.n as u128
+    /// The one-sided 95% Clopper-Pearson upper bound on `x / n`: 1 less the lower bound
+    /// on the share of wrong pairs (1 when `x` = `n`).
+    pub fn confidence_upper95(&self) -> f64 {
+        let wrong = Block {
+            x: self.n - self.x,
+            ..*self
+        };
+        1.0 - wrong.confidence_lower95()
     }
 }
 
-/// The confidence map of a calibration: the maximal blocks of the isotonic fit of its
-/// pairs, by ascending margin, with their values and lower bounds.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ConfidenceMap {
-    blocks: Vec<Block>,
-    /// Per block: `(confidence, confidence_lower95)`, found once.
-    values: Vec<(f64, f64)>,
+/// A block while pooling: its pairs' PA-scores summed, for the centre.
+#[derive(Debug, Clone, Copy)]
+struct Pool {
+    sum: f64,
+    n: usize,
+    x: usize,
 }
 
-impl ConfidenceMap {
-    /// The map of calibration pairs `(margin, correct)`, in any order. Margins must not
-    /// be NaN (margins of finite scores never are).
-    pub fn fit(pairs: impl IntoIterator<Item = (f64, bool)>) -> Self {
-        let mut pairs: Vec<(f64, bool)> = pairs.into_iter().collect();
-        debug_assert!(pairs.iter().all(|p| !p.0.is_nan()), "a NaN margin");
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        // Equal margins are one point.
-        let mut points: Vec<Block> = Vec::new();
-        for (margin, correct) in pairs {
-            match points.last_mut() {
-                Some(last) if last.margin == margin => {
-                    last.n += 1;
-                    last.x += usize::from(correct);
-                }
-                _ => points.push(Block {
-                    margin,
-                    n: 1,
-                    x: usize::from(correct),
-                }),
-            }
-        }
-        let mut blocks: Vec<Block> = Vec::with_capacity(points.len());
+impl Pool {
+    /// Pool-adjacent-violators over `points`, by ascending distinctiveness: pool while
+    /// the block before is at least the last one, `(x + prior) / (n + 2 prior)` compared
+    /// in integers (a violator, or an equal value: blocks are maximal).
+    fn adjacent_violators(points: Vec<Pool>, prior: usize) -> Vec<Pool> {
+        let at_least = |a: &Pool, b: &Pool| {
+            (a.x + prior) as u128 * (b.n + 2 * prior) as u128 >= (b.x + prior) as u128 * (a.n + 2 * prior) as u128
+        };
+        let mut blocks: Vec<Pool> = Vec::with_capacity(points.len());
         for point in points {
             blocks.push(point);
-            // Pool while the block before is at least the last one: a violator
-            // (greater) or an equal value (merged, so that blocks are maximal). The
-            // pooled block keeps the lower margin, the one before's.
             while let [.., before, last] = blocks[..] {
-                if !before.at_least(&last) {
+                if !at_least(&before, &last) {
                     break;
                 }
                 blocks.pop();
                 let before = blocks.last_mut().expect("two blocks");
-                before.n += last.n;
-                before.x += last.x;
+                (before.sum, before.n, before.x) = (before.sum + last.sum, before.n + last.n, before.x + last.x);
             }
         }
-        let values = blocks
-            .iter()
-            .map(|b| (b.confidence(), b.confidence_lower95()))
+        blocks
+    }
+}
+
+/// The confidence map of a calibration: the blocks of semantics §14, by ascending
+/// confidence (descending PA-score), and the knots of its piecewise-linear map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfidenceMap {
+    blocks: Vec<Block>,
+    /// `(PA-score, confidence, confidence_lower95)` at each knot, by descending PA-score:
+    /// the end of the range (PA-score 1) unless the first centre is there, each centre,
+    /// and PA-score 0 unless the last centre is there.
+    knots: Vec<(f64, f64, f64)>,
+}
+
+impl ConfidenceMap {
+    /// The map of calibration pairs `(PA-score, correct)`, in any order. PA-scores must
+    /// lie in [0, 1] (those of finite scores do).
+    pub fn fit(pairs: impl IntoIterator<Item = (f64, bool)>) -> Self {
+        let mut pairs: Vec<(f64, bool)> = pairs.into_iter().collect();
+        debug_assert!(
+            pairs.iter().all(|p| (0.0..=1.0).contains(&p.0)),
+            "a PA-score outside [0, 1]"
+        );
+        pairs.sort_by(|a, b| b.0.total_cmp(&a.0));
+        // Equal PA-scores are one point.
+        let mut points: Vec<(f64, Pool)> = Vec::new();
+        for (r, correct) in pairs {
+            let c = usize::from(correct);
+            match points.last_mut() {
+                Some((last, p)) if *last == r => (p.sum, p.n, p.x) = (p.sum + r, p.n + 1, p.x + c),
+                _ => points.push((r, Pool { sum: r, n: 1, x: c })),
+            }
+        }
+        let least_squares = Pool::adjacent_violators(points.into_iter().map(|p| p.1).collect(), 0);
+        let blocks: Vec<Block> = Pool::adjacent_violators(least_squares, 1)
+            .into_iter()
+            .map(|p| Block {
+                pa_score: p.sum / p.n as f64,
+                n: p.n,
+                x: p.x,
+            })
             .collect();
-        Self { blocks, values }
+        let mut knots: Vec<(f64, f64, f64)> = blocks
+            .iter()
+            .map(|b| (b.pa_score, b.confidence(), b.confidence_lower95()))
+            .collect();
+        if let (Some(first), Some(last)) = (blocks.first(), blocks.last()) {
+            if first.pa_score < 1.0 {
+                let lower = first.confidence_lower95();
+                knots.insert(0, (1.0, lower, lower));
+            }
+            if last.pa_score > 0.0 {
+                knots.push((0.0, last.confidence_upper95(), last.confidence_lower95()));
+            }
+        }
+        Self { blocks, knots }
     }
 
-    /// The blocks, by ascending margin, values strictly increasing (empty: no pairs).
+    /// The blocks, by ascending confidence (descending PA-score; empty: no pairs).
     pub fn blocks(&self) -> &[Block] {
         &self.blocks
     }
 
-    /// `(confidence, confidence_lower95)` of margin `m`: those of the block with the
-    /// largest lowest margin `<= m` (the first block when `m` is below them all); both
-    /// NaN without pairs.
-    pub fn of(&self, m: f64) -> (f64, f64) {
-        let above = self.blocks.partition_point(|b| b.margin <= m);
-        self.values
-            .get(above.saturating_sub(1))
-            .copied()
-            .unwrap_or((f64::NAN, f64::NAN))
+    /// `(confidence, confidence_lower95)` of PA-score `r`: the map between the two knots
+    /// `r` lies between, linear in `r`, and the lower bound of the first of them (by
+    /// descending PA-score); both NaN without pairs. Outside [0, 1], the end knot's.
+    pub fn of(&self, r: f64) -> (f64, f64) {
+        // The knots at or above r, by descending PA-score: the first `above`.
+        let above = self.knots.partition_point(|k| k.0 >= r);
+        match (above.checked_sub(1).map(|i| self.knots[i]), self.knots.get(above)) {
+            (Some(a), Some(b)) => {
+                let t = (a.0 - r) / (a.0 - b.0);
+                (a.1 + t * (b.1 - a.1), a.2)
+            }
+            (Some(a), None) => (a.1, a.2),
+            (None, Some(b)) => (b.1, b.2),
+            (None, None) => (f64::NAN, f64::NAN),
+        }
     }
 
-    /// The confidence of margin `m` (NaN without pairs).
-    pub fn confidence(&self, m: f64) -> f64 {
-        self.of(m).0
+    /// The confidence of PA-score `r` (NaN without pairs).
+    pub fn confidence(&self, r: f64) -> f64 {
+        self.of(r).0
     }
 
-    /// The one-sided 95% Clopper-Pearson lower bound on the confidence of margin `m`
+    /// The one-sided 95% Clopper-Pearson lower bound on the confidence of PA-score `r`
     /// (NaN without pairs).
-    pub fn confidence_lower95(&self, m: f64) -> f64 {
-        self.of(m).1
+    pub fn confidence_lower95(&self, r: f64) -> f64 {
+        self.of(r).1
     }
 }
 
@@ -212,14 +315,17 @@ pub fn ece(bins: &[ReliabilityBin]) -> f64 {
 /// The evaluation signals of semantics §14 over the protocol's deployment decisions:
 /// how well each signal ranks right above wrong best matches, and how well the
 /// confidence is calibrated. Serialised as
-/// `{"signals": {"score": {"auroc"}, "margin": {"auroc"}, "confidence": {"auroc",
-/// "brier", "ece", "bins"}}}`; a figure without the decisions it needs is `null`.
+/// `{"signals": {"score": {"auroc"}, "margin": {"auroc"}, "pa_score": {"auroc"},
+/// "confidence": {"auroc", "brier", "ece", "bins"}}}`; a figure without the decisions
+/// it needs is `null`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Signals {
     /// AUROC of the best score `s1`.
     pub score_auroc: Option<f64>,
     /// AUROC of the margin.
     pub margin_auroc: Option<f64>,
+    /// AUROC of the PA-score, lower ranked higher (that of its negation).
+    pub pa_score_auroc: Option<f64>,
     /// AUROC of the confidence.
     pub confidence_auroc: Option<f64>,
     /// The confidence's Brier score: the mean of `(confidence - c)^2`.
@@ -232,20 +338,56 @@ pub struct Signals {
     pub bins: Option<Vec<ReliabilityBin>>,
 }
 
+/// One deployment decision, as [`Signals::of`] reads it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Signal {
+    /// The best score `s1`.
+    pub score: f64,
+    /// The margin (semantics §13).
+    pub margin: f64,
+    /// The PA-score.
+    pub pa_score: f64,
+    /// Whether the best match is right.
+    pub correct: bool,
+}
+
 impl Signals {
-    /// The signals of decisions `(score, margin, correct)` under `map`. AUROCs are
-    /// `None` without a right or without a wrong decision; Brier, ECE and the bins are
-    /// `None` without a decision or without a confidence (a map without blocks).
-    pub fn of(decisions: &[(f64, f64, bool)], map: &ConfidenceMap) -> Self {
-        let c: Vec<bool> = decisions.iter().map(|d| d.2).collect();
-        let p: Vec<f64> = decisions.iter().map(|d| map.confidence(d.1)).collect();
-        let scores: Vec<f64> = decisions.iter().map(|d| d.0).collect();
-        let margins: Vec<f64> = decisions.iter().map(|d| d.1).collect();
+    /// The figures' names, in the order of [`Signals::figures`]: the CSV columns and the
+    /// keys of the table.
+    pub const FIGURES: [&'static str; 6] = [
+        "auroc_score",
+        "auroc_margin",
+        "auroc_pa_score",
+        "auroc_confidence",
+        "brier",
+        "ece",
+    ];
+
+    /// The figures named by [`Signals::FIGURES`].
+    pub fn figures(&self) -> [Option<f64>; 6] {
+        [
+            self.score_auroc,
+            self.margin_auroc,
+            self.pa_score_auroc,
+            self.confidence_auroc,
+            self.brier,
+            self.ece,
+        ]
+    }
+
+    /// The signals of `decisions` under `map`. AUROCs are `None` without a right or
+    /// without a wrong decision; Brier, ECE and the bins are `None` without a decision
+    /// or without a confidence (a map without blocks).
+    pub fn of(decisions: &[Signal], map: &ConfidenceMap) -> Self {
+        let c: Vec<bool> = decisions.iter().map(|d| d.correct).collect();
+        let p: Vec<f64> = decisions.iter().map(|d| map.confidence(d.pa_score)).collect();
+        let of = |f: fn(&Signal) -> f64| auroc(&decisions.iter().map(f).collect::<Vec<f64>>(), &c);
         let calibrated = !p.is_empty() && !map.blocks().is_empty();
         let bins = calibrated.then(|| reliability(&p, &c));
         Self {
-            score_auroc: auroc(&scores, &c),
-            margin_auroc: auroc(&margins, &c),
+            score_auroc: of(|d| d.score),
+            margin_auroc: of(|d| d.margin),
+            pa_score_auroc: of(|d| -d.pa_score),
             confidence_auroc: auroc(&p, &c).filter(|_| calibrated),
             brier: calibrated.then(|| {
                 p.iter()
@@ -286,9 +428,10 @@ impl serde::Serialize for Signals {
         struct All<'a>(&'a Signals);
         impl serde::Serialize for All<'_> {
             fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
-                let mut m = serializer.serialize_map(Some(3))?;
+                let mut m = serializer.serialize_map(Some(4))?;
                 m.serialize_entry("score", &Auroc(self.0.score_auroc))?;
                 m.serialize_entry("margin", &Auroc(self.0.margin_auroc))?;
+                m.serialize_entry("pa_score", &Auroc(self.0.pa_score_auroc))?;
                 m.serialize_entry("confidence", &Calibrated(self.0))?;
                 m.end()
             }
@@ -356,104 +499,153 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// The blocks of `pairs`, centres rounded to 1e-12 (a sum of PA-scores over a count).
     fn blocks(pairs: &[(f64, bool)]) -> Vec<(f64, usize, usize)> {
         ConfidenceMap::fit(pairs.iter().copied())
             .blocks()
             .iter()
-            .map(|b| (b.margin, b.n, b.x))
+            .map(|b| (round(b.pa_score), b.n, b.x))
             .collect()
+    }
+
+    fn round(x: f64) -> f64 {
+        (x * 1e12).round() / 1e12
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() < 1e-12
+    }
+
+    #[test]
+    fn pa_score_by_hand() {
+        // s = 0.875: d = sqrt(2 - 1.75) = 0.5; s = 0.5: d = 1. So 0.5 / 1.
+        assert_eq!(pa_score(0.875, 0.5), 0.5);
+        // The largest twice: d1 = d2, 1. Both at or above 1 (d = 0): 0 / 0 is 1.
+        assert_eq!(pa_score(0.3, 0.3), 1.0);
+        assert_eq!(pa_score(1.5, 1.2), 1.0);
+        // Only the best at or above 1: d1 = 0, the most distinctive.
+        assert_eq!(pa_score(1.0, 0.5), 0.0);
+        // Below -1 the distance exceeds 2, and the ratio stays in [0, 1]:
+        // sqrt(2 + 2) / sqrt(2 + 6) = 2 / sqrt(8).
+        assert!(close(pa_score(-1.0, -3.0), 2.0 / 8f64.sqrt()));
+        // Without sorting, the same two scores as a sorted column's last two.
+        let s = ndarray::array![[0.2f32, 0.9, 0.4], [0.875, 0.9, -3.0], [0.5, 0.1, -1.0]];
+        let want: Vec<f64> = s
+            .columns()
+            .into_iter()
+            .map(|c| {
+                let mut v = c.to_vec();
+                v.sort_by(f32::total_cmp);
+                pa_score_of_sorted(&v)
+            })
+            .collect();
+        assert_eq!(pa_scores_of_columns(s.view()), want);
+        assert_eq!(want[0], 0.5);
+        assert_eq!(want[1], 1.0);
     }
 
     #[test]
     fn no_pairs_is_nan() {
         let map = ConfidenceMap::fit([]);
         assert!(map.blocks().is_empty());
-        assert!(map.confidence(1.0).is_nan() && map.confidence_lower95(1.0).is_nan());
+        assert!(map.confidence(0.5).is_nan() && map.confidence_lower95(0.5).is_nan());
     }
 
     #[test]
-    fn one_pair() {
-        // One correct pair: one block, x/n = 1/1, and the bound is 0.05^(1/1) = 0.05.
-        let map = ConfidenceMap::fit([(0.7, true)]);
-        assert_eq!(blocks(&[(0.7, true)]), [(0.7, 1, 1)]);
-        // Below, at and above the only block: the same block.
-        for m in [-1.0, 0.7, 5.0] {
-            assert_eq!(map.confidence(m), 1.0);
-            assert!((map.confidence_lower95(m) - 0.05).abs() < 1e-12);
+    fn one_pair_goes_on_to_its_bounds() {
+        // One correct pair at PA-score 0.5: one block, value (1 + 1) / (1 + 2) = 2/3 at
+        // its centre; its 95% bounds on 1 of 1 are 0.05^(1/1) = 0.05 and 1.
+        let map = ConfidenceMap::fit([(0.5, true)]);
+        assert_eq!(blocks(&[(0.5, true)]), [(0.5, 1, 1)]);
+        assert_eq!(map.confidence(0.5), 2.0 / 3.0);
+        // Linear to 0.05 at PA-score 1 and to 1 at 0: halfway on either side.
+        assert!(close(map.confidence(0.75), (0.05 + 2.0 / 3.0) / 2.0));
+        assert!(close(map.confidence(0.25), (2.0 / 3.0 + 1.0) / 2.0));
+        assert!(close(map.confidence(1.0), 0.05) && map.confidence(0.0) == 1.0);
+        // The lower bound is the block's, everywhere.
+        for r in [0.0, 0.3, 0.5, 0.9, 1.0] {
+            assert!(close(map.confidence_lower95(r), 0.05));
         }
-        // One wrong pair: 0/1, bound 0.
-        let map = ConfidenceMap::fit([(0.7, false)]);
-        assert_eq!(map.of(0.0), (0.0, 0.0));
-    }
-
-    #[test]
-    fn all_correct_and_all_wrong_are_one_block() {
-        // Four correct pairs in any order: all values 1, merged into one block with the
-        // lowest margin 0.5; n = 4, bound 0.05^(1/4) = 0.472871.
-        let all = [(2.0, true), (0.5, true), (1.0, true), (3.0, true)];
-        assert_eq!(blocks(&all), [(0.5, 4, 4)]);
-        let map = ConfidenceMap::fit(all);
-        assert!((map.confidence_lower95(1.5) - 0.472_870_804_6).abs() < 1e-9);
-        let none = [(2.0, false), (0.5, false), (1.0, false)];
-        assert_eq!(blocks(&none), [(0.5, 3, 0)]);
-        assert_eq!(ConfidenceMap::fit(none).of(9.0), (0.0, 0.0));
-    }
-
-    #[test]
-    fn ties_are_one_point() {
-        // Margins 1, 1, 2, 2, 2 with c = 0, 1, 1, 0, 1: points (1: 1/2), (2: 2/3).
-        // 1/2 < 2/3, so no pooling: two blocks.
-        let pairs = [(1.0, false), (2.0, true), (1.0, true), (2.0, false), (2.0, true)];
-        assert_eq!(blocks(&pairs), [(1.0, 2, 1), (2.0, 3, 2)]);
-        // Equal values at distinct margins are merged: (1: 1/2), (2: 1/2), (3: 1/1) gives
-        // blocks (1: 2/4), (3: 1/1).
-        let pairs = [(1.0, true), (1.0, false), (2.0, false), (2.0, true), (3.0, true)];
-        assert_eq!(blocks(&pairs), [(1.0, 4, 2), (3.0, 1, 1)]);
-        // A tie is never split: points (1: 1/1) and (2: 0/2) violate and pool to 1/3.
-        let pairs = [(1.0, true), (2.0, false), (2.0, false)];
-        assert_eq!(blocks(&pairs), [(1.0, 3, 1)]);
-        // Nor by pooling before it is whole: (1: 1/1) and (2: 1/2) pool to 2/3, though
-        // the first pair at 2 alone (0/1) would pool with 1 and the second (1/1) not.
-        let pairs = [(1.0, true), (2.0, false), (2.0, true)];
-        assert_eq!(blocks(&pairs), [(1.0, 3, 2)]);
-    }
-
-    #[test]
-    fn a_violator_chain() {
-        // Margins 1..6 with c = 1, 0, 1, 0, 0, 1.
-        // 1: [1/1]; 2: 0 < 1 pools: [1/2 @1]; 3: 1 > 1/2: [1/2 @1, 1/1 @3];
-        // 4: 0 pools with 3: 1/2 @3, equal to the block before: pooled, [2/4 @1];
-        // 5: 0 < 1/2 pools: [2/5 @1]; 6: 1 > 2/5: [2/5 @1, 1/1 @6].
-        let c = [true, false, true, false, false, true];
-        let pairs: Vec<(f64, bool)> = c.iter().enumerate().map(|(i, &c)| ((i + 1) as f64, c)).collect();
-        assert_eq!(blocks(&pairs), [(1.0, 5, 2), (6.0, 1, 1)]);
-        let map = ConfidenceMap::fit(pairs);
-        assert_eq!(map.confidence(5.9), 0.4);
-        assert_eq!(map.confidence(6.0), 1.0);
-        assert_eq!(map.confidence(0.0), 0.4); // below every block: the first
-        // 1 of 1: 0.05^(1/1).
-        assert!((map.confidence_lower95(7.0) - 0.05).abs() < 1e-12);
-        // A descending run pools into one block: c = 1, 1, 0, 0 gives 2/4.
-        let down = [(1.0, true), (2.0, true), (3.0, false), (4.0, false)];
-        assert_eq!(blocks(&down), [(1.0, 4, 2)]);
-    }
-
-    #[test]
-    fn lower_bound_is_clopper_pearson() {
-        // 1 of 2: the 0.05 quantile x of Beta(1, 2), whose cdf is 1 - (1 - x)^2; so
-        // x = 1 - sqrt(0.95) = 1 - 0.9746794 = 0.0253206.
-        let map = ConfidenceMap::fit([(1.0, true), (2.0, false), (3.0, true), (3.0, false)]);
-        // Points (1: 1/1), (2: 0/1), (3: 1/2): 1 and 0 pool to 1/2 @1, equal to 1/2 @3.
+        // One wrong pair: 1/3 at its centre, from 0 (its lower bound) to 0.95, 1 less
+        // the lower bound 0.05 on 1 wrong of 1.
+        let map = ConfidenceMap::fit([(0.5, false)]);
+        assert_eq!(map.of(0.5), (1.0 / 3.0, 0.0));
+        assert_eq!(map.of(1.0), (0.0, 0.0));
+        assert!(close(map.confidence(0.0), 0.95));
+        // A centre at an end of the range has no knot beyond it.
+        let map = ConfidenceMap::fit([(1.0, true), (0.0, true), (0.0, false)]);
+        // Points (1: 1/1) and (0: 1/2) violate: one block of 2 of 3, centre 1/3.
         assert_eq!(
             map.blocks(),
             [Block {
-                margin: 1.0,
-                n: 4,
+                pa_score: 1.0 / 3.0,
+                n: 3,
                 x: 2
             }]
         );
-        let one_of_two = ConfidenceMap::fit([(1.0, true), (1.0, false)]);
-        assert!((one_of_two.confidence_lower95(1.0) - (1.0 - 0.95f64.sqrt())).abs() < 1e-12);
+    }
+
+    #[test]
+    fn two_passes_of_pooling() {
+        // Descending PA-score: 0.9 (0 of 1), then 0.5 (1 of 10). By x / n, 0 < 0.1: two
+        // blocks. By (x + 1) / (n + 2), 1/3 >= 2/12: pooled into one block of 1 of 11,
+        // centre (0.9 + 10 x 0.5) / 11.
+        let mut pairs = vec![(0.9, false), (0.5, true)];
+        pairs.extend([(0.5, false); 9]);
+        assert_eq!(blocks(&pairs), [(round(5.9 / 11.0), 11, 1)]);
+        // Equal Laplace values are merged too (blocks are maximal): 0 of 1 and 1 of 4
+        // are 1/3 and 2/6.
+        let mut pairs = vec![(0.9, false), (0.4, true)];
+        pairs.extend([(0.4, false); 3]);
+        assert_eq!(blocks(&pairs), [(2.5 / 5.0, 5, 1)]);
+        // Equal PA-scores are one point, never split: (0.8: 1/1) and (0.2: 0/2) violate
+        // and pool to 1 of 3.
+        assert_eq!(blocks(&[(0.8, true), (0.2, false), (0.2, false)]), [(0.4, 3, 1)]);
+        // Increasing values stay apart: (0.8: 0 of 2), (0.6: 1 of 2), (0.1: 3 of 3) are
+        // 1/4, 2/4 and 4/5 by Laplace.
+        let pairs = [
+            (0.8, false),
+            (0.8, false),
+            (0.6, true),
+            (0.6, false),
+            (0.1, true),
+            (0.1, true),
+            (0.1, true),
+        ];
+        assert_eq!(blocks(&pairs), [(0.8, 2, 0), (0.6, 2, 1), (0.1, 3, 3)]);
+    }
+
+    #[test]
+    fn linear_between_centres_and_the_lower_bound_of_the_less_confident() {
+        // The blocks of the last case: knots (1: lower 0), (0.8: 1/4), (0.6: 1/2),
+        // (0.1: 4/5), (0: upper of 3 of 3 = 1).
+        let pairs = [
+            (0.8, false),
+            (0.8, false),
+            (0.6, true),
+            (0.6, false),
+            (0.1, true),
+            (0.1, true),
+            (0.1, true),
+        ];
+        let map = ConfidenceMap::fit(pairs);
+        // 1 of 2: the 0.05 quantile of Beta(1, 2), 1 - sqrt(0.95); 3 of 3: 0.05^(1/3).
+        let (one_of_two, three_of_three) = (1.0 - 0.95f64.sqrt(), 0.05f64.powf(1.0 / 3.0));
+        assert_eq!(map.of(1.0), (0.0, 0.0));
+        assert!(close(map.confidence(0.9), 0.125));
+        assert_eq!(map.of(0.8), (0.25, 0.0));
+        // 0.7: halfway from 1/4 to 1/2, with the lower bound of the 0.8 block.
+        assert!(close(map.confidence(0.7), 0.375) && map.confidence_lower95(0.7) == 0.0);
+        // 0.35: halfway from 1/2 to 4/5, the bound of the 0.6 block.
+        assert!(close(map.confidence(0.35), 0.65));
+        assert!(close(map.confidence_lower95(0.35), one_of_two));
+        // 0.05: halfway from 4/5 to 1, the bound of the last block.
+        assert!(close(map.confidence(0.05), 0.9));
+        assert!(close(map.confidence_lower95(0.05), three_of_three));
+        assert_eq!(map.confidence(0.0), 1.0);
+        // Outside [0, 1]: the end knot's.
+        assert_eq!(map.of(1.5), map.of(1.0));
+        assert_eq!(map.of(-0.5), map.of(0.0));
     }
 
     #[test]
@@ -473,44 +665,45 @@ mod tests {
 
     #[test]
     fn signals_by_hand() {
-        // One block below margin 2 (0 of 2) and one from 2 (2 of 2): confidences 0 or 1.
-        let map = ConfidenceMap::fit([(1.0, false), (1.5, false), (2.0, true), (3.0, true)]);
-        // (score, margin, correct): scores 0.9 (right), 0.8 (wrong), 0.8 (right), 0.5
-        // (wrong); margins 3, 1, 2.5, 0.5.
-        let d = [(0.9, 3.0, true), (0.8, 1.0, false), (0.8, 2.5, true), (0.5, 0.5, false)];
+        // Blocks 0 of 2 (PA-score 0.8) and 2 of 2 (0.2): knots (1: 0), (0.8: 1/4),
+        // (0.2: 3/4), (0: 1).
+        let map = ConfidenceMap::fit([(0.8, false), (0.8, false), (0.2, true), (0.2, true)]);
+        // (score, margin, PA-score, correct): scores 0.9 (right), 0.8 (wrong), 0.8
+        // (right), 0.5 (wrong); margins 3, 1, 2.5, 0.5; PA-scores 0.2, 0.5, 0.8, 1.
+        let d: Vec<Signal> = [
+            (0.9, 3.0, 0.2, true),
+            (0.8, 1.0, 0.5, false),
+            (0.8, 2.5, 0.8, true),
+            (0.5, 0.5, 1.0, false),
+        ]
+        .map(|(score, margin, pa_score, correct)| Signal {
+            score,
+            margin,
+            pa_score,
+            correct,
+        })
+        .to_vec();
         let s = Signals::of(&d, &map);
         // Score: right {0.9, 0.8} against wrong {0.8, 0.5}: pairs 0.9>0.8, 0.9>0.5,
-        // 0.8=0.8 (a half), 0.8>0.5: 3.5 / 4.
-        assert_eq!(s.score_auroc, Some(0.875));
-        // Margin: right {3, 2.5} above wrong {1, 0.5}: 1. Confidence: 1, 1 against 0, 0.
-        assert_eq!((s.margin_auroc, s.confidence_auroc), (Some(1.0), Some(1.0)));
-        assert_eq!((s.brier, s.ece), (Some(0.0), Some(0.0)));
-        // Its bins: the two wrong decisions at confidence 0 (bin 0), the two right ones
-        // at 1 (the last bin).
-        let bin = |lower, upper, n, mean_confidence, hit_rate| ReliabilityBin {
-            lower,
-            upper,
-            n,
-            mean_confidence,
-            hit_rate,
-        };
-        assert_eq!(
-            s.bins,
-            Some(vec![bin(0.0, 0.1, 2, 0.0, 0.0), bin(0.9, 1.0, 2, 1.0, 1.0)])
-        );
-        // A map of one block 1 of 2 (right at 1, wrong at 2: a violator, pooled): every
-        // confidence 0.5; AUROC 0.5 (all tied), Brier 0.25, ECE: one bin (5),
-        // |0.5 - 2/4| = 0.
-        let half = ConfidenceMap::fit([(1.0, true), (2.0, false)]);
-        let s = Signals::of(&d, &half);
-        assert_eq!((s.confidence_auroc, s.brier, s.ece), (Some(0.5), Some(0.25), Some(0.0)));
+        // 0.8=0.8 (a half), 0.8>0.5: 3.5 / 4. Margin: right above wrong, 1.
+        assert_eq!((s.score_auroc, s.margin_auroc), (Some(0.875), Some(1.0)));
+        // PA-score, lower ranked higher: right {0.2, 0.8} against wrong {0.5, 1}: 0.2
+        // beats both, 0.8 beats 1 only: 3 / 4. The confidence ranks as it does.
+        assert_eq!((s.pa_score_auroc, s.confidence_auroc), (Some(0.75), Some(0.75)));
+        // Confidences 3/4, 1/2, 1/4, 0: Brier (1/16 + 1/4 + 9/16 + 0) / 4 = 7/32.
+        assert_eq!(s.brier, Some(7.0 / 32.0));
+        // Bins 7 (right), 5 (wrong), 2 (right), 0 (wrong): ECE (1/4 + 1/2 + 3/4 + 0) / 4.
+        assert!(close(s.ece.unwrap(), 0.375));
+        assert_eq!(s.bins.as_ref().map(Vec::len), Some(4));
+        assert_eq!(Signals::FIGURES.len(), s.figures().len());
+        assert_eq!(s.figures()[2], Some(0.75));
         // Bins: p = 0.25 (bin 2, wrong) and 1.0 (bin 9, the last, right), 0.95 (bin 9,
         // wrong): ECE = 1/3 |0.25 - 0| + 2/3 |0.975 - 1/2| = 0.083333 + 0.316667 = 0.4.
         let bins = reliability(&[0.25, 1.0, 0.95], &[false, true, false]);
         assert!((ece(&bins) - 0.4).abs() < 1e-12);
         // Without a wrong decision, no AUROC; without blocks, no calibration figure.
-        let all_right = Signals::of(&[(0.9, 3.0, true)], &map);
-        assert_eq!((all_right.score_auroc, all_right.brier), (None, Some(0.0)));
+        let all_right = Signals::of(&d[..1], &map);
+        assert_eq!((all_right.score_auroc, all_right.brier), (None, Some(1.0 / 16.0)));
         let none = Signals::of(&d, &ConfidenceMap::fit([]));
         assert_eq!(
             (none.score_auroc, none.confidence_auroc, none.brier, none.ece, none.bins),
@@ -554,28 +747,33 @@ mod tests {
 
     proptest! {
         #[test]
-        fn monotone_bounded_and_lower_below(
-            pairs in prop::collection::vec((0u8..12, any::<bool>()), 1..40),
-            probes in prop::collection::vec(-1.0f64..13.0, 1..20),
+        fn strictly_decreasing_bounded_and_lower_below(
+            pairs in prop::collection::vec((0u8..=10, any::<bool>()), 1..40),
+            probes in prop::collection::vec(0u16..=1000, 2..20),
         ) {
-            // Margins on a coarse grid, so that ties are common.
-            let pairs: Vec<(f64, bool)> = pairs.iter().map(|&(m, c)| (m as f64 / 2.0, c)).collect();
+            // PA-scores on a coarse grid, so that ties are common.
+            let pairs: Vec<(f64, bool)> = pairs.iter().map(|&(r, c)| (r as f64 / 10.0, c)).collect();
             let map = ConfidenceMap::fit(pairs.iter().copied());
             let b = map.blocks();
-            // Maximal blocks, strictly increasing values, that account for every pair.
-            prop_assert!(b.windows(2).all(|w| w[0].margin < w[1].margin && !w[0].at_least(&w[1])));
+            // Maximal blocks: centres descending, Laplace values strictly increasing,
+            // every pair accounted for.
+            prop_assert!(b.windows(2).all(|w| w[0].pa_score > w[1].pa_score && w[0].confidence() < w[1].confidence()));
             prop_assert_eq!(b.iter().map(|b| b.n).sum::<usize>(), pairs.len());
             prop_assert_eq!(b.iter().map(|b| b.x).sum::<usize>(), pairs.iter().filter(|p| p.1).count());
-            prop_assert_eq!(b[0].margin, pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min));
+            // Each block's value lies strictly inside its own 95% bounds.
+            prop_assert!(b.iter().all(|b| b.confidence_lower95() < b.confidence() && b.confidence() < b.confidence_upper95()));
+            // Probes apart by 1e-3, far above rounding.
             let mut probes = probes;
-            probes.sort_by(f64::total_cmp);
-            let mut last = 0.0;
-            for m in probes {
-                let (c, lower) = map.of(m);
+            probes.sort_unstable();
+            probes.dedup();
+            let mut last: Option<f64> = None;
+            for r in probes.into_iter().map(|p| f64::from(p) / 1000.0) {
+                let (c, lower) = map.of(r);
                 prop_assert!((0.0..=1.0).contains(&c) && (0.0..=1.0).contains(&lower));
                 prop_assert!(lower <= c, "{} > {}", lower, c);
-                prop_assert!(c >= last, "not monotone at {}", m);
-                last = c;
+                // A higher PA-score has a strictly lower confidence.
+                prop_assert!(last.is_none_or(|last| c < last), "not strictly decreasing at {}", r);
+                last = Some(c);
             }
         }
     }

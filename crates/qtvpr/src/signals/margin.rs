@@ -140,11 +140,6 @@ impl CalibrationMargins {
     pub(crate) fn gate(&self, tau: f64) -> f64 {
         sweep(self.decisions.iter().copied(), tau, self.positives)
     }
-
-    /// The (margin, correct) pairs of the calibration decisions: semantics §14's pairs.
-    pub(crate) fn pairs(&self) -> impl Iterator<Item = (f64, bool)> + '_ {
-        self.decisions.iter().copied()
-    }
 }
 
 #[cfg(test)]

@@ -46,8 +46,8 @@ use crate::platform::threads;
 use crate::rules::baselines::schubert;
 use crate::rules::best_threshold::subset_threshold;
 use crate::rules::decisions::{Candidates, Matching};
-use crate::signals::confidence::{ConfidenceMap, Signals};
-use crate::signals::margin::{self, CalibrationMargins};
+use crate::signals::confidence::{self, ConfidenceMap, Signal, Signals};
+use crate::signals::margin;
 use online::online_segments;
 use results::{score, summarise};
 
@@ -145,15 +145,21 @@ fn evaluate_matrix<T: Score>(
     } else {
         None
     };
-    // Semantics §14: the calibration's map, from its own margins and decisions, and the
-    // signals of the full segments' decisions.
+    // Semantics §14: the calibration's map, from its own PA-scores and decisions, and
+    // the signals of the full segments' decisions.
     let confidence = dep_margins.as_ref().filter(|_| confident).map(|margins| {
         let cal = Candidates::new(s_cal, gt_cal, Matching::Single);
-        let map = ConfidenceMap::fit(CalibrationMargins::new(&margin::of_columns(s_cal), &cal).pairs());
-        let decisions: Vec<(f64, f64, bool)> = (0..deployment.ncols())
+        let map = ConfidenceMap::fit(confidence::pairs(&confidence::pa_scores_of_columns(s_cal), &cal));
+        let pa_scores = confidence::pa_scores_of_columns(s_dep);
+        let decisions: Vec<Signal> = (0..deployment.ncols())
             .filter_map(|j| {
                 let (scores, correct) = deployment.column(j);
-                correct.first().map(|&c| (scores[0], margins[j], c))
+                correct.first().map(|&correct| Signal {
+                    score: scores[0],
+                    margin: margins[j],
+                    pa_score: pa_scores[j],
+                    correct,
+                })
             })
             .collect();
         Signals::of(&decisions, &map)

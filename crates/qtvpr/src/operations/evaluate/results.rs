@@ -394,7 +394,10 @@ mod tests {
         );
         // Semantics §14's signals, in single matching.
         assert_eq!(keys(&v["confidence"]), ["signals"]);
-        assert_eq!(keys(&v["confidence"]["signals"]), ["confidence", "margin", "score"]);
+        assert_eq!(
+            keys(&v["confidence"]["signals"]),
+            ["confidence", "margin", "pa_score", "score"]
+        );
         assert_eq!(
             keys(&v["confidence"]["signals"]["confidence"]),
             ["auroc", "bins", "brier", "ece"]
