@@ -6,17 +6,19 @@ matching, in the five protocol settings of docs/margin-gate.md (the paper's: the
 10% of the queries calibrate, 1% segments, tau 1; then one change each: 5% or 20%
 calibrate, 2% segments, tau 0.95, which no signal depends on): section 14's signals
 over the protocol's deployment decisions as `qtvpr.evaluate` reports them (the AUROC
-of the best match's correctness c for the best score s1, the margin and the
-confidence; the confidence's Brier score, ECE and reliability bins), and two
-comparisons computed here:
+of the best match's correctness c for the best score s1, the margin, the PA-score and
+the confidence; the confidence's Brier score, ECE and reliability bins), and the Brier
+score of the constant calibration hit rate, computed here: what a map that knows
+nothing but the calibration's hit rate would score.
 
-- the PA-score (Lowe's ratio on distances): with the cosine scores s of a query,
-  d = sqrt(max(0, 2 - 2 s)) and PA = d1 / d2, the best over the second-best distance
-  (0 / 0 is 1); lower is more confident, so its AUROC is that of -PA, ties one half.
-  The distance is a cosine's: not every technique's score is one (all 22 matrices lie
-  in [-0.61, 0.97], so d is defined), and for those that are not, d is only a
-  decreasing stand-in for a distance;
-- the Brier score of the constant calibration hit rate (what a map of one block gives).
+It also measures the maps section 14 was chosen among, written here in NumPy on the
+same decisions (the shipped one is the core's, and its row must equal the core's
+figures): the previous release's step function of the least-squares isotonic fit on the
+margin; the shipped centred map (two pooling passes, Laplace values, linear between
+centres, on to the Clopper-Pearson bounds) on the margin (its lower tail ends at margin
+0; the margin has no upper end, so the map is flat beyond its last centre); on the
+PA-score (shipped); and on whichever of the two ranks the calibration pairs better
+(AUROC on the calibration alone, the PA-score on a tie).
 
 Uses the installed wheel and NumPy only. Writes the tables between
 ``<!-- confidence:start -->`` and ``<!-- confidence:end -->`` in docs/margin-gate.md
@@ -39,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 import qtvpr
+import qtvpr.reference
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from margin_gate import SETTINGS  # noqa: E402
@@ -64,17 +67,84 @@ def auroc(x: np.ndarray, c: np.ndarray) -> float | None:
     return float((above + ties / 2) / (len(right) * len(wrong)))
 
 
-def pa_score(s: np.ndarray) -> np.ndarray:
-    """Per column of cosine scores: the best over the second-best distance, d1 / d2 with
-    d = sqrt(max(0, 2 - 2 s)); 1 when both are 0."""
-    top = -np.sort(-s.astype(np.float64), axis=0)[:2]
-    d1, d2 = np.sqrt(np.maximum(0.0, 2.0 - 2.0 * top))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(d2 > 0, d1 / np.where(d2 > 0, d2, 1.0), 1.0)
+def pooled(x: np.ndarray, c: np.ndarray, prior: int, points: list | None = None) -> list[list]:
+    """Pool-adjacent-violators by ascending x (more confident last) on the value
+    (x + prior) / (n + 2 prior); blocks are [sum of x, n, successes], maximal."""
+    if points is None:
+        points = []
+        for i in np.argsort(x, kind="stable"):
+            if points and points[-1][3] == x[i]:
+                points[-1][0] += x[i]
+                points[-1][1] += 1
+                points[-1][2] += int(c[i])
+            else:
+                points.append([float(x[i]), 1, int(c[i]), x[i]])
+    out: list[list] = []
+    for p in points:
+        out.append(list(p))
+        while len(out) > 1 and (out[-2][2] + prior) * (out[-1][1] + 2 * prior) >= \
+                (out[-1][2] + prior) * (out[-2][1] + 2 * prior):
+            last = out.pop()
+            for i in range(3):
+                out[-1][i] += last[i]
+    return out
+
+
+def step_map(x_cal: np.ndarray, c_cal: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """0.1.0's map: the least-squares blocks' x/n, looked up by the largest lowest x <= x."""
+    order = np.sort(x_cal)
+    blocks, lows, seen = pooled(x_cal, c_cal, 0), [], 0
+    for b in blocks:
+        lows.append(order[seen])
+        seen += b[1]
+    values = np.array([b[2] / b[1] for b in blocks])
+    return values[np.maximum(np.searchsorted(lows, x, side="right") - 1, 0)]
+
+
+def centred_map(x_cal: np.ndarray, c_cal: np.ndarray, x: np.ndarray, low: float, high: float | None) -> np.ndarray:
+    """Section 14's map on a signal x (more confident when higher), its range from low
+    to high (None: unbounded, flat beyond the last centre)."""
+    blocks = pooled(x_cal, c_cal, 1, pooled(x_cal, c_cal, 0))
+    xs = [b[0] / b[1] for b in blocks]
+    ys = [(b[2] + 1) / (b[1] + 2) for b in blocks]
+    first, last = blocks[0], blocks[-1]
+    if xs[0] > low:
+        xs, ys = [low] + xs, [qtvpr.reference.precision_lower95(first[2], first[1] - first[2])] + ys
+    if high is not None and xs[-1] < high:
+        xs, ys = xs + [high], ys + [1 - qtvpr.reference.precision_lower95(last[1] - last[2], last[2])]
+    return np.interp(x, xs, ys)
+
+
+def figures(p: np.ndarray, c: np.ndarray) -> tuple:
+    """AUROC, Brier and ECE of confidences p."""
+    return auroc(p, c), float(np.mean((p - c) ** 2)), qtvpr.reference._ece(p, c)
+
+
+#: The maps measured: (key, label).
+MAPS = [("step_margin", "step, margin (0.1.0)"), ("centred_margin", "centred, margin"),
+        ("centred_pa", "centred, PA-score (shipped)"), ("centred_either", "centred, the better of the two")]
+
+
+def candidates(s: np.ndarray, gt: np.ndarray, n_cal: int, dep: slice) -> dict:
+    """Each map of MAPS on the same calibration pairs and deployment decisions."""
+    best = s.argmax(axis=0)
+    c = gt[best, np.arange(s.shape[1])]
+    margin = np.asarray(qtvpr.margins(s), dtype=np.float64)
+    distinct = 1 - qtvpr.reference._pa_scores(s.astype(np.float64))  # higher is more confident
+    cal = slice(0, n_cal)
+    out = {
+        "step_margin": step_map(margin[cal], c[cal], margin[dep]),
+        "centred_margin": centred_map(margin[cal], c[cal], margin[dep], 0.0, None),
+        "centred_pa": centred_map(distinct[cal], c[cal], distinct[dep], 0.0, 1.0),
+    }
+    by_margin, by_pa = auroc(margin[cal], c[cal]), auroc(distinct[cal], c[cal])
+    either = "centred_margin" if None not in (by_margin, by_pa) and by_margin > by_pa else "centred_pa"
+    out["centred_either"] = out[either]
+    return {key: figures(p, c[dep]) for key, p in out.items()}
 
 
 def signals(s: np.ndarray, gt: np.ndarray, kwargs: dict) -> dict:
-    """The core's signals of one run, and the two comparisons on the same decisions."""
+    """The core's signals of one run, and the constant's Brier score on the same decisions."""
     r = qtvpr.evaluate(s, gt, methods=["oracle"], **kwargs)
     p, sig = r["params"], r["confidence"]["signals"]
     n_cal, start = p["calibration_queries"], p["deployment_start"]
@@ -88,12 +158,17 @@ def signals(s: np.ndarray, gt: np.ndarray, kwargs: dict) -> dict:
     assert mine == sig["score"]["auroc"] or abs(mine - sig["score"]["auroc"]) < 1e-12, (mine, sig)
     cal_best = s[:, :n_cal].argmax(axis=0)
     rate = gt[cal_best, np.arange(n_cal)].mean()
+    maps = candidates(s, gt, n_cal, dep)
+    # The shipped map, written here, gives the core's figures.
+    core = (sig["confidence"]["auroc"], sig["confidence"]["brier"], sig["confidence"]["ece"])
+    assert all(abs(a - b) < 1e-9 for a, b in zip(maps["centred_pa"], core, strict=True)), (maps["centred_pa"], core)
     return {
+        "maps": maps,
         "blocks": len(qtvpr.Calibration(s[:, :n_cal], gt[:, :n_cal]).confidence_blocks()),
         "auroc_score": sig["score"]["auroc"],
         "auroc_margin": sig["margin"]["auroc"],
         "auroc_confidence": sig["confidence"]["auroc"],
-        "auroc_pa": auroc(-pa_score(s_dep), c),
+        "auroc_pa": sig["pa_score"]["auroc"],
         "brier": sig["confidence"]["brier"],
         "brier_constant": float(np.mean((rate - c) ** 2)),
         "ece": sig["confidence"]["ece"],
@@ -130,6 +205,21 @@ def tables(results: dict[str, list[tuple[str, dict]]]) -> str:
     for label, _ in SETTINGS:
         rows = [r for _, r in results[label]]
         lines.append(f"| {label} | " + " | ".join(fmt(mean(rows, k)) for k in keys) + " |")
+    lines += [
+        "",
+        "The maps measured (AUROC / Brier / ECE of the confidence, the mean over the "
+        f"{len(paper)} matrices; benches/confidence.py writes the others in NumPy):",
+        "",
+        "| protocol | " + " | ".join(label for _, label in MAPS) + " |",
+        "|:--|" + "--:|" * len(MAPS),
+    ]
+    for label, _ in SETTINGS:
+        rows = [r["maps"] for _, r in results[label]]
+        cells = []
+        for key, _ in MAPS:
+            auroc_, brier, ece = (float(np.mean([r[key][i] for r in rows if r[key][i] is not None])) for i in range(3))
+            cells.append(f"{auroc_:.3f} / {brier:.3f} / {ece:.3f}")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
     lines += [
         "",
         "Per matrix, in the paper's setting (blocks: of the confidence map):",
