@@ -86,7 +86,8 @@ def test_map_by_hand():
     assert ref._confidence_of(b, 1.0) == (0.0, 0.0)
     assert ref._confidence_of(b, 0.9)[0] == pytest.approx(0.125, abs=1e-12)
     assert ref._confidence_of(b, 0.7) == (pytest.approx(0.375, abs=1e-12), 0.0)
-    assert ref._confidence_of(b, 0.35) == (pytest.approx(0.65, abs=1e-12), pytest.approx(1 - math.sqrt(0.95), abs=1e-15))
+    one_of_two = 1 - math.sqrt(0.95)
+    assert ref._confidence_of(b, 0.35) == (pytest.approx(0.65, abs=1e-12), pytest.approx(one_of_two, abs=1e-15))
     assert ref._confidence_of(b, 0.05) == (pytest.approx(0.9, abs=1e-12), pytest.approx(0.05 ** (1 / 3), abs=1e-12))
     assert ref._confidence_of(b, 0.0)[0] == 1.0
     nan = ref._confidence_of([], 0.5)

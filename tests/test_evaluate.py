@@ -35,7 +35,8 @@ METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped",
                "pooled_precision_lower95", "segments"]
 RUN_KEYS = ["params", "recall_at_1", "methods"]
 #: Semantics §14's signals: a run's last key, in single matching only.
-SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "pa_score": ["auroc"], "confidence": ["auroc", "brier", "ece", "bins"]}
+SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "pa_score": ["auroc"],
+           "confidence": ["auroc", "brier", "ece", "bins"]}
 
 
 def run_of(d: dict) -> dict:

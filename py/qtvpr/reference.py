@@ -776,7 +776,7 @@ def _confidence_of(blocks: list[tuple[float, int, int]], r: float) -> tuple[floa
         return knots[0][1], knots[0][2]
     if r <= knots[-1][0]:
         return knots[-1][1], knots[-1][2]
-    for (ra, pa, la), (rb, pb, _) in zip(knots, knots[1:]):
+    for (ra, pa, la), (rb, pb, _) in zip(knots, knots[1:], strict=False):
         if ra >= r > rb:
             return pa + (ra - r) / (ra - rb) * (pb - pa), la
     raise AssertionError("a PA-score between the knots")
