@@ -34,7 +34,7 @@ use crate::error::{Error, Result};
 use crate::input::Score;
 use crate::input::params::Gate;
 use crate::input::params::OnlineParams;
-use crate::operations::transfer::{CHUNK_SCORES, Calibration, QueryTransfer};
+use crate::operations::transfer::{CHUNK_SCORES, Calibration, QueryTransfer, Wanted};
 use crate::platform::threads;
 use crate::rules::decisions::{Matching, first_at};
 use crate::rules::deployment::{sorted_columns_threshold, weighted_median};
@@ -217,9 +217,9 @@ pub struct Online {
     threshold: Option<f64>,
     /// `m*` with the margin gate.
     gate: Option<f64>,
-    /// Whether a push finds its column's margin and PA-score: with the gate, or for the
+    /// What a push finds of its column: the margin with the gate, the PA-score for the
     /// confidence (semantics §14: single matching, |DB| >= 2).
-    with_signals: bool,
+    wanted: Wanted,
     /// Buffers a push reuses (a fresh |DB|-long buffer per push would cost the kernel
     /// zeroing its pages every time): a [`Scratch`] of the type last pushed, and the
     /// standardised profile.
@@ -249,7 +249,10 @@ impl Online {
         params.validate()?;
         let gate = calibration.gate_of(params.gate, params.precision)?;
         // The confidence map is found here, once, not by the first push.
-        let with_signals = gate.is_some() || calibration.confidence_of_decisions().is_some();
+        let wanted = Wanted {
+            margin: gate.is_some(),
+            pa_score: calibration.confidence_of_decisions().is_some(),
+        };
         let n_db = calibration.db_size();
         // The full window holds `window x |DB|` scores as f64 (and a q and w per
         // query): a window whose state exceeds what any allocation can hold would only
@@ -279,7 +282,7 @@ impl Online {
             accepted: Vec::new(),
             threshold: None,
             gate,
-            with_signals,
+            wanted,
             scratch: None,
             profile: Vec::new(),
         })
@@ -325,7 +328,7 @@ impl Online {
         let p = &self.params;
         let r = self
             .calibration
-            .query(ranked, 0, p.k, p.precision, self.with_signals, &mut self.profile);
+            .query(ranked, 0, p.k, p.precision, self.wanted, &mut self.profile);
         self.reserve()?;
         Ok(self.commit(ranked.column(0), column, r))
     }
@@ -447,7 +450,7 @@ impl Online {
 
     fn per_query<T: Score>(&self, ranked: &Ranked<T>) -> Vec<QueryTransfer> {
         let p = &self.params;
-        self.calibration.queries(ranked, p.k, p.precision, self.with_signals)
+        self.calibration.queries(ranked, p.k, p.precision, self.wanted)
     }
 
     /// Make room for one more query while the window fills: doubling, up to the full

@@ -131,8 +131,8 @@ pub struct Calibration {
     /// first request for a gate (a pass over every profile that a calibration never
     /// gated should not pay).
     margins: OnceLock<CalibrationMargins>,
-    /// The confidence map of semantics §14, fitted to those decisions on the first
-    /// request for a confidence.
+    /// The confidence map of semantics §14, fitted to the same decisions (by their
+    /// PA-scores) on the first request for a confidence.
     confidence: OnceLock<ConfidenceMap>,
 }
 
@@ -151,6 +151,14 @@ pub(crate) struct QueryTransfer {
     /// confidence asks for them.
     pub(crate) margin: Option<f64>,
     pub(crate) pa_score: Option<f64>,
+}
+
+/// The per-query signals a caller reads: the margin for the gate (semantics §13), the
+/// PA-score for the confidence (§14). Neither is computed unless asked for.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Wanted {
+    pub(crate) margin: bool,
+    pub(crate) pa_score: bool,
 }
 
 /// What the transfer asks of the calibration profiles, whatever their score type.
@@ -378,7 +386,7 @@ impl Calibration {
     /// [`Calibration::rank`]: each query's `k` neighbours (their correlations computed
     /// in `f64` where the screen's bounds leave doubt) and weight, their
     /// subset threshold at `precision`, and its quantile (and its margin and PA-score
-    /// when `signals`, for the gate or the confidence). The one place a deployment
+    /// as `wanted`, for the gate and the confidence). The one place a deployment
     /// query's `q_j` and `w_j` are computed, for the batch transfer and for
     /// [`crate::Online`] alike; in parallel over the block.
     pub(crate) fn queries<T: Score>(
@@ -386,14 +394,14 @@ impl Calibration {
         ranked: &Ranked<T>,
         k: usize,
         precision: f64,
-        signals: bool,
+        wanted: Wanted,
     ) -> Vec<QueryTransfer> {
         threads::install(|| {
             (0..ranked.ncols())
                 .into_par_iter()
                 .map_init(
                     || vec![0.0; self.n_db],
-                    |u, j| self.query(ranked, j, k, precision, signals, u),
+                    |u, j| self.query(ranked, j, k, precision, wanted, u),
                 )
                 .collect()
         })
@@ -407,7 +415,7 @@ impl Calibration {
         j: usize,
         k: usize,
         precision: f64,
-        signals: bool,
+        wanted: Wanted,
         u: &mut [f64],
     ) -> QueryTransfer {
         ranked.profile(j, u);
@@ -421,8 +429,10 @@ impl Calibration {
             weight,
             threshold,
             quantile,
-            margin: signals.then(|| margin::of_sorted(ranked.column(j))),
-            pa_score: signals.then(|| confidence::pa_score_of_sorted(ranked.column(j))),
+            margin: wanted.margin.then(|| margin::of_sorted(ranked.column(j))),
+            pa_score: wanted
+                .pa_score
+                .then(|| confidence::pa_score_of_sorted(ranked.column(j))),
         }
     }
 
@@ -466,7 +476,7 @@ impl Calibration {
     }
 
     /// The calibration's single-match decisions with their margins, found on the first
-    /// request (for the gate or the confidence). Single matching with |DB| >= 2 only.
+    /// request for the gate. Single matching with |DB| >= 2 only.
     fn calibration_margins(&self) -> &CalibrationMargins {
         self.margins.get_or_init(|| {
             let of_columns: Vec<f64> = threads::install(|| {
@@ -481,7 +491,8 @@ impl Calibration {
 
     /// The confidence map of semantics §14: the centred isotonic fit of the
     /// calibration's single-match decisions (soft-only best matches left out) on their
-    /// PA-scores, found on the first request. Without a decision it has no blocks, and gives NaN.
+    /// PA-scores, found on the first request. Without a decision it has no blocks, and
+    /// gives NaN.
     ///
     /// # Errors
     /// A multi-match calibration or one of fewer than 2 database images
@@ -624,7 +635,10 @@ impl Calibration {
         // Found before the parallel loops, which only read it.
         let confidence = self.confidence_of_decisions();
         let mut query_confidences = confidence.map(|_| (vec![0.0; n_val], vec![0.0; n_val]));
-        let with_signals = gate.is_some() || confidence.is_some();
+        let wanted = Wanted {
+            margin: gate.is_some(),
+            pa_score: confidence.is_some(),
+        };
 
         let mut query_quantiles = vec![0.0; n_val];
         let mut query_thresholds = vec![0.0; n_val];
@@ -650,7 +664,7 @@ impl Calibration {
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
             source.rank(&mut ranked, start..end)?;
-            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, with_signals)) {
+            for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, wanted)) {
                 neighbours
                     .row_mut(j)
                     .iter_mut()

@@ -585,6 +585,17 @@ mod tests {
         );
     }
 
+    /// Pairs of three blocks, 0 of 2 at PA-score 0.8, 1 of 2 at 0.6 and 3 of 3 at 0.1.
+    const THREE_BLOCKS: [(f64, bool); 7] = [
+        (0.8, false),
+        (0.8, false),
+        (0.6, true),
+        (0.6, false),
+        (0.1, true),
+        (0.1, true),
+        (0.1, true),
+    ];
+
     #[test]
     fn two_passes_of_pooling() {
         // Descending PA-score: 0.9 (0 of 1), then 0.5 (1 of 10). By x / n, 0 < 0.1: two
@@ -603,32 +614,13 @@ mod tests {
         assert_eq!(blocks(&[(0.8, true), (0.2, false), (0.2, false)]), [(0.4, 3, 1)]);
         // Increasing values stay apart: (0.8: 0 of 2), (0.6: 1 of 2), (0.1: 3 of 3) are
         // 1/4, 2/4 and 4/5 by Laplace.
-        let pairs = [
-            (0.8, false),
-            (0.8, false),
-            (0.6, true),
-            (0.6, false),
-            (0.1, true),
-            (0.1, true),
-            (0.1, true),
-        ];
-        assert_eq!(blocks(&pairs), [(0.8, 2, 0), (0.6, 2, 1), (0.1, 3, 3)]);
+        assert_eq!(blocks(&THREE_BLOCKS), [(0.8, 2, 0), (0.6, 2, 1), (0.1, 3, 3)]);
     }
 
     #[test]
     fn linear_between_centres_and_the_lower_bound_of_the_less_confident() {
-        // The blocks of the last case: knots (1: lower 0), (0.8: 1/4), (0.6: 1/2),
-        // (0.1: 4/5), (0: upper of 3 of 3 = 1).
-        let pairs = [
-            (0.8, false),
-            (0.8, false),
-            (0.6, true),
-            (0.6, false),
-            (0.1, true),
-            (0.1, true),
-            (0.1, true),
-        ];
-        let map = ConfidenceMap::fit(pairs);
+        // Knots (1: lower 0), (0.8: 1/4), (0.6: 1/2), (0.1: 4/5), (0: upper of 3 of 3 = 1).
+        let map = ConfidenceMap::fit(THREE_BLOCKS);
         // 1 of 2: the 0.05 quantile of Beta(1, 2), 1 - sqrt(0.95); 3 of 3: 0.05^(1/3).
         let (one_of_two, three_of_three) = (1.0 - 0.95f64.sqrt(), 0.05f64.powf(1.0 / 3.0));
         assert_eq!(map.of(1.0), (0.0, 0.0));
