@@ -1,5 +1,5 @@
 """The hostile ``.npz`` set of issue 35, in Python: the same cases as the core's
-``crates/qtvpr/src/files/npy/test_zip.rs`` (which the Rust and CLI tests use), built with
+``crates/qtvpr-testkit/src/zip.rs`` (which the Rust and CLI tests use), built with
 ``zipfile`` and patched where a field must lie. Used by ``test_hostile_files.py`` and
 by ``scripts/capi_check.py`` (the C library's hostile-file test).
 

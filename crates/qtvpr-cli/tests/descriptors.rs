@@ -9,7 +9,7 @@ use qtvpr::npy::{read_scores, write_npy};
 use tempfile::TempDir;
 
 use crate::common::{assert_clean_failure, ok_in, run_in};
-use crate::data;
+use qtvpr_testkit::data;
 
 /// Queries of the test: the first 600 summer frames (137 calibrate, not a multiple of
 /// the kernel's tile of 16).

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use tempfile::TempDir;
 
 use crate::common::{assert_clean_failure, npy_f64, ok_in, run_in};
-use crate::data;
+use qtvpr_testkit::data;
 
 /// A VPR-methods-evaluation-style folder: `database/` and `queries/` of empty images
 /// named `@east@north@...@.jpg`.

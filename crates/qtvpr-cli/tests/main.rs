@@ -4,9 +4,6 @@
 //! `cargo test`'s link time.
 
 mod common;
-// The data helper of the core's tests, one for both crates.
-#[path = "../../qtvpr/tests/data/mod.rs"]
-mod data;
 
 mod cli;
 mod descriptors;

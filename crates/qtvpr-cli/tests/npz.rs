@@ -1,5 +1,5 @@
 //! Every `.npz` the CLI is handed (issue 35): the hostile set of the core's tests
-//! (`crates/qtvpr/src/files/npy/test_zip.rs`) as a calibration file and as a ground truth,
+//! (`crates/qtvpr-testkit/src/zip.rs`) as a calibration file and as a ground truth,
 //! a calibration too large for an address-space cap, and the outputs' edges (a closed
 //! standard output, an empty deployment input, a file overwritten keeps its mode).
 

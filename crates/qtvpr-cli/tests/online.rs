@@ -16,7 +16,7 @@ use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, 
 use tempfile::TempDir;
 
 use crate::common::{assert_clean_failure, ok_in, run_in};
-use crate::data;
+use qtvpr_testkit::data;
 
 /// Corridor (111 x 111) of one technique: calibration = the first 11 queries.
 struct Case {

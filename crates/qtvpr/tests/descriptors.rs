@@ -6,7 +6,7 @@
 //! multiple of the tile width.
 #![cfg(feature = "npy")]
 
-use crate::data;
+use qtvpr_testkit::data;
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};

@@ -3,9 +3,8 @@
 //! each of those linked the core and its dependencies again. `fork.rs` stays a binary
 //! of its own: it forks, and a child must not inherit other tests' threads mid-run.
 
-mod data;
-
 mod blocks;
+mod calibration_file;
 mod confidence;
 mod descriptors;
 mod margin_gate;

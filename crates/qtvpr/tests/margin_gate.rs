@@ -4,7 +4,7 @@
 //! keeps its gate; multi matching is refused everywhere.
 #![cfg(feature = "npy")]
 
-use crate::data;
+use qtvpr_testkit::data;
 use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};

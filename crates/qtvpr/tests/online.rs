@@ -4,7 +4,7 @@
 //! loaded gives the same decisions.
 #![cfg(feature = "npy")]
 
-use crate::data;
+use qtvpr_testkit::data;
 use std::sync::Arc;
 
 use ndarray::{ArrayView2, s};

@@ -6,7 +6,7 @@
 //! correlation is computed there).
 #![cfg(feature = "npy")]
 
-use crate::data;
+use qtvpr_testkit::data;
 
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::npy::read_scores;

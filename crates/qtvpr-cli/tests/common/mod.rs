@@ -5,9 +5,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// Zip archives, hostile ones among them: the core's own test writer.
-#[path = "../../../qtvpr/src/files/npy/test_zip.rs"]
-pub mod zip;
+/// Zip archives, hostile ones among them: the writer of every crate's tests.
+pub use qtvpr_testkit::zip;
 
 /// The members of the `.npz` at `path`, by name.
 pub fn npz_member(path: &Path, name: &str) -> Vec<u8> {

@@ -449,13 +449,13 @@ mod tests {
     use std::io::Read;
     use std::path::Path;
 
-    use super::super::test_zip::{self, Members, hostile, unzip};
     use super::{Archive, read_every_member};
     use crate::files::npy::{NpyArray, ground_truth_from_bytes, read_ground_truth, write_npz_to};
     use crate::input::GroundTruth;
     use crate::input::params::Defaults;
     use crate::operations::transfer::Calibration;
     use crate::rules::decisions::Matching;
+    use qtvpr_testkit::zip::{self as test_zip, Members, hostile, unzip};
 
     /// A valid 3x4 calibration file's members, and a VPR_Tutorial ground truth's.
     fn valid() -> (Members, Members) {

@@ -27,8 +27,6 @@ mod header;
 mod npz;
 mod open;
 mod read;
-#[cfg(test)]
-pub(crate) mod test_zip;
 mod write;
 
 pub use ground_truth::{add_soft_ground_truth, ground_truth_from_bytes, read_ground_truth, read_hard_ground_truth};

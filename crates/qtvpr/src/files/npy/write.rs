@@ -61,7 +61,10 @@ impl<'a> From<ScoresView<'a>> for NpyArray<'a> {
 
 impl NpyArray<'_> {
     /// The array as one `.npy` stream: header, then data in C order.
-    pub(crate) fn write_to(&self, w: &mut impl Write) -> io::Result<()> {
+    ///
+    /// # Errors
+    /// What writing to `w` returns.
+    pub fn write_to(&self, w: &mut impl Write) -> io::Result<()> {
         match *self {
             NpyArray::F32(m) => write_matrix(w, m),
             NpyArray::F64(m) => write_matrix(w, m),

@@ -2,10 +2,9 @@
 //! (which writes any method number, encryption flag or extra field it is told to, and
 //! compresses nothing itself), then patched where a field must lie.
 //!
-//! It depends on rawzip, flate2 and ndarray alone, so that the CLI's tests use this same file
-//! (`#[path]`) and every front end is tested on the same hostile set ([`hostile`]).
-
-#![allow(dead_code)] // each test crate that includes it uses part of it
+//! The core's tests (the zip layer's own and the calibration file's) and the CLI's use
+//! this one writer, so that every front end is tested on the same hostile set
+//! ([`hostile`]).
 
 use std::io::{Read, Write};
 
@@ -15,7 +14,7 @@ use rawzip::{CompressionMethod, Crc32Option, Header, ZipArchiveWriter};
 /// A small traverse for the valid archive the hostile set is made from: a 3 x 4
 /// similarity, its hard ground truth and its soft ground truth (query 0 has a soft-only
 /// second match).
-pub(crate) fn traverse() -> (ndarray::Array2<f64>, ndarray::Array2<bool>, ndarray::Array2<bool>) {
+pub fn traverse() -> (ndarray::Array2<f64>, ndarray::Array2<bool>, ndarray::Array2<bool>) {
     use ndarray::array;
     let s = array![[0.9, 0.1, 0.3, 0.2], [0.2, 0.8, 0.1, 0.4], [0.1, 0.3, 0.7, 0.9]];
     let hard = array![
@@ -30,7 +29,8 @@ pub(crate) fn traverse() -> (ndarray::Array2<f64>, ndarray::Array2<bool>, ndarra
 
 /// One member to write.
 #[derive(Clone)]
-pub(crate) struct Member<'a> {
+pub struct Member<'a> {
+    /// Its name in the archive.
     pub name: &'a str,
     /// The uncompressed bytes.
     pub data: &'a [u8],
@@ -48,7 +48,7 @@ pub(crate) struct Member<'a> {
 
 impl<'a> Member<'a> {
     /// A stored member.
-    pub(crate) fn stored(name: &'a str, data: &'a [u8]) -> Self {
+    pub fn stored(name: &'a str, data: &'a [u8]) -> Self {
         Member {
             name,
             data,
@@ -61,7 +61,7 @@ impl<'a> Member<'a> {
     }
 
     /// A deflated member.
-    pub(crate) fn deflated(name: &'a str, data: &'a [u8]) -> Self {
+    pub fn deflated(name: &'a str, data: &'a [u8]) -> Self {
         Member {
             method: 8,
             deflate: true,
@@ -71,7 +71,7 @@ impl<'a> Member<'a> {
 }
 
 /// An archive of `members`, in order.
-pub(crate) fn zip(members: &[Member<'_>]) -> Vec<u8> {
+pub fn zip(members: &[Member<'_>]) -> Vec<u8> {
     let mut zip = ZipArchiveWriter::new(Vec::new());
     for m in members {
         let mut file = zip
@@ -106,9 +106,12 @@ pub(crate) fn zip(members: &[Member<'_>]) -> Vec<u8> {
 
 /// Offsets of member `name` in `bytes`: its central directory record, its local header
 /// and its data descriptor (a member written by [`zip`] has one).
-pub(crate) struct Offsets {
+pub struct Offsets {
+    /// Its central directory record.
     pub central: usize,
+    /// Its local header.
     pub local: usize,
+    /// Its data descriptor.
     pub descriptor: usize,
 }
 
@@ -121,7 +124,7 @@ fn u32_at(b: &[u8], at: usize) -> usize {
 }
 
 /// Where member `name` of `bytes` (not zip64) lies.
-pub(crate) fn offsets(bytes: &[u8], name: &str) -> Offsets {
+pub fn offsets(bytes: &[u8], name: &str) -> Offsets {
     let mut at = 0;
     loop {
         let central = at + bytes[at..].windows(4).position(|w| w == b"PK\x01\x02").unwrap();
@@ -143,18 +146,18 @@ pub(crate) fn offsets(bytes: &[u8], name: &str) -> Offsets {
 
 /// Member `name` made to declare `size` uncompressed bytes, in its directory record and
 /// its data descriptor alike (so the archive is consistent, and lies).
-pub(crate) fn declare_size(bytes: &mut [u8], name: &str, size: u32) {
+pub fn declare_size(bytes: &mut [u8], name: &str, size: u32) {
     let o = offsets(bytes, name);
     bytes[o.central + 24..o.central + 28].copy_from_slice(&size.to_le_bytes());
     bytes[o.descriptor + 12..o.descriptor + 16].copy_from_slice(&size.to_le_bytes());
 }
 
 /// An archive's members: each one's name and uncompressed bytes, in order.
-pub(crate) type Members = Vec<(String, Vec<u8>)>;
+pub type Members = Vec<(String, Vec<u8>)>;
 
 /// The names of the members of `bytes`, in order, and each one's uncompressed bytes
 /// (their CRC-32 verified by rawzip).
-pub(crate) fn unzip(bytes: &[u8]) -> Members {
+pub fn unzip(bytes: &[u8]) -> Members {
     let mut buffer = vec![0u8; rawzip::MAX_CENTRAL_DIRECTORY_RECORD_SIZE];
     let archive = rawzip::ZipLocator::new()
         .locate_in_reader(bytes, &mut buffer, bytes.len() as u64)
@@ -184,7 +187,7 @@ pub(crate) fn unzip(bytes: &[u8]) -> Members {
 
 /// A `.npy` header of `descr` and `shape` (its Python spelling, e.g. `(2, 3)`), padded
 /// as NumPy pads it.
-pub(crate) fn npy_header(descr: &str, shape: &str) -> Vec<u8> {
+pub fn npy_header(descr: &str, shape: &str) -> Vec<u8> {
     let mut h = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     while (h.len() + 11) % 64 != 0 {
         h.push(' ');
@@ -198,9 +201,12 @@ pub(crate) fn npy_header(descr: &str, shape: &str) -> Vec<u8> {
 
 /// One file of the hostile set: what it is, its bytes, and a part of the one error it
 /// must get.
-pub(crate) struct Hostile {
+pub struct Hostile {
+    /// What it is.
     pub case: String,
+    /// Its bytes.
     pub bytes: Vec<u8>,
+    /// A part of the one error a reader must give it.
     pub error: String,
 }
 
@@ -210,12 +216,7 @@ pub(crate) struct Hostile {
 /// given a bad CRC, made a bomb, given another rank); every other member stays valid.
 /// `other_methods` is how many of the unsupported method numbers to try (all 65,534
 /// is cheap in the core, not as one process each).
-pub(crate) fn hostile(
-    members: &[(&str, &[u8])],
-    descr: &str,
-    (rows, cols): (u64, u64),
-    other_methods: usize,
-) -> Vec<Hostile> {
+pub fn hostile(members: &[(&str, &[u8])], descr: &str, (rows, cols): (u64, u64), other_methods: usize) -> Vec<Hostile> {
     let (victim, data) = members[0];
     let array = victim.trim_end_matches(".npy");
     let rest: Vec<Member<'_>> = members[1..].iter().map(|(n, d)| Member::stored(n, d)).collect();
