@@ -11,7 +11,6 @@ use qtvpr_testkit::data;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 use ndarray::{Array2, ArrayView2, s};
-use qtvpr::TILE;
 use qtvpr::{
     Calibration, Descriptors, Gate, GroundTruth, Matching, Method, Options, Params, Protocol, ScoreSource, Split,
     cosine_similarity,
@@ -84,8 +83,9 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
         let lean = Calibration::for_transfer(ScoreSource::Descriptors(d, 0..n_cal), gt.clone(), matching).unwrap();
         assert!(lean.scores().is_none());
         // Segments of 1, of 10 (dividing neither the tile of 16 nor the chunk), of
-        // the tile width, of 100, and one batch of every deployment query.
-        for segment_size in [Some(1), Some(10), Some(TILE), Some(100), None] {
+        // the tile width (16 queries, the similarity kernel's), of 100, and one batch of
+        // every deployment query.
+        for segment_size in [Some(1), Some(10), Some(16), Some(100), None] {
             let p = Params {
                 k: 10,
                 precision: 1.0,

@@ -12,3 +12,4 @@ mod online;
 mod properties;
 mod regressions;
 mod screen;
+mod semantics;

@@ -1,6 +1,6 @@
 //! The screen of semantics §4 on real data (`../shared/data`): the neighbours and weights
-//! the transfer chooses through its block bounds are exactly [`top_k`] of every `f64`
-//! ranked correlation, bit for bit, for several `k`, on Nordland HOG (cosine of the
+//! the transfer chooses through its block bounds are exactly the top `k` ([`top_k`], the
+//! rule as the semantics states it) of every `f64` ranked correlation, bit for bit, for several `k`, on Nordland HOG (cosine of the
 //! real descriptors, float32) and on every VPR-Bench SPEDTest and Corridor matrix
 //! (float32 and float64; Corridor's 111 database rows are below the screen, so every
 //! correlation is computed there).
@@ -10,8 +10,20 @@ use qtvpr_testkit::data;
 
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::npy::read_scores;
-use qtvpr::top_k;
 use qtvpr::{Calibration, GroundTruth, Matching, Params, Score, ScoresView, cosine_similarity, ranked_correlation};
+
+/// The top `k` of a row of correlations, written from semantics §4 (not the library's
+/// code): by correlation rounded to the grid of 2^-40, descending, ties to the lower
+/// index; and their mean in that order, clipped below at 0.
+fn top_k(row: &[f64], k: usize) -> (Vec<usize>, f64) {
+    let k = k.min(row.len());
+    let on_grid = |r: f64| (r * (1u64 << 40) as f64).round_ties_even();
+    let mut order: Vec<usize> = (0..row.len()).collect();
+    order.sort_by(|&a, &b| on_grid(row[b]).total_cmp(&on_grid(row[a])).then(a.cmp(&b)));
+    order.truncate(k);
+    let mean = order.iter().map(|&i| row[i]).sum::<f64>() / k as f64;
+    (order, mean.max(0.0))
+}
 
 /// Calibrate on the first `n_cal` columns; the transfer's neighbours and weights of the
 /// rest against `top_k` of their full rows of correlations.
@@ -53,20 +65,8 @@ fn vprbench() {
     if data::shared("").is_none() {
         return;
     }
-    for (dir, n_cal) in [("vprbench-spedtest", 60), ("vprbench-corridor", 11)] {
-        let techniques = [
-            "AMOSNet",
-            "AlexNet_VPR",
-            "CALC",
-            "CoHOG",
-            "HOG",
-            "HybridNet",
-            "NetVLAD",
-            "RegionVLAD",
-            "ap-gem-r101",
-            "denseVLAD",
-        ];
-        for technique in techniques {
+    for (dir, n_cal) in data::VPRBENCH {
+        for technique in data::TECHNIQUES {
             let path = data::shared(&format!("{dir}/S_{technique}.npy")).expect("checked above");
             let scores = read_scores(&path).unwrap();
             match scores.view() {

@@ -1,4 +1,4 @@
-//! The one error type of the core.
+//! semantics §10: bad input, as the one error type of the core.
 //!
 //! Every message is lowercase, names the input it is about (`what`) and says what is
 //! wrong with it, so that a front end only has to add the file or argument name
@@ -192,7 +192,7 @@ pub enum Error {
         /// |Q|.
         queries: usize,
         /// |DB| where it is known: a count beyond |Q| but within |DB| is the usual
-        /// sign of a query-major matrix read as |DB| x |Q| ([`crate::signals::orientation::hint`]).
+        /// sign of a query-major matrix read as |DB| x |Q| ([`crate::input::orientation::hint`]).
         database: Option<usize>,
     },
     /// The evaluation protocol cannot split the queries as asked: no calibration query,

@@ -30,6 +30,10 @@ use crate::error::{Error, Result};
 /// `os.path.splitext(p)[1].lower() in [".jpg", ".jpeg", ".png"]`.
 pub const IMAGE_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
 
+/// The radius of positions from image names when none is given: 25 m, the positive
+/// distance of VPR-methods-evaluation and the benchmarks it evaluates.
+pub const DEFAULT_IMAGE_RADIUS: f64 = 25.0;
+
 /// UTM east and north, in metres, from the file name of `path`: fields 1 and 2 of the
 /// file name (the last component of the path) split on `@`, each a decimal number
 /// (Rust's `f64` syntax: `-12.5`, `+3`, `4e5`; no spaces). A path without a file name

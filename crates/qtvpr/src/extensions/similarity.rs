@@ -57,7 +57,7 @@ use crate::input::{Score, ScoresView, check_nonempty};
 use crate::platform::threads;
 
 /// Queries per tile of the product: the width of every GEMM call.
-pub const TILE: usize = 16;
+pub(crate) const TILE: usize = 16;
 /// Database rows per block of the product: the height of every GEMM call.
 pub const BLOCK_ROWS: usize = 256;
 /// Scores per step of [`Descriptors::similarity`] (about 16 MB of `f32`).

@@ -45,7 +45,7 @@ mod file {
     use crate::input::params::Defaults;
     use crate::input::params::Gate;
     use crate::input::{GroundTruth, ScoreMatrix, Truth};
-    use crate::operations::transfer::Calibration;
+    use crate::operations::calibration::Calibration;
     use crate::rules::decisions::Matching;
 
     /// The `meta` JSON.

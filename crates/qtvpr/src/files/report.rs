@@ -1,5 +1,5 @@
-//! The machine-readable results: one schema for `qtvpr-cli ... --format json` and the
-//! dicts of the Python binding.
+//! semantics §9: the machine-readable results, one schema for `qtvpr-cli ... --format
+//! json` and the dicts of the Python binding.
 //!
 //! With the `serde` feature, the result types derive `serde::Serialize`, and both
 //! front ends serialise those same values: the CLI with `serde_json`, the binding with
@@ -109,7 +109,7 @@
 //! [`Segment`]: crate::operations::transfer::Segment
 //! [`Counts`]: crate::rules::decisions::Counts
 //! [`Defaults`]: crate::input::params::Defaults
-//! [`Orientation`]: crate::signals::orientation::Orientation
+//! [`Orientation`]: crate::input::orientation::Orientation
 
 #[cfg(feature = "serde")]
 pub use serialize::{Report, ThresholdParams, ThresholdReport};
@@ -118,11 +118,12 @@ pub use serialize::{Report, ThresholdParams, ThresholdReport};
 pub(crate) mod serialize {
     use serde::Serialize;
 
+    use crate::input::orientation::Orientation;
     use crate::input::params::Params;
+    use crate::operations::calibration::Calibration;
     use crate::operations::evaluate::Method;
-    use crate::operations::transfer::{Calibration, Segment, Transfer};
+    use crate::operations::transfer::{Segment, Transfer};
     use crate::rules::decisions::Matching;
-    use crate::signals::orientation::Orientation;
 
     /// A result with the name of what it was computed on: the document `qtvpr-cli
     /// evaluate` prints and the dict `qtvpr.evaluate` / `qtvpr.ablation` return.
@@ -208,7 +209,7 @@ mod tests {
     use super::ThresholdReport;
     use crate::input::GroundTruth;
     use crate::input::params::{Defaults, Params};
-    use crate::operations::transfer::Calibration;
+    use crate::operations::calibration::Calibration;
     use crate::rules::decisions::{Counts, Matching};
 
     #[test]

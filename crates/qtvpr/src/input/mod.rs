@@ -367,6 +367,7 @@ pub fn check_precision(tau: f64) -> Result<()> {
 }
 
 // After `with_scores!`, so that it is in scope in them.
+pub(crate) mod orientation;
 pub(crate) mod params;
 
 #[cfg(test)]

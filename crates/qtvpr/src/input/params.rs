@@ -21,6 +21,10 @@ pub const DEFAULT_K: usize = 10;
 /// The precision target when none is given: the paper's 100%.
 pub const DEFAULT_PRECISION: f64 = 1.0;
 
+/// The warm-up of an online state when none is given: none, every query is decided on
+/// the queries it has (semantics §11).
+pub const DEFAULT_MIN_WINDOW: usize = 1;
+
 /// `k >= 1`.
 fn check_k(k: usize) -> Result<()> {
     if k < 1 {
@@ -195,7 +199,7 @@ impl OnlineParams {
     }
 
     /// Parameters from those given, each `None` taking the calibration's default
-    /// (`min_window`: 1), validated.
+    /// (`min_window`: [`DEFAULT_MIN_WINDOW`]), validated.
     ///
     /// # Errors
     /// No window given and none in `defaults` ([`Error::InvalidParameter`]: "window is
@@ -215,7 +219,7 @@ impl OnlineParams {
             k: k.unwrap_or(defaults.k),
             precision: precision.unwrap_or(defaults.precision),
             window,
-            min_window: min_window.unwrap_or(1),
+            min_window: min_window.unwrap_or(DEFAULT_MIN_WINDOW),
             gate: gate.unwrap_or(defaults.gate),
         };
         params.validate()?;

@@ -17,7 +17,12 @@ use ndarray::s;
 
 use crate::error::{Error, Result};
 use crate::input::GroundTruth;
+use crate::input::params::{Options, Params};
+use crate::operations::calibration::Calibration;
 use crate::operations::evaluate::Split;
+use crate::operations::source::ScoreSource;
+use crate::operations::transfer::Transfer;
+use crate::rules::decisions::Matching;
 
 /// The queries of one |DB| x |Q| similarity matrix (or of a range of query
 /// descriptors), split: the first [`QuerySplit::calibration`] calibrate and the rest,
@@ -103,6 +108,57 @@ impl QuerySplit {
     #[must_use]
     pub fn deployment_error(&self, err: Error) -> Error {
         err.shifted(self.calibration_queries)
+    }
+
+    /// The transfer within the queries split: calibrate on the calibration queries of
+    /// `scores` (a matrix, or descriptors, of the queries split) with `gt`, their ground
+    /// truth ([`QuerySplit::calibration_truth`], or made for them alone), and transfer
+    /// to the deployment queries with `options`. The one place front ends that take one
+    /// set of queries do so: `qtvpr-cli threshold --similarity` (or descriptors) with
+    /// `--cal-queries`, and Python's `quantile_transfer(cal_queries=...)`.
+    ///
+    /// The calibration keeps neither the scores nor the ground truth
+    /// ([`Calibration::for_transfer`]); it is returned with the transfer, for what a
+    /// report says of it.
+    ///
+    /// # Errors
+    /// [`SplitError::Calibration`] for the calibration's input (its similarity, its
+    /// ground truth); [`SplitError::Deployment`] for the transfer's, a position in the
+    /// columns split ([`QuerySplit::deployment_error`]).
+    pub fn transfer<'s, 'd: 's, 'p>(
+        &self,
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        gt: GroundTruth,
+        matching: Matching,
+        options: impl Into<Options<'p, Params>>,
+    ) -> Result<(Calibration, Transfer), SplitError> {
+        let scores = scores.into();
+        let cal = Calibration::for_transfer(scores.columns(self.calibration()), gt, matching)
+            .map_err(SplitError::Calibration)?;
+        let out = cal
+            .transfer(scores.columns(self.deployment()), options)
+            .map_err(|e| SplitError::Deployment(self.deployment_error(e)))?;
+        Ok((cal, out))
+    }
+}
+
+/// An error of [`QuerySplit::transfer`], told by the queries it is about (a front end
+/// names the inputs of each differently).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SplitError {
+    /// Calibrating on the calibration queries failed: their similarity, or their ground
+    /// truth.
+    Calibration(Error),
+    /// The transfer to the deployment queries failed: their scores (positions in the
+    /// columns split) or the transfer's parameters.
+    Deployment(Error),
+}
+
+impl From<SplitError> for Error {
+    fn from(err: SplitError) -> Self {
+        match err {
+            SplitError::Calibration(e) | SplitError::Deployment(e) => e,
+        }
     }
 }
 
@@ -200,5 +256,41 @@ mod tests {
         );
         let err = Error::param("k", "must be >= 1, got 0");
         assert_eq!(split.deployment_error(err.clone()), err);
+    }
+
+    #[test]
+    fn a_split_transfer_is_the_transfer_of_its_columns_and_says_which_failed() {
+        // The case of transfer.rs's tests as one matrix: c0, c1 calibrate (hard GT rows
+        // 0 and 2, 0 and 1), v0 and v1 are thresholded.
+        let s = array![[3.0, 1.0, 2.0, 2.0], [1.0, 4.0, 6.0, 5.0], [2.0, 1.0, 4.0, 2.0]];
+        let gt = GroundTruth::new(array![[1, 1, 0, 0], [0, 1, 0, 0], [1, 0, 0, 0]].view()).unwrap();
+        let split = QuerySplit::new(Split::Count(2), s.dim()).unwrap();
+        let params = Params {
+            k: 1,
+            ..Params::default()
+        };
+        let gt_cal = split.calibration_truth(&gt).unwrap();
+        let (cal, out) = split
+            .transfer(s.view(), gt_cal.clone(), Matching::Multi, &params)
+            .unwrap();
+        let alone = Calibration::new(s.slice(s![.., ..2]), &gt_cal, Matching::Multi).unwrap();
+        assert_eq!(out, alone.transfer(s.slice(s![.., 2..]), &params).unwrap());
+        // 2 queries calibrated, kept nothing to save.
+        assert_eq!((cal.len(), cal.scores()), (2, None));
+        // A bad calibration score, then a bad deployment score (column 3 of the matrix).
+        let mut bad = s.clone();
+        bad[[1, 0]] = f64::NAN;
+        let err = split.transfer(bad.view(), gt_cal.clone(), Matching::Multi, &params);
+        assert!(matches!(
+            err,
+            Err(SplitError::Calibration(Error::NotFinite { col: 0, .. }))
+        ));
+        let mut bad = s.clone();
+        bad[[1, 3]] = f64::INFINITY;
+        let err = split.transfer(bad.view(), gt_cal, Matching::Multi, &params);
+        assert!(matches!(
+            err,
+            Err(SplitError::Deployment(Error::NotFinite { col: 3, .. }))
+        ));
     }
 }

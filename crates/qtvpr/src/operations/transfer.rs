@@ -20,26 +20,21 @@
 //! segments (one segment when a segment is larger than the base chunk).
 
 use std::ops::Range;
-use std::sync::OnceLock;
 
-use ndarray::{Array2, ArrayView2, ArrayViewMut2, ShapeBuilder};
+use ndarray::Array2;
 use rayon::prelude::*;
 
 use crate::error::names::Input;
 use crate::error::{Error, Result};
-use crate::extensions::similarity::{DescriptorColumns, TILE};
-use crate::input::params::Gate;
-use crate::input::params::{Defaults, Options, Params};
-use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_nonempty, check_precision};
+use crate::extensions::similarity::DescriptorColumns;
+use crate::input::check_nonempty;
+use crate::input::params::{Options, Params};
+use crate::operations::calibration::{Calibration, Wanted};
+use crate::operations::chunks::{CHUNK_SCORES, Chunks, Fused};
 use crate::operations::source::ScoreSource;
 use crate::platform::threads;
-use crate::rules::best_threshold::subset_threshold;
-use crate::rules::decisions::{Candidates, Matching};
 use crate::rules::deployment::{deployment_threshold, segments, sorted_columns_threshold, weighted_median};
-use crate::rules::ranked_correlation::{Ranked, Screen};
-use crate::rules::subset_quantile::subset_quantile;
-use crate::signals::confidence::{self, ConfidenceMap};
-use crate::signals::margin::{self, CalibrationMargins};
+use crate::rules::ranked_correlation::Ranked;
 
 /// The threshold of one segment of deployment queries.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,419 +98,7 @@ impl PartialEq for Transfer {
             && same(&self.query_confidences_lower95, &other.query_confidences_lower95)
     }
 }
-
-/// A calibration traverse with ground truth, ready to transfer thresholds.
-///
-/// Built by [`Calibration::new`], it keeps its input besides what the transfer needs
-/// (the raw scores in their own type and the ground truth) so that it can be saved as a
-/// calibration file (`Calibration::save`, feature `npy`) and loaded with bit-identical
-/// results. That costs one more copy of the calibration matrix (|DB| x |Qcal| scores of
-/// 4 or 8 bytes) and one byte per entry for the ground truth, beside the ranked profiles
-/// (the same size again) and their screen (2 KiB a profile). Built by
-/// [`Calibration::for_transfer`], it keeps only the profiles, the screen and the
-/// candidates (see `docs/performance.md`).
-pub struct Calibration {
-    matching: Matching,
-    /// The ranked profiles, ascending, in the input's own type, with their
-    /// standardisation (for correlations).
-    profiles: Box<dyn Profiles>,
-    /// The profiles' block summaries, which bound every correlation.
-    screen: Screen,
-    candidates: Candidates,
-    n_db: usize,
-    /// The input, kept to be saved (`None` for [`Calibration::for_transfer`]).
-    input: Option<(ScoreMatrix, GroundTruth)>,
-    /// The defaults of a calibration file's `params`.
-    defaults: Defaults,
-    /// The single-match decisions with their margins, for the gate's `m*`: found on the
-    /// first request for a gate (a pass over every profile that a calibration never
-    /// gated should not pay).
-    margins: OnceLock<CalibrationMargins>,
-    /// The confidence map of semantics §14, fitted to the same decisions (by their
-    /// PA-scores) on the first request for a confidence.
-    confidence: OnceLock<ConfidenceMap>,
-}
-
-/// What the calibration gives one deployment query (semantics §4 and §5).
-#[derive(Debug, Clone)]
-pub(crate) struct QueryTransfer {
-    /// Its calibration neighbours, most correlated first.
-    pub(crate) neighbours: Vec<usize>,
-    /// Its weight `w_j`.
-    pub(crate) weight: f64,
-    /// Its subset threshold `t_j` (`inf` for reject-all).
-    pub(crate) threshold: f64,
-    /// The quantile `q_j` of that threshold.
-    pub(crate) quantile: f64,
-    /// Its margin (semantics §13) and its PA-score (semantics §14), when the gate or the
-    /// confidence asks for them.
-    pub(crate) margin: Option<f64>,
-    pub(crate) pa_score: Option<f64>,
-}
-
-/// The per-query signals a caller reads: the margin for the gate (semantics §13), the
-/// PA-score for the confidence (§14). Neither is computed unless asked for.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Wanted {
-    pub(crate) margin: bool,
-    pub(crate) pa_score: bool,
-}
-
-/// What the transfer asks of the calibration profiles, whatever their score type.
-trait Profiles: Send + Sync {
-    /// The quantile of a subset threshold `t` among sorted calibration columns.
-    fn quantile(&self, columns: &[usize], t: f64) -> f64;
-    /// The `f64` correlations of calibration queries `is` with a standardised profile
-    /// `u`, into `out`.
-    fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]);
-    /// The margin (semantics §13) of calibration query `i`.
-    fn margin(&self, i: usize) -> f64;
-    /// The PA-score (semantics §14) of calibration query `i`.
-    fn pa_score(&self, i: usize) -> f64;
-}
-
-impl<T: Score> Profiles for Ranked<T> {
-    fn quantile(&self, columns: &[usize], t: f64) -> f64 {
-        subset_quantile(columns.iter().map(|&i| self.column(i)), t)
-    }
-    fn correlations(&self, is: &[usize], u: &[f64], out: &mut [f64]) {
-        Ranked::correlations(self, is, u, out)
-    }
-    fn margin(&self, i: usize) -> f64 {
-        margin::of_sorted(self.column(i))
-    }
-    fn pa_score(&self, i: usize) -> f64 {
-        confidence::pa_score_of_sorted(self.column(i))
-    }
-}
-
 impl Calibration {
-    /// Prepare calibration similarity `scores` (|DB| x |Qcal|) with its ground truth:
-    /// a matrix, or descriptors, whose similarity is computed in memory (the
-    /// calibration keeps it anyway), bit for bit as
-    /// [`cosine_similarity`](crate::cosine_similarity) computes those columns.
-    ///
-    /// # Errors
-    /// Empty or non-finite scores, a range of descriptor queries that is empty or
-    /// beyond |Q|, or ground truth of another shape.
-    pub fn new<'s, 'd: 's>(
-        scores: impl Into<ScoreSource<'s, 'd>>,
-        gt: &GroundTruth,
-        matching: Matching,
-    ) -> Result<Self> {
-        match scores.into() {
-            ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
-                let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
-                check_gt_shape(gt, Input::CalSimilarity, s.dim())?;
-                Ok(Self::from_ranked(ranked, Score::to_matrix(s), gt.clone(), matching))
-            })),
-            ScoreSource::Descriptors(d, queries) => {
-                d.check_range(&queries)?;
-                check_gt_shape(gt, Input::CalSimilarity, (d.shape().0, queries.len()))?;
-                // The computed matrix becomes the calibration's own copy: no second one.
-                let s = d.similarity(queries)?;
-                let ranked = Ranked::new(Input::CalSimilarity, s.view(), 0)?;
-                Ok(Self::from_ranked(ranked, ScoreMatrix::F32(s), gt.clone(), matching))
-            }
-        }
-    }
-
-    /// A calibration that only transfers: the same thresholds, neighbours and records as
-    /// [`Calibration::new`] of the same input, bit for bit, but it keeps neither its
-    /// scores nor its ground truth, so it cannot be saved. It takes the ground truth by
-    /// value and drops it as soon as the candidates of semantics §2 are found.
-    ///
-    /// From descriptors, the |DB| x |Qcal| similarity is never held beside the ranked
-    /// profiles: it is computed twice, a few columns at a time, once for the candidates
-    /// (under the ground truth) and once straight into the profiles, where it is
-    /// sorted. What such a calibration holds is then its profiles (4 bytes a score),
-    /// their screen and its candidates; while it is built, the ground truth or the
-    /// profiles, and a few columns.
-    ///
-    /// # Errors
-    /// As [`Calibration::new`].
-    pub fn for_transfer<'s, 'd: 's>(
-        scores: impl Into<ScoreSource<'s, 'd>>,
-        gt: GroundTruth,
-        matching: Matching,
-    ) -> Result<Self> {
-        match scores.into() {
-            ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
-                let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
-                check_gt_shape(&gt, Input::CalSimilarity, s.dim())?;
-                let candidates = Candidates::new(s, gt.view(), matching);
-                Ok(Self::from_parts(ranked, candidates, matching, None))
-            })),
-            ScoreSource::Descriptors(d, queries) => {
-                d.check_range(&queries)?;
-                let n_db = d.shape().0;
-                check_gt_shape(&gt, Input::CalSimilarity, (n_db, queries.len()))?;
-                // Groups of about a chunk of scores, at least a tile of columns. Two
-                // passes, so that the ground truth and the profiles are never held at
-                // once: the candidates under the ground truth, then the profiles.
-                let (n, width) = (queries.len(), (CHUNK_SCORES / n_db).max(TILE));
-                let groups: Vec<Range<usize>> = (0..n).step_by(width).map(|a| a..(a + width).min(n)).collect();
-                let mut columns = DescriptorColumns::new(d, queries.start);
-                let mut candidates = Candidates::none();
-                for r in &groups {
-                    let mut group = Array2::zeros((n_db, r.len()).f());
-                    columns.fill(r.clone(), group.view_mut());
-                    let labels = gt.view().slice_move(ndarray::s![.., r.clone()]);
-                    candidates.append(Candidates::new(group.view(), labels, matching));
-                }
-                drop(gt);
-                let mut ranked = Ranked::with_capacity(Input::CalSimilarity, n_db, queries.len())?;
-                let mut columns = DescriptorColumns::new(d, queries.start);
-                for r in groups {
-                    let (n, first) = (r.len(), r.start);
-                    ranked.extend_with(Input::CalSimilarity, n, first, |out| {
-                        columns.fill(r, column_major((n_db, n), out));
-                    })?;
-                }
-                Ok(Self::from_parts(ranked, candidates, matching, None))
-            }
-        }
-    }
-
-    /// [`Calibration::for_transfer`] of a matrix, on labels already known to have the
-    /// shape of `s` (the evaluation protocol's, never saved).
-    pub(crate) fn with_labels<T: Score>(
-        s: ArrayView2<'_, T>,
-        gt: ArrayView2<'_, Truth>,
-        matching: Matching,
-    ) -> Result<Self> {
-        let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
-        Ok(Self::from_parts(
-            ranked,
-            Candidates::new(s, gt, matching),
-            matching,
-            None,
-        ))
-    }
-
-    /// The calibration of profiles `ranked`; `scores` is the calibration similarity they
-    /// were ranked from, kept to be saved with `gt`.
-    fn from_ranked<T: Score>(ranked: Ranked<T>, scores: ScoreMatrix, gt: GroundTruth, matching: Matching) -> Self {
-        let candidates = with_scores!(scores.view(), |s| Candidates::new(s, gt.view(), matching));
-        Self::from_parts(ranked, candidates, matching, Some((scores, gt)))
-    }
-
-    /// The calibration of profiles `ranked` with their screen.
-    fn from_parts<T: Score>(
-        ranked: Ranked<T>,
-        candidates: Candidates,
-        matching: Matching,
-        input: Option<(ScoreMatrix, GroundTruth)>,
-    ) -> Self {
-        Self {
-            matching,
-            screen: Screen::new(&ranked),
-            n_db: ranked.view().nrows(),
-            profiles: Box::new(ranked),
-            candidates,
-            input,
-            defaults: Defaults::default(),
-            margins: OnceLock::new(),
-            confidence: OnceLock::new(),
-        }
-    }
-
-    /// The same calibration with the defaults a calibration file stores in its
-    /// `params` (what `Calibration::load` gives a loaded one).
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1], a window of 0,
-    /// or a margin gate on a calibration that cannot have one (`margin::check`).
-    pub fn with_defaults(mut self, defaults: Defaults) -> Result<Self> {
-        self.check_defaults(&defaults)?;
-        self.defaults = defaults;
-        Ok(self)
-    }
-
-    /// Check `defaults` for this calibration: [`Defaults::validate`], and a margin gate
-    /// only where it applies (`margin::check`).
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the parameter.
-    pub fn check_defaults(&self, defaults: &Defaults) -> Result<()> {
-        defaults.validate()?;
-        self.check_gate(defaults.gate)
-    }
-
-    /// Check that decisions on this calibration can be gated with `gate`.
-    ///
-    /// # Errors
-    /// `margin::check` when the gate is on.
-    pub fn check_gate(&self, gate: Gate) -> Result<()> {
-        if gate.is_on() {
-            margin::check(self.matching, self.n_db)?;
-        }
-        Ok(())
-    }
-
-    /// The defaults this calibration was loaded with ([`Defaults::default`] for one built
-    /// by [`Calibration::new`]).
-    pub fn defaults(&self) -> &Defaults {
-        &self.defaults
-    }
-
-    /// |DB|: the number of database images (rows) of the calibration.
-    pub fn db_size(&self) -> usize {
-        self.n_db
-    }
-
-    /// The calibration similarity as given, |DB| x |Qcal|, in its own type (`None` for
-    /// [`Calibration::for_transfer`], which does not keep it).
-    pub fn scores(&self) -> Option<&ScoreMatrix> {
-        self.input.as_ref().map(|(s, _)| s)
-    }
-
-    /// The calibration ground truth as given, hard with soft entries as ignored (`None`
-    /// for [`Calibration::for_transfer`], which does not keep it).
-    pub fn ground_truth(&self) -> Option<&GroundTruth> {
-        self.input.as_ref().map(|(_, gt)| gt)
-    }
-
-    /// Gather, check, sort and standardise the deployment columns `s` into `ranked`.
-    /// `first_col` is the deployment index of `s`'s first column, for errors.
-    pub(crate) fn rank<T: Score>(&self, ranked: &mut Ranked<T>, s: ArrayView2<'_, T>, first_col: usize) -> Result<()> {
-        ranked.refill(Input::DeploymentSimilarity, s, first_col)
-    }
-
-    /// semantics §4 and §5 for every column of a block ranked by
-    /// [`Calibration::rank`]: each query's `k` neighbours (their correlations computed
-    /// in `f64` where the screen's bounds leave doubt) and weight, their
-    /// subset threshold at `precision`, and its quantile (and its margin and PA-score
-    /// as `wanted`, for the gate and the confidence). The one place a deployment
-    /// query's `q_j` and `w_j` are computed, for the batch transfer and for
-    /// [`crate::Online`] alike; in parallel over the block.
-    pub(crate) fn queries<T: Score>(
-        &self,
-        ranked: &Ranked<T>,
-        k: usize,
-        precision: f64,
-        wanted: Wanted,
-    ) -> Vec<QueryTransfer> {
-        threads::install(|| {
-            (0..ranked.ncols())
-                .into_par_iter()
-                .map_init(
-                    || vec![0.0; self.n_db],
-                    |u, j| self.query(ranked, j, k, precision, wanted, u),
-                )
-                .collect()
-        })
-    }
-
-    /// [`Calibration::queries`] for column `j` alone, with `u` (|DB| long) to hold its
-    /// standardised profile.
-    pub(crate) fn query<T: Score>(
-        &self,
-        ranked: &Ranked<T>,
-        j: usize,
-        k: usize,
-        precision: f64,
-        wanted: Wanted,
-        u: &mut [f64],
-    ) -> QueryTransfer {
-        ranked.profile(j, u);
-        let (neighbours, weight) = self
-            .screen
-            .top_k(u, k, |is, out| self.profiles.correlations(is, u, out));
-        let threshold = subset_threshold(&self.candidates, &neighbours, precision);
-        let quantile = self.profiles.quantile(&neighbours, threshold);
-        QueryTransfer {
-            neighbours,
-            weight,
-            threshold,
-            quantile,
-            margin: wanted.margin.then(|| margin::of_sorted(ranked.column(j))),
-            pa_score: wanted
-                .pa_score
-                .then(|| confidence::pa_score_of_sorted(ranked.column(j))),
-        }
-    }
-
-    /// Number of calibration queries.
-    pub fn len(&self) -> usize {
-        self.candidates.ncols()
-    }
-
-    /// Always false: a calibration has at least one query.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// The matching mode the calibration was built for.
-    pub fn matching(&self) -> Matching {
-        self.matching
-    }
-
-    /// The semantics §3 threshold of the whole calibration set (today's practice of a
-    /// threshold tuned once offline).
-    ///
-    /// # Errors
-    /// tau outside (0, 1].
-    pub fn threshold(&self, precision: f64) -> Result<f64> {
-        check_precision(precision)?;
-        let all: Vec<usize> = (0..self.len()).collect();
-        Ok(subset_threshold(&self.candidates, &all, precision))
-    }
-
-    /// The margin gate `m*` of semantics §13 at precision target `precision`: the
-    /// semantics §3 threshold of the calibration's single-match decisions with their
-    /// margins in place of their scores (`+inf`: reject-all).
-    ///
-    /// # Errors
-    /// A multi-match calibration or one of fewer than 2 database images
-    /// (`margin::check`); tau outside (0, 1].
-    pub fn gate(&self, precision: f64) -> Result<f64> {
-        margin::check(self.matching, self.n_db)?;
-        check_precision(precision)?;
-        Ok(self.calibration_margins().gate(precision))
-    }
-
-    /// The calibration's single-match decisions with their margins, found on the first
-    /// request for the gate. Single matching with |DB| >= 2 only.
-    fn calibration_margins(&self) -> &CalibrationMargins {
-        self.margins.get_or_init(|| {
-            let of_columns: Vec<f64> = threads::install(|| {
-                (0..self.len())
-                    .into_par_iter()
-                    .map(|i| self.profiles.margin(i))
-                    .collect()
-            });
-            CalibrationMargins::new(&of_columns, &self.candidates)
-        })
-    }
-
-    /// The confidence map of semantics §14: the centred isotonic fit of the
-    /// calibration's single-match decisions (soft-only best matches left out) on their
-    /// PA-scores, found on the first request. Without a decision it has no blocks, and
-    /// gives NaN.
-    ///
-    /// # Errors
-    /// A multi-match calibration or one of fewer than 2 database images
-    /// (`confidence::check`).
-    pub fn confidence_map(&self) -> Result<&ConfidenceMap> {
-        confidence::check(self.matching, self.n_db)?;
-        Ok(self.confidence.get_or_init(|| {
-            let pa_scores: Vec<f64> = (0..self.len()).map(|i| self.profiles.pa_score(i)).collect();
-            ConfidenceMap::fit(confidence::pairs(&pa_scores, &self.candidates))
-        }))
-    }
-
-    /// The map when this calibration's decisions have a confidence (single matching,
-    /// |DB| >= 2), else `None`: what a decision record reads.
-    pub(crate) fn confidence_of_decisions(&self) -> Option<&ConfidenceMap> {
-        self.confidence_map().ok()
-    }
-
-    /// `Some(m*)` when `gate` is on, checked against this calibration.
-    pub(crate) fn gate_of(&self, gate: Gate, precision: f64) -> Result<Option<f64>> {
-        gate.is_on().then(|| self.gate(precision)).transpose()
-    }
-
     /// Transfer thresholds to the deployment similarity `scores` (|DB| x |Qval|): a
     /// matrix, or descriptors. Segments and query indices count from the source's
     /// first query. `options` are the [`Params`] (`&params`), and a progress callback
@@ -528,8 +111,8 @@ impl Calibration {
     /// transfer of those columns of `cosine_similarity(db, q)`. Each chunk holds whole
     /// segments (one segment when a segment is larger than the base chunk of about
     /// 2^22 scores), computed where it is sorted, so memory beyond the descriptors and
-    /// the calibration is one chunk of scores and fewer than a tile
-    /// ([`similarity::TILE`](crate::extensions::similarity::TILE)) of columns computed ahead.
+    /// the calibration is one chunk of scores and fewer than a tile of columns (16, the
+    /// similarity kernel's) computed ahead.
     ///
     /// # Errors
     /// Invalid parameters, empty or non-finite scores, a |DB| that differs from the
@@ -576,9 +159,9 @@ impl Calibration {
     pub fn check_transfer(&self, shape: (usize, usize), params: &Params) -> Result<()> {
         params.validate()?;
         check_nonempty(Input::DeploymentSimilarity, shape)?;
-        if shape.0 != self.n_db {
+        if shape.0 != self.db_size() {
             return Err(Error::DatabaseMismatch {
-                calibration: self.n_db,
+                calibration: self.db_size(),
                 deployment: shape.0,
             });
         }
@@ -622,23 +205,20 @@ impl Calibration {
         chunk_scores: usize,
     ) -> Result<Transfer> {
         let (n_db, n_val) = source.dim();
-        if n_db != self.n_db {
+        if n_db != self.db_size() {
             return Err(Error::DatabaseMismatch {
-                calibration: self.n_db,
+                calibration: self.db_size(),
                 deployment: n_db,
             });
         }
         let ranges = segments(n_val, params.segment_size)?;
         let k = params.k.min(self.len());
-        let gate = self.gate_of(params.gate, params.precision)?;
-        let mut query_margins = gate.map(|_| vec![0.0; n_val]);
+        let gates = self.gates(params.gate, params.precision)?;
+        let mut query_margins = gates.margin.map(|_| vec![0.0; n_val]);
         // Found before the parallel loops, which only read it.
         let confidence = self.confidence_of_decisions();
         let mut query_confidences = confidence.map(|_| (vec![0.0; n_val], vec![0.0; n_val]));
-        let wanted = Wanted {
-            margin: gate.is_some(),
-            pa_score: confidence.is_some(),
-        };
+        let wanted = Wanted::of(&gates, self);
 
         let mut query_quantiles = vec![0.0; n_val];
         let mut query_thresholds = vec![0.0; n_val];
@@ -650,7 +230,7 @@ impl Calibration {
         // chunk's sorted columns while they are at hand: one pass over the data. A source
         // without random access (descriptors) always works so, a chunk of one segment
         // when segments are larger.
-        let base = (chunk_scores / self.n_db).clamp(16, 4096);
+        let base = (chunk_scores / self.db_size()).clamp(16, 4096);
         let segment_size = ranges[0].len();
         let in_chunks = segment_size <= base || source.whole().is_none();
         let chunk = if segment_size <= base {
@@ -671,7 +251,7 @@ impl Calibration {
                     .zip(r.neighbours)
                     .for_each(|(d, i)| *d = i);
                 (query_weights[j], query_thresholds[j], query_quantiles[j]) = (r.weight, r.threshold, r.quantile);
-                if let (Some(m), Some(margin)) = (query_margins.as_mut(), r.margin) {
+                if let (Some(m), Some(margin)) = (query_margins.as_mut(), r.gates.margin) {
                     m[j] = margin;
                 }
                 if let (Some((c, lower)), Some(map), Some(r)) = (query_confidences.as_mut(), confidence, r.pa_score) {
@@ -709,73 +289,13 @@ impl Calibration {
             query_thresholds,
             query_weights,
             neighbours,
-            gate,
+            gate: gates.margin_level(),
             query_margins,
             query_confidences: query_confidences.as_ref().map(|c| c.0.clone()),
             query_confidences_lower95: query_confidences.map(|c| c.1),
         })
     }
 }
-
-/// Where a transfer reads its deployment scores: a matrix (random access), or
-/// descriptors whose columns are computed chunk by chunk, left to right.
-trait Chunks {
-    /// The score type.
-    type T: Score;
-    /// (|DB|, |Qval|).
-    fn dim(&self) -> (usize, usize);
-    /// Every score, when the source holds them (a matrix): a source without it is read
-    /// only in consecutive chunks.
-    fn whole(&self) -> Option<ArrayView2<'_, Self::T>>;
-    /// Gather, check, sort and standardise the scores of deployment queries `r` into
-    /// `ranked`.
-    fn rank(&mut self, ranked: &mut Ranked<Self::T>, r: Range<usize>) -> Result<()>;
-}
-
-impl<T: Score> Chunks for ArrayView2<'_, T> {
-    type T = T;
-    fn dim(&self) -> (usize, usize) {
-        ArrayView2::dim(self)
-    }
-    fn whole(&self) -> Option<ArrayView2<'_, T>> {
-        Some(self.view())
-    }
-    fn rank(&mut self, ranked: &mut Ranked<T>, r: Range<usize>) -> Result<()> {
-        let first = r.start;
-        ranked.refill(Input::DeploymentSimilarity, self.slice(ndarray::s![.., r]), first)
-    }
-}
-
-/// The deployment similarity of a range of query descriptors.
-struct Fused<'d, 'a> {
-    columns: DescriptorColumns<'d, 'a>,
-    dim: (usize, usize),
-}
-
-impl Chunks for Fused<'_, '_> {
-    type T = f32;
-    fn dim(&self) -> (usize, usize) {
-        self.dim
-    }
-    fn whole(&self) -> Option<ArrayView2<'_, f32>> {
-        None
-    }
-    fn rank(&mut self, ranked: &mut Ranked<f32>, r: Range<usize>) -> Result<()> {
-        // Computed where they are sorted: the chunk is never copied.
-        let shape = (self.dim.0, r.len());
-        ranked.refill_with(Input::DeploymentSimilarity, shape, r.start, |out| {
-            self.columns.fill(r, column_major(shape, out));
-        })
-    }
-}
-
-/// A column-major `shape` view of `out`.
-fn column_major(shape: (usize, usize), out: &mut [f32]) -> ArrayViewMut2<'_, f32> {
-    ArrayViewMut2::from_shape(shape.f(), out).expect("a buffer of the shape")
-}
-
-/// Deployment scores per chunk (32 MB of f64 working memory).
-pub(crate) const CHUNK_SCORES: usize = 1 << 22;
 
 /// The segment `r` of deployment queries, given the threshold of a quantile of its scores.
 fn segment(r: Range<usize>, q: &[f64], w: &[f64], threshold: impl FnOnce(f64) -> f64) -> Segment {
@@ -789,10 +309,13 @@ fn segment(r: Range<usize>, q: &[f64], w: &[f64], threshold: impl FnOnce(f64) ->
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::extensions::similarity::Descriptors;
-    use ndarray::{Array2, array};
+    use crate::input::GroundTruth;
+    use crate::input::params::Gate;
+    use crate::rules::decisions::Matching;
+    use ndarray::array;
 
     /// |DB| = 3, two calibration and two deployment queries (columns).
     ///
@@ -811,7 +334,7 @@ mod tests {
         (cal, array![[2.0, 2.0], [6.0, 5.0], [4.0, 2.0]])
     }
 
-    fn params(k: usize, segment_size: Option<usize>) -> Params {
+    pub(crate) fn params(k: usize, segment_size: Option<usize>) -> Params {
         Params {
             k,
             precision: 1.0,
@@ -955,34 +478,6 @@ mod tests {
                     .unwrap();
                 assert_eq!(calls.get(), 3, "45 queries in chunks of 16 (or 15)");
             }
-        }
-    }
-
-    #[test]
-    fn a_calibration_for_transfer_from_descriptors_is_built_a_group_at_a_time() {
-        // |DB| = CHUNK_SCORES / TILE rows, so that a group is one tile of queries: 33
-        // calibration queries are ranked in groups of 16, 16 and 1 (each group's
-        // candidates first, under the ground truth), and transfer as the matrix path.
-        let n_db = CHUNK_SCORES / TILE;
-        let mut x = 11u64;
-        let mut next = || {
-            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((x >> 33) % 1000) as f32 / 1000.0 - 0.5
-        };
-        let db = Array2::from_shape_fn((n_db, 3), |_| next());
-        let q = Array2::from_shape_fn((50, 3), |_| next());
-        let s = crate::extensions::similarity::cosine_similarity(db.view(), q.view()).unwrap();
-        let d = Descriptors::new(db.view(), q.view()).unwrap();
-        let gt = GroundTruth::new(Array2::from_shape_fn((n_db, 33), |(i, j)| i % 1000 == j).view()).unwrap();
-        let p = params(5, Some(6));
-        for matching in [Matching::Single, Matching::Multi] {
-            let cal = Calibration::new(s.slice(ndarray::s![.., ..33]), &gt, matching).unwrap();
-            let lean = Calibration::for_transfer(ScoreSource::Descriptors(&d, 0..33), gt.clone(), matching).unwrap();
-            assert_eq!(lean.len(), 33);
-            assert_eq!(lean.db_size(), n_db);
-            let want = cal.transfer(s.slice(ndarray::s![.., 33..]), &p).unwrap();
-            assert_eq!(lean.transfer(ScoreSource::Descriptors(&d, 33..50), &p).unwrap(), want);
-            assert_eq!(lean.threshold(1.0).unwrap(), cal.threshold(1.0).unwrap());
         }
     }
 

@@ -144,7 +144,7 @@ fn current() -> Arc<Pool> {
 /// # Panics
 /// Only if the operating system cannot start the pool's threads (as rayon's global
 /// pool would), or if `f` panics (the panic is propagated).
-pub fn install<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+pub(crate) fn install<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     #[cfg(test)]
     INSTALLS.with(|n| n.set(n.get() + 1));
     current().pool.install(f)

@@ -453,7 +453,7 @@ mod tests {
     use crate::files::npy::{NpyArray, ground_truth_from_bytes, read_ground_truth, write_npz_to};
     use crate::input::GroundTruth;
     use crate::input::params::Defaults;
-    use crate::operations::transfer::Calibration;
+    use crate::operations::calibration::Calibration;
     use crate::rules::decisions::Matching;
     use qtvpr_testkit::zip::{self as test_zip, Members, hostile, unzip};
 

@@ -115,7 +115,7 @@ pub fn open_input(path: &Path) -> Result<(File, bool)> {
 
 /// Whether `path` is a zip archive (an `.npz`, e.g. a calibration file) rather than a
 /// `.npy`: by its bytes, whatever its name, as the zip reader of
-/// [`Calibration::load`](crate::operations::transfer::Calibration::load) finds an archive. A file
+/// [`Calibration::load`](crate::operations::calibration::Calibration::load) finds an archive. A file
 /// that starts with a zip local header is one; so is a file that does not start as a
 /// `.npy` and has a zip end-of-central-directory record in its last 64 KiB (a zip with
 /// something prepended, such as a self-extracting archive, which the zip reader finds

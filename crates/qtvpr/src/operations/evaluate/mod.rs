@@ -26,7 +26,9 @@ mod online;
 mod protocol;
 mod results;
 
-pub use protocol::{DEFAULT_CAL_FRACTION, DEFAULT_SEGMENT_FRACTION, Layout, Method, Protocol, Split};
+pub use protocol::{
+    ABLATION_DEPLOY_FRACTION, DEFAULT_CAL_FRACTION, DEFAULT_SEGMENT_FRACTION, Layout, Method, Protocol, Split,
+};
 pub use results::{Ablation, Evaluation, MethodResult, PrPoint, SegmentResult};
 
 use std::ops::Range;
@@ -37,17 +39,18 @@ use rayon::prelude::*;
 
 use crate::error::Result;
 use crate::error::names::Input;
+use crate::gates::margin;
+use crate::gates::{self, GateSignals};
 use crate::input::params::Gate;
 use crate::input::params::{Options, Params};
 use crate::input::{GroundTruth, Score, check_gt_shape, validate_scores};
+use crate::operations::calibration::Calibration;
 use crate::operations::source::ScoreSource;
-use crate::operations::transfer::Calibration;
 use crate::platform::threads;
 use crate::rules::baselines::schubert;
 use crate::rules::best_threshold::subset_threshold;
 use crate::rules::decisions::{Candidates, Matching};
 use crate::signals::confidence::{self, ConfidenceMap, Signal, Signals};
-use crate::signals::margin;
 use online::online_segments;
 use results::{score, summarise};
 
@@ -121,10 +124,10 @@ fn evaluate_matrix<T: Score>(
             .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
             .collect()
     });
-    let gated = unique.iter().any(|m| m.is_gated());
-    if gated {
-        margin::check(protocol.matching, s.nrows())?;
-    }
+    // The gate of the gated methods (semantics §13), checked before any work.
+    let gate = unique.iter().map(|m| m.gate()).find(|g| g.is_on()).unwrap_or_default();
+    let gated = gate.is_on();
+    gates::check(gate, protocol.matching, s.nrows())?;
     let needs_calibration = unique.iter().any(|m| {
         m.is_gated()
             || matches!(
@@ -139,9 +142,11 @@ fn evaluate_matrix<T: Score>(
     // thresholds: each found once for the methods that share them.
     let confident = protocol.matching == Matching::Single && s.nrows() >= 2;
     let dep_margins = (gated || confident).then(|| margin::of_columns(s_dep));
-    let gate = if gated {
+    let gates = if gated {
         let cal = calibration.as_ref().expect("built for the gate");
-        Some((dep_margins.clone().expect("found for the gate"), cal.gate(tau)?))
+        let margins = dep_margins.as_ref().expect("found for the gate");
+        let signals: Vec<GateSignals> = margins.iter().map(|&m| GateSignals { margin: Some(m) }).collect();
+        Some((cal.gates(gate, tau)?, signals))
     } else {
         None
     };
@@ -185,8 +190,8 @@ fn evaluate_matrix<T: Score>(
     for &method in &unique {
         // Every method but the online one gives each segment one threshold.
         let scored = |thresholds: &[f64]| {
-            let gate = gate.as_ref().filter(|_| method.is_gated());
-            score(method, &deployment, &ranges, thresholds, &oracle, tau, gate)
+            let gates = gates.as_ref().filter(|_| method.is_gated());
+            score(method, &deployment, &ranges, thresholds, &oracle, tau, gates)
         };
         let result = match method {
             Method::QuantileTransfer | Method::QuantileTransferMargin => {
@@ -226,15 +231,11 @@ fn evaluate_matrix<T: Score>(
     })
 }
 
-/// The deployment set of an [`ablation`] whose base protocol leaves it open: the last
-/// half of the queries.
-pub const ABLATION_DEPLOY_FRACTION: f64 = 0.5;
-
 /// Run the protocol once per combination of `ks` and `calibration` sizes (the paper's
 /// Fig. 5: %Segs and AvgR@tauP against `k` and against the calibration size).
 ///
-/// Every run is `base` with its `k` and calibration replaced; an empty list keeps
-/// `base`'s value. So that the figures of different settings are comparable, every run
+/// Every run is one of [`Protocol::ablation`]: `base` with its `k` and calibration
+/// replaced, an empty list keeping `base`'s value. So that the figures of different settings are comparable, every run
 /// deploys on the same queries: the last `floor(f |Q|)` with `f = base.deploy_fraction`,
 /// or [`ABLATION_DEPLOY_FRACTION`] (the last 50%) when that is `None`. The calibration
 /// set is always the first queries, and may not reach into the deployment set.
@@ -255,29 +256,7 @@ pub fn ablation<'s, 'd: 's, 'p>(
     methods: &[Method],
 ) -> Result<Ablation> {
     let options = base.into();
-    let base = &options.params;
-    let ks = if ks.is_empty() {
-        std::slice::from_ref(&base.k)
-    } else {
-        ks
-    };
-    let calibration = if calibration.is_empty() {
-        std::slice::from_ref(&base.calibration)
-    } else {
-        calibration
-    };
-    let deploy_fraction = Some(base.deploy_fraction.unwrap_or(ABLATION_DEPLOY_FRACTION));
-    let protocols: Vec<Protocol> = calibration
-        .iter()
-        .flat_map(|&calibration| {
-            ks.iter().map(move |&k| Protocol {
-                calibration,
-                deploy_fraction,
-                k,
-                ..*base
-            })
-        })
-        .collect();
+    let protocols = options.params.ablation(ks, calibration)?;
     let source = scores.into();
     let (n_db, n_q) = source.dim();
     for p in &protocols {

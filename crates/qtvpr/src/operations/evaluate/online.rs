@@ -12,8 +12,8 @@ use crate::error::Result;
 use crate::input::Score;
 use crate::input::params::Gate;
 use crate::input::params::OnlineParams;
+use crate::operations::calibration::Calibration;
 use crate::operations::online::Online;
-use crate::operations::transfer::Calibration;
 use crate::rules::decisions::Candidates;
 
 /// Online quantile transfer in the protocol (semantics §11): one window of the

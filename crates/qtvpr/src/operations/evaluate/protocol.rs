@@ -2,7 +2,7 @@
 //! splits the queries of a matrix ([`Layout`]).
 
 use crate::error::{Error, Result};
-use crate::input::params::{DEFAULT_K, DEFAULT_PRECISION, Params};
+use crate::input::params::{DEFAULT_K, DEFAULT_PRECISION, Gate, Params};
 use crate::rules::decisions::Matching;
 
 /// A way of choosing each segment's threshold (semantics §4-§7).
@@ -74,10 +74,18 @@ impl Method {
 }
 
 impl Method {
-    /// Whether the method gates decisions on their margin (semantics §13), which needs
-    /// single matching.
+    /// The gate the method decides through: [`Gate::Margin`] for the margin methods
+    /// (semantics §13), else [`Gate::None`].
+    pub fn gate(self) -> Gate {
+        match self {
+            Method::QuantileTransferMargin | Method::Margin => Gate::Margin,
+            _ => Gate::None,
+        }
+    }
+
+    /// Whether the method gates decisions (semantics §13), which needs single matching.
     pub fn is_gated(self) -> bool {
-        matches!(self, Method::QuantileTransferMargin | Method::Margin)
+        self.gate().is_on()
     }
 
     /// Every method that applies to `matching`, in report order: what "all methods"
@@ -148,6 +156,10 @@ pub const DEFAULT_CAL_FRACTION: f64 = 0.10;
 
 /// The segment size as a share of the queries when none is given: the paper's 1%.
 pub const DEFAULT_SEGMENT_FRACTION: f64 = 0.01;
+
+/// The deployment set of an [`ablation`](super::ablation()) whose base protocol leaves
+/// it open: the last half of the queries.
+pub const ABLATION_DEPLOY_FRACTION: f64 = 0.5;
 
 impl Default for Protocol {
     /// The paper's protocol: the first 10% of the queries calibrate, segments of 1% of
@@ -231,7 +243,7 @@ impl Split {
 
     /// [`Split::calibration_size`] of a matrix of `database` images (when known), which
     /// an error carries so that a front end can say when the count fits |DB| instead
-    /// ([`crate::signals::orientation::hint`]).
+    /// ([`crate::input::orientation::hint`]).
     ///
     /// # Errors
     /// As [`Split::calibration_size`].
@@ -278,6 +290,45 @@ impl Protocol {
         };
         protocol.validate()?;
         Ok(protocol)
+    }
+
+    /// Every protocol an ablation of this one runs (the paper's Fig. 5), checked: one
+    /// per calibration size of `calibration` (the outer loop) and `k` of `ks` (the
+    /// inner one), each in the order given, an empty list keeping this protocol's
+    /// value; every one deploys on the last `floor(f |Q|)` queries, `f` this protocol's
+    /// `deploy_fraction` or [`ABLATION_DEPLOY_FRACTION`] (the last 50%) when it has
+    /// none. What [`ablation`](super::ablation()) runs, and what a front end checks
+    /// before it reads a file.
+    ///
+    /// # Errors
+    /// [`Protocol::validate`] of any of them.
+    pub fn ablation(&self, ks: &[usize], calibration: &[Split]) -> Result<Vec<Protocol>> {
+        let ks = if ks.is_empty() {
+            std::slice::from_ref(&self.k)
+        } else {
+            ks
+        };
+        let calibration = if calibration.is_empty() {
+            std::slice::from_ref(&self.calibration)
+        } else {
+            calibration
+        };
+        let deploy_fraction = Some(self.deploy_fraction.unwrap_or(ABLATION_DEPLOY_FRACTION));
+        let protocols: Vec<Protocol> = calibration
+            .iter()
+            .flat_map(|&calibration| {
+                ks.iter().map(move |&k| Protocol {
+                    calibration,
+                    deploy_fraction,
+                    k,
+                    ..*self
+                })
+            })
+            .collect();
+        for p in &protocols {
+            p.validate()?;
+        }
+        Ok(protocols)
     }
 
     /// Check the parameters that do not depend on the matrix: `k >= 1`, tau in (0, 1],

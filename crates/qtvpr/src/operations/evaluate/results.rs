@@ -6,6 +6,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::protocol::{Layout, Method};
+use crate::gates::{GateSignals, Gates};
 use crate::platform::threads;
 use crate::rules::decisions::{Candidates, Counts};
 
@@ -178,9 +179,10 @@ pub struct Ablation {
     pub runs: Vec<Evaluation>,
 }
 
-/// Count every segment at its threshold and summarise (semantics §8). With a `gate`
-/// (every deployment query's margin, and `m*`), a query whose margin is below `m*`
-/// accepts nothing (semantics §13).
+/// Count every segment at its threshold and summarise (semantics §8). With `gates`
+/// (the method's gates at their levels, and what every deployment query shows them), a
+/// query that a gate does not pass accepts nothing (semantics §13: the accept rule of
+/// [`Gates::threshold`]).
 pub(super) fn score(
     method: Method,
     deployment: &Candidates,
@@ -188,25 +190,17 @@ pub(super) fn score(
     thresholds: &[f64],
     oracle: &[f64],
     tau: f64,
-    gate: Option<&(Vec<f64>, f64)>,
+    gates: Option<&(Gates, Vec<GateSignals>)>,
 ) -> MethodResult {
     let segments: Vec<SegmentResult> = threads::install(|| {
         (ranges, thresholds, oracle)
             .into_par_iter()
             .map(|(r, &threshold, &oracle_threshold)| {
-                let counts = match gate {
+                let counts = match gates {
                     None => deployment.counts(r.clone(), threshold),
-                    // Scores are finite: no score is at or above +inf.
-                    Some((margins, m_star)) => r
+                    Some((gates, signals)) => r
                         .clone()
-                        .map(|j| {
-                            let t = if margins[j] >= *m_star {
-                                threshold
-                            } else {
-                                f64::INFINITY
-                            };
-                            deployment.counts(j..j + 1, t)
-                        })
+                        .map(|j| deployment.counts(j..j + 1, gates.threshold(threshold, &signals[j])))
                         .sum(),
                 };
                 SegmentResult {
@@ -214,7 +208,7 @@ pub(super) fn score(
                     end: r.end,
                     threshold,
                     oracle_threshold,
-                    gate: gate.map(|g| g.1),
+                    gate: gates.and_then(|g| g.0.margin_level()),
                     counts,
                     meets: counts.precision() >= tau - EPS,
                 }

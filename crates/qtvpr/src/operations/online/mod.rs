@@ -30,159 +30,20 @@ use std::sync::Arc;
 
 use ndarray::{ArrayView1, ArrayView2, ArrayViewMut1, Axis, ShapeBuilder, s};
 
+mod record;
+
+pub use record::{Decision, Field, Kind, Value};
+
 use crate::error::{Error, Result};
+use crate::gates::Gates;
 use crate::input::Score;
-use crate::input::params::Gate;
 use crate::input::params::OnlineParams;
-use crate::operations::transfer::{CHUNK_SCORES, Calibration, QueryTransfer, Wanted};
+use crate::operations::calibration::{Calibration, QueryTransfer, Wanted};
+use crate::operations::chunks::CHUNK_SCORES;
 use crate::platform::threads;
 use crate::rules::decisions::{Matching, first_at};
 use crate::rules::deployment::{sorted_columns_threshold, weighted_median};
 use crate::rules::ranked_correlation::Ranked;
-
-/// The decision of one deployment query: the record of semantics §11, the same values
-/// in every front end (the CLI's `stream` line, Python, C) and in both matching modes.
-#[derive(Debug, Clone, Copy)]
-pub struct Decision {
-    /// Its index in arrival order, from 0.
-    pub query: usize,
-    /// Its own quantile `q_j` (of its subset threshold among its calibration neighbours).
-    pub query_quantile: f64,
-    /// Its weight `w_j` (the mean correlation of its neighbours, clipped at 0).
-    pub weight: f64,
-    /// The window's quantile: the lower weighted median of the window's `q` (1 in warm-up).
-    pub quantile: f64,
-    /// `theta_j`, that quantile of the window's scores: accept `score >= threshold`.
-    pub threshold: f64,
-    /// `b_j`, the database index of the column's highest score (the first one): the
-    /// matcher's own choice, in both matching modes.
-    pub best: usize,
-    /// `S[b_j, j]`, its score.
-    pub score: f64,
-    /// The number of accepted database entries: 0 or 1 in single matching (the best
-    /// match, when `score >= threshold` and, with the gate, `margin >= gate`), every
-    /// entry `>= threshold` in multi matching.
-    pub accepted: usize,
-    /// With the margin gate (semantics §13): the column's margin.
-    pub margin: Option<f64>,
-    /// With the margin gate: `m*`, the margin the best match needs.
-    pub gate: Option<f64>,
-    /// semantics §14: the probability that the best match is right, the calibration's
-    /// hit rate at the column's PA-score, whatever the gate; NaN in multi matching, with
-    /// fewer than 2 database images, or when the calibration has no decision.
-    pub confidence: f64,
-    /// The one-sided 95% Clopper-Pearson lower bound on `confidence` (NaN where it is).
-    pub confidence_lower95: f64,
-}
-
-impl Decision {
-    /// The names of the record's fields (semantics §11, and §14's confidence), in order:
-    /// what it serialises to, and the columns of a table of decisions.
-    pub const FIELDS: [&'static str; 11] = [
-        "query",
-        "query_quantile",
-        "weight",
-        "quantile",
-        "threshold",
-        "best",
-        "score",
-        "accepted",
-        "accept",
-        "confidence",
-        "confidence_lower95",
-    ];
-
-    /// The fields a gated record has besides [`Decision::FIELDS`] (semantics §13).
-    pub const GATE_FIELDS: [&'static str; 2] = ["margin", "gate"];
-
-    /// Every field of a record decided with `gate`, in order.
-    pub fn fields(gate: Gate) -> Vec<&'static str> {
-        let extra: &[&str] = if gate.is_on() { &Self::GATE_FIELDS } else { &[] };
-        Self::FIELDS.iter().chain(extra).copied().collect()
-    }
-
-    /// Whether anything is accepted (`accepted > 0`): in single matching, whether the
-    /// best match is kept; in multi matching, whether any entry is.
-    pub fn accept(&self) -> bool {
-        self.accepted > 0
-    }
-}
-
-/// Every field equal, a NaN confidence equal to a NaN confidence (it stands for "none",
-/// as JSON's `null` does), so that the records of multi matching compare as values.
-impl PartialEq for Decision {
-    fn eq(&self, other: &Self) -> bool {
-        let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
-        (
-            self.query,
-            self.query_quantile,
-            self.weight,
-            self.quantile,
-            self.threshold,
-            self.best,
-            self.score,
-            self.accepted,
-            self.margin,
-            self.gate,
-        ) == (
-            other.query,
-            other.query_quantile,
-            other.weight,
-            other.quantile,
-            other.threshold,
-            other.best,
-            other.score,
-            other.accepted,
-            other.margin,
-            other.gate,
-        ) && same(self.confidence, other.confidence)
-            && same(self.confidence_lower95, other.confidence_lower95)
-    }
-}
-
-/// [`Decision::FIELDS`] in order (a NaN confidence is JSON's `null`); then, with the
-/// margin gate, `margin` and `gate`.
-#[cfg(feature = "serde")]
-impl serde::Serialize for Decision {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
-        use serde::ser::SerializeStruct;
-        let gated = self.margin.zip(self.gate);
-        let [
-            query,
-            query_quantile,
-            weight,
-            quantile,
-            threshold,
-            best,
-            score,
-            accepted,
-            accept,
-            confidence,
-            confidence_lower95,
-        ] = Self::FIELDS;
-        let len = Self::FIELDS.len() + if gated.is_some() { Self::GATE_FIELDS.len() } else { 0 };
-        let mut s = serializer.serialize_struct("Decision", len)?;
-        s.serialize_field(query, &self.query)?;
-        s.serialize_field(query_quantile, &self.query_quantile)?;
-        s.serialize_field(weight, &self.weight)?;
-        s.serialize_field(quantile, &self.quantile)?;
-        s.serialize_field(threshold, &self.threshold)?;
-        s.serialize_field(best, &self.best)?;
-        s.serialize_field(score, &self.score)?;
-        s.serialize_field(accepted, &self.accepted)?;
-        s.serialize_field(accept, &self.accept())?;
-        // `Option`, so that a NaN is `null` in every serialiser, not only serde_json.
-        let finite = |x: f64| (!x.is_nan()).then_some(x);
-        s.serialize_field(confidence, &finite(self.confidence))?;
-        s.serialize_field(confidence_lower95, &finite(self.confidence_lower95))?;
-        if let Some((m, g)) = gated {
-            let [margin, gate] = Self::GATE_FIELDS;
-            s.serialize_field(margin, &m)?;
-            s.serialize_field(gate, &g)?;
-        }
-        s.end()
-    }
-}
 
 /// The state of an online deployment: a calibration, parameters and the window.
 ///
@@ -215,9 +76,9 @@ pub struct Online {
     pushed: usize,
     accepted: Vec<usize>,
     threshold: Option<f64>,
-    /// `m*` with the margin gate.
-    gate: Option<f64>,
-    /// What a push finds of its column: the margin with the gate, the PA-score for the
+    /// The gates the parameters enable, at their levels on the calibration.
+    gates: Gates,
+    /// What a push finds of its column: the signals of the gates, the PA-score for the
     /// confidence (semantics §14: single matching, |DB| >= 2).
     wanted: Wanted,
     /// Buffers a push reuses (a fresh |DB|-long buffer per push would cost the kernel
@@ -247,12 +108,9 @@ impl Online {
     /// ([`Error::InvalidParameter`] naming the window).
     pub fn new(calibration: Arc<Calibration>, params: OnlineParams) -> Result<Online> {
         params.validate()?;
-        let gate = calibration.gate_of(params.gate, params.precision)?;
+        let gates = calibration.gates(params.gate, params.precision)?;
         // The confidence map is found here, once, not by the first push.
-        let wanted = Wanted {
-            margin: gate.is_some(),
-            pa_score: calibration.confidence_of_decisions().is_some(),
-        };
+        let wanted = Wanted::of(&gates, &calibration);
         let n_db = calibration.db_size();
         // The full window holds `window x |DB|` scores as f64 (and a q and w per
         // query): a window whose state exceeds what any allocation can hold would only
@@ -281,7 +139,7 @@ impl Online {
             pushed: 0,
             accepted: Vec::new(),
             threshold: None,
-            gate,
+            gates,
             wanted,
             scratch: None,
             profile: Vec::new(),
@@ -524,8 +382,8 @@ impl Online {
         let score = column[best].to_f64();
         match self.calibration.matching() {
             Matching::Single => {
-                let passes = r.margin.zip(self.gate).is_none_or(|(margin, gate)| margin >= gate);
-                self.accepted.extend((score >= threshold && passes).then_some(best));
+                let kept = self.gates.keeps(score, threshold, &r.gates);
+                self.accepted.extend(kept.then_some(best));
             }
             Matching::Multi => {
                 let above = column.iter().enumerate().filter(|(_, v)| v.to_f64() >= threshold);
@@ -547,8 +405,8 @@ impl Online {
             best,
             score,
             accepted: self.accepted.len(),
-            margin: self.gate.and(r.margin),
-            gate: self.gate,
+            margin: self.gates.margin.and(r.gates.margin),
+            gate: self.gates.margin_level(),
             confidence,
             confidence_lower95,
         }
@@ -559,7 +417,7 @@ impl Online {
 mod tests {
     use super::*;
     use crate::input::GroundTruth;
-    use crate::input::params::{Defaults, Params};
+    use crate::input::params::{Defaults, Gate, Params};
     use ndarray::{Array2, array};
 
     /// The calibration of the transfer tests (|DB| = 3):

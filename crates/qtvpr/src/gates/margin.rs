@@ -11,10 +11,11 @@
 //! The gate `m*` is the semantics §3 threshold of the calibration's single-match
 //! decisions with their margins in place of their scores (each calibration query's best
 //! match; soft-only ones left out; positives are the queries with a positive), and
-//! `+inf` (reject-all) when no group meets the target. A gated decision accepts the
-//! best match when its score is at or above the threshold **and** its margin is at or
-//! above `m*`. Multi matching accepts every entry above a threshold, not a best match,
-//! so it has no gate ([`check`] says so).
+//! `+inf` (reject-all) when no group meets the target. The gate ([`MarginGate`]) passes
+//! a query whose margin is at or above `m*`; a gated decision accepts the best match
+//! when its score is at or above the threshold **and** the gate passes (the rule of
+//! [`super::Gates`]). Multi matching accepts every entry above a threshold, not a best
+//! match, so it has no gate ([`check`] says so).
 //!
 //! Every margin of the library is computed by one function from the column sorted
 //! ascending, in `f64` and in a fixed order, so the batch transfer, [`crate::Online`],
@@ -23,6 +24,7 @@
 use ndarray::ArrayView2;
 use rayon::prelude::*;
 
+use super::{GateSignals, QueryGate};
 use crate::error::names::Input;
 use crate::error::{Error, Result};
 use crate::input::{Score, validate_scores};
@@ -110,6 +112,23 @@ pub(crate) fn of_columns<T: Score>(s: ArrayView2<'_, T>) -> Vec<f64> {
             })
             .collect()
     })
+}
+
+/// The margin gate at its level `m*`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct MarginGate {
+    /// `m*`, the margin a best match needs (`+inf`: reject-all).
+    pub(crate) level: f64,
+}
+
+impl QueryGate for MarginGate {
+    fn level(&self) -> f64 {
+        self.level
+    }
+
+    fn passes(&self, query: &GateSignals) -> bool {
+        query.margin.is_none_or(|margin| margin >= self.level)
+    }
 }
 
 /// The calibration's single-match decisions with their margins: what `m*` is found on.

@@ -1,5 +1,5 @@
-//! semantics §1: which way round a similarity matrix was read, and what its ground
-//! truth says of that.
+//! Which way round a similarity matrix was read, and what its ground truth says of that:
+//! the orientation of semantics §1.
 //!
 //! The core computes on |DB| x |Q| views; VPR-Bench stores |Q| x |DB|, and a front end's
 //! switch (`--query-major`, `query_major=True`) says which. A matrix read the wrong way
