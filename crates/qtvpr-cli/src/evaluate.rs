@@ -4,7 +4,7 @@
 //! Lists given to `--k` and `--cal-fraction`/`--cal-queries` make an ablation: the
 //! protocol runs once per combination ([`qtvpr::ablation`]) and reports one row per
 //! setting. All numbers come from `qtvpr::evaluate`, and the JSON is the core's
-//! serialisation of its results (keys: `qtvpr::report`); this module only reads and
+//! serialisation of its results (keys: `qtvpr::Report`, semantics §9); this module only reads and
 //! formats.
 
 use std::fmt::Write as _;
@@ -159,30 +159,22 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         args.cal_queries.iter().map(|&n| Split::Count(n)).collect()
     };
     let ablation = args.k.len() > 1 || calibrations.len() > 1;
-    // An ablation's deployment set is the last half unless --deploy-fraction says
-    // otherwise (qtvpr::ablation); checked here too so that a typo fails before any
-    // file is read.
-    let deploy_fraction = args
-        .deploy_fraction
-        .or(ablation.then_some(qtvpr::ABLATION_DEPLOY_FRACTION));
     let matching = Matching::from(args.matching);
-    let protocol = |k: usize, calibration: Split| Protocol {
-        calibration,
-        deploy_fraction,
-        segment: match args.segment_size {
-            Some(m) => Split::Count(m),
-            None => Split::Fraction(args.segment_fraction),
-        },
-        k,
-        precision: args.precision,
-        matching,
+    let segment = match args.segment_size {
+        Some(m) => Split::Count(m),
+        None => Split::Fraction(args.segment_fraction),
     };
-    // Parameters first, so that a typo fails before any file is read.
-    for &k in &args.k {
-        for &c in &calibrations {
-            protocol(k, c).validate()?;
-        }
-    }
+    let base = Protocol::resolve(
+        Some(args.k[0]),
+        Some(args.precision),
+        Some(matching),
+        Some(calibrations[0]),
+        Some(segment),
+        args.deploy_fraction,
+    )?;
+    // Every setting first, so that a typo fails before any file is read (an ablation's
+    // deployment set is the last half unless --deploy-fraction says otherwise).
+    base.ablation(&args.k, &calibrations)?;
 
     let sequence = crate::args::sequence(args.sequence, false)?;
 
@@ -236,7 +228,6 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         _ => "embedded data".to_string(),
     };
 
-    let base = protocol(args.k[0], calibrations[0]);
     let bar = crate::progress::bar(global.quiet, methods.len(), "method evaluations");
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);

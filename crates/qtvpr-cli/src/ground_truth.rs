@@ -10,8 +10,9 @@ use clap::{ArgGroup, Args};
 use qtvpr::HardSoft;
 use qtvpr::npy::matrix_shape;
 
-use crate::gt_source::{DEFAULT_IMAGE_RADIUS, GtSource, Kind};
+use crate::gt_source::{GtSource, Kind};
 use crate::output::{write_npy, write_npz};
+use qtvpr::DEFAULT_IMAGE_RADIUS;
 
 /// Arguments of `ground-truth`.
 #[derive(Debug, Args)]

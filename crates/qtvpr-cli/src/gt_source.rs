@@ -180,7 +180,7 @@ macro_rules! gt_source_args {
                     Kind::Images {
                         db,
                         queries: self.gt_query_images.as_deref()?,
-                        radius: self.gt_radius.unwrap_or($crate::gt_source::DEFAULT_IMAGE_RADIUS),
+                        radius: self.gt_radius.unwrap_or(qtvpr::DEFAULT_IMAGE_RADIUS),
                         soft_radius: self.gt_soft_radius,
                     }
                 } else {
@@ -224,10 +224,6 @@ gt_source_args!(
     "--cal",
     required = false
 );
-
-/// The radius of image-name positions when none is given: 25 m, the positive distance
-/// of VPR-methods-evaluation and the benchmarks it evaluates.
-pub const DEFAULT_IMAGE_RADIUS: f64 = 25.0;
 
 /// One ground-truth source, as given on the command line.
 #[derive(Debug, Clone, Copy)]

@@ -38,7 +38,7 @@ pub struct StreamArgs {
     window: Option<usize>,
     /// Warm-up: queries before the W-th are rejected outright (threshold above every
     /// score), so that no decision rests on fewer than W queries.
-    #[arg(long, value_name = "W", default_value_t = 1)]
+    #[arg(long, value_name = "W", default_value_t = qtvpr::DEFAULT_MIN_WINDOW)]
     min_window: usize,
     /// `margin`: accept a best match only if its margin (how far it stands out of its
     /// column) is at least the calibration's m* too; each line then also carries
@@ -65,31 +65,17 @@ pub enum StreamFormat {
     Csv,
 }
 
-/// Write one decision as a line of `format`: the core's record, as it serialises (the
-/// CSV columns are [`Decision::fields`], in order).
+/// Write one decision as a line of `format`: the core's record, as it serialises, or
+/// its values in the order of its fields ([`Decision::values`], the columns of
+/// [`Decision::fields`]).
 fn write_line(d: &Decision, format: StreamFormat, out: &mut impl Write) -> io::Result<()> {
     match format {
         // Into io::Error, which keeps the write's own error (a closed pipe) for main to
         // find: serde_json's error does not expose it as a source.
         StreamFormat::Jsonl => serde_json::to_writer(&mut *out, d).map_err(io::Error::from)?,
         StreamFormat::Csv => {
-            write!(
-                out,
-                "{},{},{},{},{},{},{},{},{},{},{}",
-                d.query,
-                d.query_quantile,
-                d.weight,
-                d.quantile,
-                d.threshold,
-                d.best,
-                d.score,
-                d.accepted,
-                d.accept(),
-                d.confidence,
-                d.confidence_lower95
-            )?;
-            if let (Some(margin), Some(gate)) = (d.margin, d.gate) {
-                write!(out, ",{margin},{gate}")?;
+            for (i, (_, value)) in d.values().enumerate() {
+                write!(out, "{}{value}", if i == 0 { "" } else { "," })?;
             }
         }
     }

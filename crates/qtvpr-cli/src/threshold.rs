@@ -18,14 +18,16 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use qtvpr::ThresholdReport;
-use qtvpr::{Calibration, Defaults, Matching, Options, Params, QuerySplit, ScoreSource};
+use qtvpr::npy::{MatrixFile, read_scores};
+use qtvpr::{
+    Calibration, Defaults, Descriptors, Matching, Options, Orientation, Params, QuerySplit, ScoreSource, Split,
+    SplitError, ThresholdReport, Transfer,
+};
 
 use crate::args::{DescriptorFiles, MatchingArg, SplitArgs};
-use crate::gt_source::OptionalCalGtSource;
+use crate::gt_source::{GtSource, OptionalCalGtSource};
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
-use qtvpr::npy::read_scores;
 
 /// Arguments of `threshold`.
 #[derive(Debug, Args)]
@@ -106,160 +108,250 @@ pub struct ThresholdArgs {
     output: Option<PathBuf>,
 }
 
-/// Run `threshold`.
+/// Run `threshold`: resolve the request, then run it.
 pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
-    if args.sequence.is_some() {
-        bail!(
-            "--sequence: `threshold` does not sequence-match, as it never holds the whole similarity \
-             matrix; write the sequence-matched matrix with `qtvpr-cli similarity --sequence L` and pass it \
-             as --similarity (or --cal/--val), or evaluate it with `evaluate --sequence L`"
-        );
-    }
-    let split = args.split.split()?;
-    let descriptors_arg = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
-    if args.val.is_none() && args.similarity.is_none() && descriptors_arg.is_none() {
-        bail!(
-            "no deployment similarity: give --cal and --val, one --similarity with --cal-queries or \
-             --cal-fraction, or --db-descriptors and --query-descriptors"
-        );
-    }
-    if split.is_none() && args.cal.is_none() {
-        bail!(
-            "no calibration: give --cal (a similarity matrix or a calibration file), or --cal-queries or \
-             --cal-fraction to calibrate on the first queries of the descriptors"
-        );
-    }
-    let from_file = args.cal.as_deref().is_some_and(qtvpr::npy::is_zip_archive);
-    if from_file && let Some(source) = args.cal_gt.source() {
-        bail!(
-            "{}: --cal {} is a calibration file, which holds its own ground truth; \
-             --cal-gt... is only for a --cal similarity matrix (.npy)",
-            source.describe(),
-            args.cal.as_deref().unwrap_or(Path::new("")).display()
-        );
-    }
-    let gt_source = match (from_file, args.cal_gt.source()) {
-        (false, None) => match &args.cal {
-            Some(cal) => bail!(
+    Request::new(args)?.run(global)
+}
+
+/// What `threshold` was asked, resolved from its arguments once (ripgrep's low-args to
+/// high-args): where the calibration and the deployment queries come from, and the
+/// parameters given. Every check that needs no file is made here, before any is read;
+/// [`Request::run`] then only reads, computes and writes.
+struct Request<'a> {
+    args: &'a ThresholdArgs,
+    calibration: CalibrationInput<'a>,
+    deployment: DeploymentInput<'a>,
+}
+
+/// Where the calibration comes from.
+enum CalibrationInput<'a> {
+    /// A calibration file written by `calibrate` (`--cal cal.npz`).
+    File(&'a Path),
+    /// A similarity matrix and its ground truth (`--cal S_cal.npy --cal-gt...`).
+    Matrix(&'a Path, GtSource<'a>),
+    /// The first queries of the deployment input (`--cal-queries` / `--cal-fraction`,
+    /// the option that asked), with ground truth of every query.
+    Split(Split, &'static str, GtSource<'a>),
+}
+
+/// Where the deployment queries' scores come from.
+#[derive(Clone, Copy)]
+enum DeploymentInput<'a> {
+    /// A similarity matrix: `--val` or `--similarity` (the option) and its file.
+    Matrix(&'static str, &'a Path),
+    /// `--db-descriptors` and `--query-descriptors`.
+    Descriptors(&'a Path, &'a Path),
+}
+
+impl<'a> Request<'a> {
+    /// The request of `args`, checked as far as it can be without reading a file (a
+    /// calibration file is told apart by its first bytes).
+    fn new(args: &'a ThresholdArgs) -> Result<Self> {
+        if args.sequence.is_some() {
+            bail!(
+                "--sequence: `threshold` does not sequence-match, as it never holds the whole similarity \
+                 matrix; write the sequence-matched matrix with `qtvpr-cli similarity --sequence L` and pass it \
+                 as --similarity (or --cal/--val), or evaluate it with `evaluate --sequence L`"
+            );
+        }
+        let split = args.split.split()?;
+        let matrix =
+            (args.val.as_ref().map(|p| ("--val", p))).or(args.similarity.as_ref().map(|p| ("--similarity", p)));
+        let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
+        let deployment = match (matrix, descriptors) {
+            (Some((flag, path)), _) => DeploymentInput::Matrix(flag, path),
+            (None, Some((db, q))) => DeploymentInput::Descriptors(db, q),
+            (None, None) => bail!(
+                "no deployment similarity: give --cal and --val, one --similarity with --cal-queries or \
+                 --cal-fraction, or --db-descriptors and --query-descriptors"
+            ),
+        };
+        if split.is_none() && args.cal.is_none() {
+            bail!(
+                "no calibration: give --cal (a similarity matrix or a calibration file), or --cal-queries or \
+                 --cal-fraction to calibrate on the first queries of the descriptors"
+            );
+        }
+        let from_file = args.cal.as_deref().is_some_and(qtvpr::npy::is_zip_archive);
+        let calibration = match (split, args.cal.as_deref(), from_file, args.cal_gt.source()) {
+            (_, Some(cal), true, Some(source)) => bail!(
+                "{}: --cal {} is a calibration file, which holds its own ground truth; \
+                 --cal-gt... is only for a --cal similarity matrix (.npy)",
+                source.describe(),
+                cal.display()
+            ),
+            (_, Some(cal), true, None) => CalibrationInput::File(cal),
+            (_, Some(cal), false, None) => bail!(
                 "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
                  --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
                 cal.display()
             ),
-            None => bail!(
+            (_, Some(cal), false, Some(source)) => CalibrationInput::Matrix(cal, source),
+            (Some(_), None, _, None) => bail!(
                 "the calibration queries need their ground truth: give --cal-gt, --cal-gt-tolerance or \
                  --cal-gt-db-positions"
             ),
-        },
-        (_, source) => source,
-    };
-    // Parameters first, so that a typo fails before any file is read (a calibration
-    // file's defaults are checked once it is loaded).
-    let params = |defaults: &Defaults| Params::resolve(defaults, args.k, args.precision, args.segment_size, args.gate);
-    params(&Defaults::default())?;
-    let matching_arg = args.matching.map_or(Matching::Single, Matching::from);
-    // Errors about a file's content name the file; the flag says which input it was.
-    // The inputs stay where they are read (memory-mapped); `source` views them.
-    let matrix_arg =
-        (args.val.as_ref().map(|p| ("--val", p))).or(args.similarity.as_ref().map(|p| ("--similarity", p)));
-    let (matrix, files, descriptors);
-    let (source, input): (ScoreSource<'_, '_>, String) = match (matrix_arg, descriptors_arg) {
-        (Some((flag, path)), _) => {
-            matrix = read_scores(path).context(flag)?;
-            files = None;
-            let source = matrix.view().oriented(args.query_major).into();
-            (source, format!("{flag} {}", path.display()))
-        }
-        (None, Some((db, q))) => {
-            files = Some(DescriptorFiles::read(db, q)?);
-            let read = files.as_ref().expect("just read");
-            descriptors = read.descriptors()?;
-            (ScoreSource::from(&descriptors), read.describe())
-        }
-        (None, None) => unreachable!("checked above"),
-    };
-    // A core error, named in the inputs' terms: a descriptor file by its option, a
-    // matrix position in the file's orientation.
-    let explain = |e: qtvpr::Error| match &files {
-        Some(files) => files.blame(e),
-        None => crate::args::oriented(e, args.query_major),
-    };
-    let (n_db, n_q) = source.dim();
-
-    // The calibration, and the deployment queries: all of them, or those after the split;
-    // and what ground truth read from files says of the matrices' orientation.
-    let mut evidence = None;
-    let (cal, queries, split) = match split {
-        Some((split, flag)) => {
-            let split = QuerySplit::new(split, (n_db, n_q))
-                .map_err(|e| crate::args::oriented(e, args.query_major))
-                .with_context(|| format!("{flag} of {input}"))?;
-            let gt_source = gt_source.expect("a split needs ground truth, checked above");
-            let (gt_cal, gt) = gt_source.load_split_read(&split, args.query_major, &input)?;
-            evidence = gt.as_ref().map(qtvpr::Evidence::of);
-            // Nothing here saves it: a calibration that keeps neither its scores nor its
-            // ground truth, which it drops once it has its candidates.
-            let cal = Calibration::for_transfer(source.columns(split.calibration()), gt_cal, matching_arg)
-                .map_err(explain)
-                .with_context(|| format!("{input} / {}", gt_source.describe()))?;
-            (cal, split.deployment(), Some(split))
-        }
-        None => {
-            let cal_path = args.cal.as_deref().expect("checked above");
-            let cal = match gt_source {
-                None => {
-                    let cal = Calibration::load(cal_path).context("--cal")?;
-                    if let Some(m) = args.matching.map(Matching::from)
-                        && m != cal.matching()
-                    {
-                        bail!(
-                            "--matching {}: --cal {} was calibrated for {} matching",
-                            m.as_str(),
-                            cal_path.display(),
-                            cal.matching().as_str()
-                        );
-                    }
-                    cal
-                }
-                Some(gt_source) => {
-                    let (cal, orientation) =
-                        calibrate::from_matrix(cal_path, gt_source, matching_arg, args.query_major)?;
-                    evidence = orientation.evidence;
-                    cal
-                }
-            };
-            (cal, 0..n_q, None)
-        }
-    };
-    // What was assumed of a matrix's orientation (descriptors have but one).
-    let orientation = files.is_none().then(|| qtvpr::Orientation {
-        evidence,
-        ..qtvpr::Orientation::new((n_db, n_q), args.query_major)
-    });
-    let params = params(cal.defaults())?;
-    cal.check_gate(params.gate).context("--gate")?;
-    let bar = progress::bar(global.quiet, queries.len(), "deployment queries");
-    let progress = |done: usize, _| bar.set_position(done as u64);
-    let transfer = cal
-        .transfer(source.columns(queries), Options::new(params).progress(&progress))
-        // A split's deployment columns are a view: errors count the matrix's columns.
-        .map_err(|e| match &split {
-            Some(split) => split.deployment_error(e),
-            None => e,
-        })
-        .map_err(explain)
-        .with_context(|| input.clone())?;
-    bar.finish_and_clear();
-
-    // Warned once the result stands, so that a failure stays one `error:` line.
-    if let Some(o) = &orientation {
-        crate::args::warn_orientation(o);
+            (Some((split, flag)), None, _, Some(source)) => CalibrationInput::Split(split, flag, source),
+            (None, None, ..) => unreachable!("checked above"),
+        };
+        let request = Self {
+            args,
+            calibration,
+            deployment,
+        };
+        // Parameters first, so that a typo fails before any file is read (a calibration
+        // file's defaults are checked once it is loaded).
+        request.params(&Defaults::default())?;
+        Ok(request)
     }
-    let report = ThresholdReport {
-        orientation,
-        ..ThresholdReport::new(&cal, &params, &transfer)
-    };
-    let text = match args.format {
-        Format::Json => serde_json::to_string_pretty(&report)? + "\n",
+
+    /// The parameters given, each left out taking `defaults`' value (a calibration's).
+    fn params(&self, defaults: &Defaults) -> Result<Params> {
+        let a = self.args;
+        Ok(Params::resolve(defaults, a.k, a.precision, a.segment_size, a.gate)?)
+    }
+
+    /// The matching asked for (single when none is).
+    fn matching(&self) -> Matching {
+        self.args.matching.map_or(Matching::Single, Matching::from)
+    }
+
+    /// Read the inputs, calibrate, transfer, and write the report.
+    fn run(&self, global: &Global) -> Result<()> {
+        let args = self.args;
+        // The inputs stay where they are read (memory-mapped); `source` views them.
+        let read = Read::new(self.deployment)?;
+        let descriptors = read.descriptors()?;
+        let (source, input) = match (&read, &descriptors) {
+            (Read::Matrix(flag, path, file), _) => (
+                ScoreSource::from(file.view().oriented(args.query_major)),
+                format!("{flag} {}", path.display()),
+            ),
+            (Read::Descriptors(files), Some(d)) => (ScoreSource::from(d), files.describe()),
+            (Read::Descriptors(_), None) => unreachable!("read with the files"),
+        };
+        // A core error, named in the inputs' terms: a descriptor file by its option, a
+        // matrix position in the file's orientation.
+        let explain = |e: qtvpr::Error| match &read {
+            Read::Descriptors(files) => files.blame(e),
+            Read::Matrix(..) => crate::args::oriented(e, args.query_major),
+        };
+        let (n_db, n_q) = source.dim();
+
+        // What ground truth read from files says of the matrices' orientation.
+        let mut evidence = None;
+        let (cal, params, transfer) = match &self.calibration {
+            CalibrationInput::Split(split, flag, gt_source) => {
+                let split = QuerySplit::new(*split, (n_db, n_q))
+                    .map_err(|e| crate::args::oriented(e, args.query_major))
+                    .with_context(|| format!("{flag} of {input}"))?;
+                let (gt_cal, gt) = gt_source.load_split_read(&split, args.query_major, &input)?;
+                evidence = gt.as_ref().map(qtvpr::Evidence::of);
+                // Nothing here saves it: a calibration of the split's own defaults.
+                let params = self.params(&Defaults::default())?;
+                qtvpr::check_gate(params.gate, self.matching(), n_db).context("--gate")?;
+                let bar = progress::bar(global.quiet, split.deployment().len(), "deployment queries");
+                let progress = |done: usize, _| bar.set_position(done as u64);
+                let options = Options::new(params).progress(&progress);
+                let (cal, transfer) =
+                    split
+                        .transfer(source, gt_cal, self.matching(), options)
+                        .map_err(|e| match e {
+                            SplitError::Calibration(e) => {
+                                explain(e).context(format!("{input} / {}", gt_source.describe()))
+                            }
+                            SplitError::Deployment(e) => explain(e).context(input.clone()),
+                        })?;
+                bar.finish_and_clear();
+                (cal, params, transfer)
+            }
+            CalibrationInput::File(path) => {
+                let cal = Calibration::load(path).context("--cal")?;
+                if let Some(m) = args.matching.map(Matching::from)
+                    && m != cal.matching()
+                {
+                    bail!(
+                        "--matching {}: --cal {} was calibrated for {} matching",
+                        m.as_str(),
+                        path.display(),
+                        cal.matching().as_str()
+                    );
+                }
+                self.transfer(cal, source, global, &input, explain)?
+            }
+            CalibrationInput::Matrix(path, gt_source) => {
+                let (cal, orientation) = calibrate::from_matrix(path, *gt_source, self.matching(), args.query_major)?;
+                evidence = orientation.evidence;
+                self.transfer(cal, source, global, &input, explain)?
+            }
+        };
+
+        // What was assumed of a matrix's orientation (descriptors have but one); warned
+        // once the result stands, so that a failure stays one `error:` line.
+        let orientation = matches!(read, Read::Matrix(..)).then(|| Orientation {
+            evidence,
+            ..Orientation::new((n_db, n_q), args.query_major)
+        });
+        if let Some(o) = &orientation {
+            crate::args::warn_orientation(o);
+        }
+        let report = ThresholdReport {
+            orientation,
+            ..ThresholdReport::new(&cal, &params, &transfer)
+        };
+        emit(&text(&report, args.format)?, args.output.as_deref())
+    }
+
+    /// The transfer of every deployment query of `source` on `cal`, at the parameters
+    /// given and `cal`'s defaults.
+    fn transfer(
+        &self,
+        cal: Calibration,
+        source: ScoreSource<'_, '_>,
+        global: &Global,
+        input: &str,
+        explain: impl Fn(qtvpr::Error) -> anyhow::Error,
+    ) -> Result<(Calibration, Params, Transfer)> {
+        let params = self.params(cal.defaults())?;
+        cal.check_gate(params.gate).context("--gate")?;
+        let bar = progress::bar(global.quiet, source.dim().1, "deployment queries");
+        let progress = |done: usize, _| bar.set_position(done as u64);
+        let transfer = cal
+            .transfer(source, Options::new(params).progress(&progress))
+            .map_err(explain)
+            .with_context(|| input.to_string())?;
+        bar.finish_and_clear();
+        Ok((cal, params, transfer))
+    }
+}
+
+/// The deployment input, read: a matrix (mapped where possible) or descriptor files.
+enum Read<'a> {
+    Matrix(&'static str, &'a Path, MatrixFile),
+    Descriptors(DescriptorFiles),
+}
+
+impl<'a> Read<'a> {
+    fn new(input: DeploymentInput<'a>) -> Result<Self> {
+        Ok(match input {
+            DeploymentInput::Matrix(flag, path) => Read::Matrix(flag, path, read_scores(path).context(flag)?),
+            DeploymentInput::Descriptors(db, q) => Read::Descriptors(DescriptorFiles::read(db, q)?),
+        })
+    }
+
+    /// The descriptors of descriptor files, checked by the core.
+    fn descriptors(&self) -> Result<Option<Descriptors<'_>>> {
+        match self {
+            Read::Matrix(..) => Ok(None),
+            Read::Descriptors(files) => files.descriptors().map(Some),
+        }
+    }
+}
+
+/// The report as `format` writes it.
+fn text(report: &ThresholdReport<'_>, format: Format) -> Result<String> {
+    Ok(match format {
+        Format::Json => serde_json::to_string_pretty(report)? + "\n",
         Format::Csv => {
             let gate = report.gate.map(|m| format!(",{m}")).unwrap_or_default();
             let mut t = String::from("start,end,quantile,threshold");
@@ -269,6 +361,5 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
             }
             t
         }
-    };
-    emit(&text, args.output.as_deref())
+    })
 }

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use ndarray::{Array2, ArrayView2, s};
 use qtvpr::ScoresView;
 use qtvpr::npy::{NpyArray, read_scores, write_npy, write_npz};
-use qtvpr::{Calibration, Decision, GroundTruth, Matching, Online, OnlineParams, Score};
+use qtvpr::{Calibration, Decision, Defaults, GroundTruth, Matching, Online, OnlineParams, Score};
 use tempfile::TempDir;
 
 use crate::common::{assert_clean_failure, ok_in, run_in};
@@ -984,4 +984,34 @@ fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
         serde_json::from_str(&case.ok(&[&eval[..], &["--matching", "multi"]].concat())).unwrap();
     let methods = json["methods"].as_object().unwrap();
     assert!(methods.contains_key("quantile-transfer") && !methods.contains_key("margin"));
+}
+
+/// `stream`'s CSV header and rows and its JSON keys are the core's record
+/// (`qtvpr::Decision::RECORD`), field for field and in order, with the margin gate and
+/// without: a field the CLI missed fails here (no data needed).
+#[test]
+fn stream_lines_are_the_core_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = array2(&[&[0.9, 0.2, 0.3], &[0.1, 0.8, 0.2], &[0.3, 0.4, 0.7], &[0.2, 0.1, 0.1]]);
+    let gt = GroundTruth::new(Array2::from_shape_fn((4, 3), |(i, j)| i == j).view()).unwrap();
+    let cal = Calibration::new(s.view(), &gt, Matching::Single).unwrap();
+    std::fs::write(dir.path().join("cal.npz"), cal.to_bytes(&Defaults::default()).unwrap()).unwrap();
+    let val = array2(&[&[0.8, 0.2, 0.5], &[0.1, 0.9, 0.4], &[0.2, 0.1, 0.6], &[0.3, 0.1, 0.1]]);
+    write_npy(&dir.path().join("val.npy"), val.view()).unwrap();
+    for gate in [qtvpr::Gate::None, qtvpr::Gate::Margin] {
+        let names = Decision::fields(gate);
+        let line = format!("stream --calibration cal.npz --val val.npy --window 2 --gate {gate}");
+        let stream: Vec<&str> = line.split(' ').collect();
+        let csv = ok_in(dir.path(), &[&stream[..], &["--format", "csv"]].concat());
+        let mut rows = csv.lines();
+        assert_eq!(rows.next(), Some(&*names.join(",")), "{csv}");
+        assert!(rows.all(|row| row.split(',').count() == names.len()), "{csv}");
+        let jsonl = ok_in(dir.path(), &stream);
+        assert_eq!(jsonl.lines().count(), 3);
+        for line in jsonl.lines() {
+            // The values are numbers, booleans and nulls: the quoted strings are the keys.
+            let keys: Vec<&str> = line.split('"').skip(1).step_by(2).collect();
+            assert_eq!(keys, names, "{line}");
+        }
+    }
 }
