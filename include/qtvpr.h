@@ -157,7 +157,8 @@ typedef struct qtvpr_online qtvpr_online;
 
 /**
  * The decision of one deployment query: the decision record, with the values of a
- * `qtvpr-cli stream` line and of Python's decisions, in both matching modes.
+ * `qtvpr-cli stream` line and of Python's decisions, in both matching modes (a test
+ * holds its members to the core's list of fields, `qtvpr::Decision::RECORD`).
  *
  * best and score are the query's best match (the first highest score: the matcher's
  * own choice) in both modes. accepted is the number of accepted database entries: in

@@ -50,7 +50,8 @@ pub struct qtvpr_online {
 }
 
 /// The decision of one deployment query: the decision record, with the values of a
-/// `qtvpr-cli stream` line and of Python's decisions, in both matching modes.
+/// `qtvpr-cli stream` line and of Python's decisions, in both matching modes (a test
+/// holds its members to the core's list of fields, `qtvpr::Decision::RECORD`).
 ///
 /// best and score are the query's best match (the first highest score: the matcher's
 /// own choice) in both modes. accepted is the number of accepted database entries: in
@@ -61,6 +62,8 @@ pub struct qtvpr_online {
 #[repr(C)]
 #[allow(non_camel_case_types)]
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Its members by name, for the test that holds them to the core's record.
+#[cfg_attr(test, derive(serde::Serialize))]
 pub struct qtvpr_decision {
     /// Index of the query in arrival order, from 0.
     pub query: usize,

@@ -252,6 +252,7 @@ fn pushes_are_the_rust_online_decisions() {
                     rust.push(ArrayView1::from(&column)).unwrap()
                 };
                 assert_eq!(d.query, j);
+                assert_record(&d, &want);
                 if j == 0 {
                     // Warm-up (min_window 2): query 0 rejects all, at quantile 1 and
                     // the next double above its window's highest score, 0.8.
@@ -333,4 +334,60 @@ fn the_version_is_the_crates_and_leaves_the_last_error() {
         assert_eq!(version, env!("CARGO_PKG_VERSION"));
         assert_eq!(last().0, 1);
     }
+}
+
+/// `d` is the core's record `want`, field for field (`qtvpr::Decision::RECORD`): every
+/// field is a member of the C struct with the record's value (NaN where the record has
+/// none, `null` once serialised, as the record's own JSON has it), and there is no other
+/// member.
+fn assert_record(d: &qtvpr_decision, want: &qtvpr::Decision) {
+    use qtvpr::Value;
+    let c = serde_json::to_value(d).unwrap();
+    let mut fields: Vec<&str> = qtvpr::Decision::RECORD.iter().map(|f| f.name).collect();
+    fields.sort_unstable();
+    let members: Vec<&str> = c.as_object().unwrap().keys().map(String::as_str).collect();
+    assert_eq!(members, fields, "the members of qtvpr_decision");
+    for field in &qtvpr::Decision::RECORD {
+        let value = match field.value(want) {
+            None => serde_json::Value::Null,
+            Some(Value::Count(n)) => n.into(),
+            // A NaN is null, as serde_json writes the C member's NaN.
+            Some(Value::Real(x)) => x.into(),
+            Some(Value::Flag(b)) => b.into(),
+        };
+        assert_eq!(c[field.name], value, "qtvpr_decision.{}", field.name);
+    }
+}
+
+/// The header's `qtvpr_decision` has a member of the C type of its kind for every field
+/// of the core's record, and no other (in the ABI's own order).
+#[test]
+fn the_header_struct_is_the_record() {
+    let header = include_str!("../../../include/qtvpr.h");
+    // `typedef struct { ... } qtvpr_decision;`: the last struct before that name.
+    let body = header.split("} qtvpr_decision;").next().unwrap();
+    let body = body.rsplit("typedef struct {").next().unwrap();
+    let mut members: Vec<(String, String)> = body
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.ends_with(';') && !l.starts_with('*'))
+        .map(|l| {
+            let (ty, name) = l.trim_end_matches(';').rsplit_once(' ').unwrap();
+            (name.to_string(), ty.to_string())
+        })
+        .collect();
+    members.sort();
+    let mut want: Vec<(String, String)> = qtvpr::Decision::RECORD
+        .iter()
+        .map(|f| {
+            let ty = match f.kind {
+                qtvpr::Kind::Count => "size_t",
+                qtvpr::Kind::Real => "double",
+                qtvpr::Kind::Flag => "bool",
+            };
+            (f.name.to_string(), ty.to_string())
+        })
+        .collect();
+    want.sort();
+    assert_eq!(members, want);
 }
