@@ -27,8 +27,10 @@ import qtvpr
 from qtvpr import reference
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))  # shared_data: the data
 import synthetic  # noqa: E402
 from report import machine, write_block  # noqa: E402
+from shared_data import nordland_similarity  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
@@ -42,16 +44,6 @@ def best_of(n: int, f):
         out = f()
         best = min(best, time.perf_counter() - t)
     return out, best
-
-
-def nordland_hog() -> tuple[np.ndarray, np.ndarray]:
-    db = np.load(SHARED / "nordland-hog" / "db_winter.npy").astype(np.float64)
-    q = np.load(SHARED / "nordland-hog" / "query_summer.npy").astype(np.float64)
-    db /= np.linalg.norm(db, axis=1, keepdims=True)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    s = (db @ q.T).astype(np.float32)
-    i = np.arange(s.shape[0])
-    return s, np.abs(i[:, None] - i[None, :]) <= 1
 
 
 def run_cli(cli: Path, cal: Path, gt: Path, val: Path, *extra: str) -> tuple[float, int, dict]:
@@ -72,7 +64,7 @@ def run_cli(cli: Path, cal: Path, gt: Path, val: Path, *extra: str) -> tuple[flo
 
 
 def real_case(cli: Path, work: Path) -> list[str]:
-    s, gt = nordland_hog()
+    s, gt = nordland_similarity(SHARED)
     n_cal, seg = s.shape[1] // 10, math.ceil(0.01 * s.shape[1])
     s_cal, gt_cal, s_val = s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:]
     for name, a in (("cal", s_cal), ("gt", gt_cal), ("val", s_val)):

@@ -44,9 +44,10 @@ import qtvpr
 import qtvpr.reference
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))  # shared_data: the data
 from margin_gate import SETTINGS  # noqa: E402
 from report import machine, write_block  # noqa: E402
-from results_table import matrices  # noqa: E402
+from shared_data import matrices  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 #: Figure columns: (key of a row, label).

@@ -27,8 +27,9 @@ import numpy as np
 import qtvpr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))  # shared_data: the data
 from report import write_block  # noqa: E402
-from results_table import matrices  # noqa: E402
+from shared_data import matrices  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 METHODS = {

@@ -52,21 +52,13 @@ import numpy as np
 import qtvpr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))  # shared_data: the data
 import synthetic  # noqa: E402
 from report import machine, write_block  # noqa: E402
+from shared_data import nordland_similarity  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
-
-
-def nordland() -> tuple[np.ndarray, np.ndarray]:
-    db = np.load(SHARED / "nordland-hog" / "db_winter.npy").astype(np.float64)
-    q = np.load(SHARED / "nordland-hog" / "query_summer.npy").astype(np.float64)
-    db /= np.linalg.norm(db, axis=1, keepdims=True)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    s = (db @ q.T).astype(np.float32)
-    i = np.arange(s.shape[0])
-    return s, np.abs(i[:, None] - i[None, :]) <= 1
 
 
 def synthetic_case(work: Path, n_db: int, n_q: int, n_val: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -140,7 +132,7 @@ def main() -> None:
     cases = set(args.cases.split(","))
     rows = []
     if "nordland" in cases:
-        s, gt = nordland()
+        s, gt = nordland_similarity(SHARED)
         n_cal = s.shape[1] // 10
         for contiguous in (False, True):
             rows.append(

@@ -5,7 +5,7 @@ queries calibrate, segments of ceil(1%) of |Q| deployment queries, target precis
 tau = 1, single-best-match decisions, k = 10, every method of semantics §7, §11 and
 §13 (the margin gate alone, and with quantile transfer).
 
-Matrices:
+Matrices (``scripts/shared_data.py``'s ``matrices``):
 - the 20 VPR-Bench similarity matrices (Corridor and SPEDTest, 10 techniques each);
 - Nordland winter (DB) vs summer (Q) HOG descriptors: single-frame cosine similarity
   S = normalize(db) @ normalize(q).T (float32), and its 11-frame sequence average
@@ -25,18 +25,14 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import qtvpr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))  # shared_data: the data
 from report import write_block  # noqa: E402
+from shared_data import matrices  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-TECHNIQUES = [
-    "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
-    "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
-]
 METHODS = [
     "quantile-transfer", "quantile-transfer-online", "quantile-transfer-margin", "margin", "schubert",
     "schubert-calibrated", "calibration-threshold", "oracle",
@@ -51,40 +47,6 @@ SHORT = {
     "calibration-threshold": "Cal-thr",
     "oracle": "Oracle",
 }
-
-
-def normalize(x: np.ndarray) -> np.ndarray:
-    return x / np.linalg.norm(x, axis=1, keepdims=True)
-
-
-def sequence_average(s: np.ndarray, half: int = 5) -> np.ndarray:
-    """S_seq[i, j] = mean of S[i + d, j + d] for d in -half..half inside the matrix."""
-    n, m = s.shape
-    total = np.zeros((n, m), dtype=np.float64)
-    count = np.zeros((n, m), dtype=np.float64)
-    for d in range(-half, half + 1):
-        # rows i with 0 <= i + d < n, columns j with 0 <= j + d < m
-        i0, i1 = max(0, -d), min(n, n - d)
-        j0, j1 = max(0, -d), min(m, m - d)
-        total[i0:i1, j0:j1] += s[i0 + d:i1 + d, j0 + d:j1 + d]
-        count[i0:i1, j0:j1] += 1
-    return (total / count).astype(np.float32)
-
-
-def matrices(data: Path):
-    """(name, S, GT) of every real matrix, |DB| x |Q|."""
-    for dataset, label in (("vprbench-corridor", "Corridor"), ("vprbench-spedtest", "SPEDTest")):
-        gt = np.load(data / dataset / "GT.npy")
-        for technique in TECHNIQUES:
-            yield f"{label} {technique}", np.load(data / dataset / f"S_{technique}.npy"), gt
-    db = np.load(data / "nordland-hog" / "db_winter.npy")
-    q = np.load(data / "nordland-hog" / "query_summer.npy")
-    s = (normalize(db) @ normalize(q).T).astype(np.float32)
-    i = np.arange(s.shape[0])[:, None]
-    j = np.arange(s.shape[1])[None, :]
-    gt = np.abs(i - j) <= 1
-    yield "Nordland HOG (single frame)", s, gt
-    yield "Nordland HOG (11-frame sequence)", sequence_average(s), gt
 
 
 def fmt(x, digits: int) -> str:

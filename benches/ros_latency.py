@@ -56,8 +56,10 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from std_msgs.msg import Float32MultiArray, Float64MultiArray, Header  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from online_latency import nordland, synthetic_case  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))  # shared_data: the data
+from online_latency import synthetic_case  # noqa: E402
 from report import machine, write_block  # noqa: E402
+from shared_data import nordland_similarity  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
@@ -155,7 +157,7 @@ def main() -> None:
         s_cal, gt_cal = np.load(corridor / "cal_S.npy"), np.load(corridor / "cal_GT.npy")
         rows.append(measure("Corridor (real)", s_cal, gt_cal, np.load(corridor / "deploy_S.npy"), 10, 300))
     if "nordland" in cases and (SHARED / "nordland-hog").is_dir():
-        s, gt = nordland()
+        s, gt = nordland_similarity(SHARED)
         n_cal = s.shape[1] // 10
         rows.append(measure("Nordland HOG (real)", s[:, :n_cal], gt[:, :n_cal], s[:, n_cal:], 36, 1000))
     if "paper" in cases:

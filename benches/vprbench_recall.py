@@ -14,7 +14,7 @@ This script computes VPR-Bench's figure directly in NumPy and ours from
 ``qtvpr.evaluate``'s JSON keys (one deployment segment holding every query but the
 first, which must calibrate; the oracle's recall is then our recall at 100% precision
 and ``recall_at_1`` is R@1 of the same queries), and prints both. Matrices: those of
-``benches/results_table.py`` (20 VPR-Bench, Nordland HOG single frame and 11-frame
+``scripts/shared_data.py`` (20 VPR-Bench, Nordland HOG single frame and 11-frame
 sequence).
 
     python benches/vprbench_recall.py [--data ../shared/data]
@@ -23,13 +23,16 @@ sequence).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
 import qtvpr
 from qtvpr.reference import vprbench_recall_at_100p
-from results_table import matrices
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from shared_data import matrices  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -1,7 +1,13 @@
-"""Rebuild ``../shared/data`` from the public releases, or check a copy of it.
+"""Rebuild ``../shared/data`` from the public releases, or check a copy of it; and read it.
 
     python scripts/shared_data.py --build DIR [--frames FRAMES_DIR]   # needs the network
     python scripts/shared_data.py --check DIR                         # offline
+
+The Python tests and the benches read the data through this module's readers (the last
+section): the matrices it holds (``DATASETS``, ``TECHNIQUES``, :func:`vprbench`; the
+22 real matrices of the benches, :func:`matrices`) and the Nordland HOG descriptors and
+their similarity (:func:`nordland_hog`, :func:`nordland_similarity`), written once.
+``crates/qtvpr-testkit/src/data.rs`` is the Rust tests' side of the same.
 
 ``--build`` downloads, converts and writes the files ``../shared/data/README.md``
 describes, with the same names, shapes and dtypes, then checks them as ``--check`` does.
@@ -273,6 +279,73 @@ def build_nordland(out: Path, frames: Path | None) -> None:
             names = every_nth([p.name for p in (frames / season).glob("images-*.png")])
             images = [np.asarray(Image.open(frames / season / n).convert("L")) for n in names]
             (out / "nordland-hog" / name).write_bytes(npy_bytes(hog_descriptors(images)))
+
+
+# ---------------------------------------------------------------------------------------
+# Reading the data: what the tests and the benches load
+
+# The VPR-Bench folders of ../shared/data.
+DATASETS = tuple(VPRBENCH_DATASETS)
+
+
+def vprbench(root: Path, dataset: str, technique: str) -> tuple[np.ndarray, np.ndarray]:
+    """(S, GT) of one VPR-Bench matrix of ``root`` (``../shared/data``): |DB| x |Q|, the
+    similarity in the technique's own dtype, the ground truth bool."""
+    d = root / dataset
+    return np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+
+
+def nordland_hog(root: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The Nordland HOG descriptors of ``root``: the database (winter) and the queries
+    (summer), 3576 x 756 float32 each, frame i of one the place of frame i of the other."""
+    d = root / "nordland-hog"
+    return np.load(d / "db_winter.npy"), np.load(d / "query_summer.npy")
+
+
+def nordland_ground_truth(n_db: int, n_q: int) -> np.ndarray:
+    """The ground truth of Nordland (``../shared/data/README.md``): database frame i
+    matches query frame j when |i - j| <= 1."""
+    return np.abs(np.arange(n_db)[:, None] - np.arange(n_q)[None, :]) <= 1
+
+
+def unit_rows(x: np.ndarray) -> np.ndarray:
+    """``x`` with every row scaled to unit L2 norm, in ``x``'s dtype."""
+    return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+
+def nordland_similarity(root: Path, dtype: type = np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """The cosine similarity of the Nordland HOG descriptors (rows normalised in
+    ``dtype``), |DB| x |Q| float32, and its ground truth."""
+    db, q = (unit_rows(a.astype(dtype)) for a in nordland_hog(root))
+    s = (db @ q.T).astype(np.float32)
+    return s, nordland_ground_truth(*s.shape)
+
+
+def sequence_average(s: np.ndarray, half: int = 5) -> np.ndarray:
+    """S_seq[i, j] = mean of S[i + d, j + d] for d in -half..half inside the matrix."""
+    n, m = s.shape
+    total = np.zeros((n, m), dtype=np.float64)
+    count = np.zeros((n, m), dtype=np.float64)
+    for d in range(-half, half + 1):
+        # rows i with 0 <= i + d < n, columns j with 0 <= j + d < m
+        i0, i1 = max(0, -d), min(n, n - d)
+        j0, j1 = max(0, -d), min(m, m - d)
+        total[i0:i1, j0:j1] += s[i0 + d:i1 + d, j0 + d:j1 + d]
+        count[i0:i1, j0:j1] += 1
+    return (total / count).astype(np.float32)
+
+
+def matrices(root: Path):
+    """(name, S, GT) of the 22 real matrices the benches report on, |DB| x |Q|: the 20
+    VPR-Bench ones (Corridor and SPEDTest, 10 techniques each), then Nordland HOG's
+    single-frame similarity (rows normalised in float32) and its 11-frame sequence
+    average."""
+    for dataset, label in zip(DATASETS, ("Corridor", "SPEDTest"), strict=True):
+        for technique in TECHNIQUES:
+            yield f"{label} {technique}", *vprbench(root, dataset, technique)
+    s, gt = nordland_similarity(root, np.float32)
+    yield "Nordland HOG (single frame)", s, gt
+    yield "Nordland HOG (11-frame sequence)", sequence_average(s), gt
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,6 +2,8 @@
 
 - Makes ``qtvpr`` importable from the source tree (``<repo>/py``) only when it is not
   importable otherwise, so that an installed package, once there is one, wins.
+- Makes ``scripts/shared_data.py`` importable (``from shared_data import ...``): which
+  real matrices there are and how to read them.
 - ``shared_data``: the directory of real VPR data that sits next to the repository
   (``<repo>/../shared/data``); tests that need it are skipped when it is missing.
 - ``cli``: the ``qtvpr-cli`` binary, for every test module that runs it.
@@ -23,6 +25,9 @@ SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 if importlib.util.find_spec("qtvpr") is None:
     sys.path.insert(0, str(REPO / "py"))
+# shared_data: the list of the real matrices and their readers, written once for the
+# tests and the benches.
+sys.path.insert(0, str(REPO / "scripts"))
 
 
 @pytest.fixture(scope="session")

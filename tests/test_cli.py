@@ -13,13 +13,9 @@ import numpy as np
 import pytest
 
 from qtvpr import reference
+from shared_data import DATASETS, TECHNIQUES, nordland_similarity
 
 REPO = Path(__file__).resolve().parents[1]
-TECHNIQUES = [
-    "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
-    "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
-]
-DATASETS = ["vprbench-corridor", "vprbench-spedtest"]
 
 
 def run_cli(cli: Path, *args: str) -> subprocess.CompletedProcess:
@@ -114,22 +110,10 @@ def test_npz_ground_truth_csv_output_and_output_file(cli, shared_data, tmp_path)
     assert sorted(p.name for p in out_file.parent.iterdir()) == ["t.csv"]
 
 
-def nordland_hog(shared_data: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Cosine similarity of the Nordland HOG descriptors (DB winter x Q summer), float32,
-    and the ground truth |i - j| <= 1 (../shared/data/README.md)."""
-    db = np.load(shared_data / "nordland-hog" / "db_winter.npy").astype(np.float64)
-    q = np.load(shared_data / "nordland-hog" / "query_summer.npy").astype(np.float64)
-    db /= np.linalg.norm(db, axis=1, keepdims=True)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    s = (db @ q.T).astype(np.float32)
-    i = np.arange(s.shape[0])
-    return s, np.abs(i[:, None] - i[None, :]) <= 1
-
-
 @pytest.mark.parametrize("matching", ["single", "multi"])
 def test_nordland_hog(cli, shared_data, tmp_path, matching):
     """The mid-size real case: 3576 x 3576, deployment processed in several chunks."""
-    s, gt = nordland_hog(shared_data)
+    s, gt = nordland_similarity(shared_data)
     n_cal, seg = s.shape[1] // 10, math.ceil(0.01 * s.shape[1])
     f = write(tmp_path, cal=s[:, :n_cal], gt=gt[:, :n_cal], val=s[:, n_cal:])
     res = run_cli(cli, "threshold", "--cal", f["cal"], "--cal-gt", f["gt"], "--val", f["val"],

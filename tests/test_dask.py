@@ -36,6 +36,7 @@ import cloudpickle  # noqa: E402  (a dependency of distributed)
 
 import qtvpr  # noqa: E402
 import qtvpr.dask as qd  # noqa: E402
+from shared_data import nordland_ground_truth, nordland_hog, unit_rows  # noqa: E402
 
 # The workers cannot import this module (tests/ is not on their path): send its
 # functions by value.
@@ -132,12 +133,8 @@ def test_transfer_query_major_float64(client, shared_data, precision):
 def nordland_descriptors(root: Path):
     """L2-normalised Nordland HOG descriptors (winter database, summer queries) and the
     ground truth |i - j| <= 1 of their 3576 x 3576 cosine similarity."""
-    d = root / "nordland-hog"
-    db, q = np.load(d / "db_winter.npy"), np.load(d / "query_summer.npy")
-    db = db / np.linalg.norm(db, axis=1, keepdims=True)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    i = np.arange(len(q))
-    return db, q, np.abs(i[:, None] - i[None, :]) <= 1
+    db, q = (unit_rows(a) for a in nordland_hog(root))
+    return db, q, nordland_ground_truth(len(db), len(q))
 
 
 # The descriptors are NumPy arrays wrapped by Dask, so they travel in the graph.

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import qtvpr
+from shared_data import nordland_ground_truth, nordland_hog
 
 N_Q = 600
 N_CAL = 137  # not a multiple of the kernel's tile of 64 queries
@@ -20,10 +21,8 @@ N_CAL = 137  # not a multiple of the kernel's tile of 64 queries
 
 @pytest.fixture(scope="module")
 def nordland(shared_data):
-    db = np.load(shared_data / "nordland-hog" / "db_winter.npy")
-    q = np.load(shared_data / "nordland-hog" / "query_summer.npy")[:N_Q]
-    gt = np.abs(np.arange(db.shape[0])[:, None] - np.arange(N_Q)[None, :]) <= 1
-    return db, q, gt
+    db, q = nordland_hog(shared_data)
+    return db, q[:N_Q], nordland_ground_truth(len(db), N_Q)
 
 
 def _same_transfer(a, b):

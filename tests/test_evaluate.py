@@ -22,12 +22,9 @@ from hypothesis import strategies as st
 
 import qtvpr
 from qtvpr import reference as ref
+from shared_data import TECHNIQUES, vprbench
 from test_cli import run_cli
 
-TECHNIQUES = [
-    "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
-    "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
-]
 SEGMENT_KEYS = ["start", "end", "threshold", "oracle_threshold", "tp", "fp", "positives",
                 "precision", "recall", "precision_lower95", "meets"]
 METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped", "threshold_mse",
@@ -44,10 +41,8 @@ def run_of(d: dict) -> dict:
     return {k: d[k] for k in [*RUN_KEYS, "confidence"] if k in d}
 
 
-@functools.cache
-def load(root: Path, dataset: str, technique: str):
-    d = root / dataset
-    return np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+#: The real matrices, read once per worker.
+load = functools.cache(vprbench)
 
 
 def soft_of(gt: np.ndarray) -> np.ndarray:

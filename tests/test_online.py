@@ -34,6 +34,7 @@ from hypothesis import strategies as st
 
 import qtvpr
 from qtvpr import reference as ref
+from shared_data import DATASETS, TECHNIQUES, vprbench
 from test_cli import run_cli
 
 T, F = True, False
@@ -292,8 +293,7 @@ def test_reference_theta_is_the_batch_transfer_of_its_window(c):
 @pytest.mark.parametrize("window", [1, 3, 200])
 @pytest.mark.parametrize("technique", ["AMOSNet", "CoHOG"])
 def test_reference_definition_on_corridor(shared_data, technique, window):
-    d = shared_data / "vprbench-corridor"
-    s, gt = np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+    s, gt = vprbench(shared_data, "vprbench-corridor", technique)
     check_against_definition(dict(
         s_cal=s[:, :11], gt=gt[:, :11], soft=None, s_val=s[:, 11:40], matching="single", k=10,
         precision=0.9, window=window, min_window=min(window, 2),
@@ -470,12 +470,6 @@ def test_reference_unreadable_calibration_files(tmp_path):
 # The wheel: qtvpr.Online and the calibration file, held to the reference
 # =======================================================================================
 
-DATASETS = ["vprbench-corridor", "vprbench-spedtest"]
-TECHNIQUES = [
-    "AMOSNet", "AlexNet_VPR", "CALC", "CoHOG", "HOG",
-    "HybridNet", "NetVLAD", "RegionVLAD", "ap-gem-r101", "denseVLAD",
-]
-
 
 def assert_close(got, want, name=""):
     """Equal to 1e-9, infinities in the same places."""
@@ -516,10 +510,8 @@ def soft_of(gt: np.ndarray) -> np.ndarray:
     return soft
 
 
-@functools.cache
-def load_matrix(root: Path, dataset: str, technique: str):
-    d = root / dataset
-    return np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+#: The real matrices, read once per worker.
+load_matrix = functools.cache(vprbench)
 
 
 #: Real-data configurations: window "size" is the protocol's segment size

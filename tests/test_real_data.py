@@ -17,27 +17,13 @@ import pytest
 
 import qtvpr
 from qtvpr import reference as ref
-
-DATASETS = ["vprbench-corridor", "vprbench-spedtest"]
-TECHNIQUES = [
-    "AMOSNet",
-    "AlexNet_VPR",
-    "CALC",
-    "CoHOG",
-    "HOG",
-    "HybridNet",
-    "NetVLAD",
-    "RegionVLAD",
-    "ap-gem-r101",
-    "denseVLAD",
-]
+from shared_data import DATASETS, TECHNIQUES, vprbench
 
 
 @functools.cache
 def load(root: Path, dataset: str, technique: str):
     """(S, GT, number of calibration queries, segment size) of one matrix."""
-    d = root / dataset
-    s, gt = np.load(d / f"S_{technique}.npy"), np.load(d / "GT.npy")
+    s, gt = vprbench(root, dataset, technique)
     n_q = s.shape[1]
     return s, gt, math.floor(0.10 * n_q), math.ceil(0.01 * n_q)
 
