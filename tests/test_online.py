@@ -700,6 +700,29 @@ def test_wheel_api_shape():
     assert qtvpr.Online(cal, window=2).push([0.7, 0.3, 0.2]).threshold == a.threshold
 
 
+def test_decisions_are_laid_out_from_the_core_record():
+    """Every field of the core's record (``OnlineDecision.RECORD``) is an attribute of a
+    decision, of its kind's type (``None`` for a gate's field without the gate), and a
+    column of ``OnlineDecisions``, an array of its kind's dtype: a field the binding
+    missed fails here."""
+    types = {"count": int, "real": float, "flag": bool}
+    dtypes = {"count": np.int64, "real": np.float64, "flag": np.bool_}
+    record = qtvpr.OnlineDecision.RECORD
+    assert tuple(name for name, _, _, gate in record if gate == "none") == qtvpr.OnlineDecision.FIELDS
+    assert tuple(name for name, _, _, gate in record if gate == "margin") == qtvpr.OnlineDecision.GATE_FIELDS
+    assert tuple(column for _, column, _, _ in record) == qtvpr.OnlineDecisions.COLUMNS
+    for gate in ("none", "margin"):
+        o = wheel_online(window=2, gate=gate)
+        one, many = o.push(DEP_S[:, 0]), o.push_many(DEP_S[:, 1:])
+        for name, column, kind, field_gate in record:
+            value, values = getattr(one, name), getattr(many, column)
+            if field_gate in ("none", gate):
+                assert type(value) is types[kind], (gate, name)
+                assert values.dtype == dtypes[kind] and values.shape == (3,), (gate, column)
+            else:
+                assert value is None and values is None, (gate, name)
+
+
 def test_wheel_online_bad_input():
     cal = qtvpr.Calibration(CAL_S, CAL_GT)
     with pytest.raises(ValueError, match="window is not given and the calibration sets none"):

@@ -1,8 +1,8 @@
 """The ``qtvpr_msgs`` interface (``ros/qtvpr_msgs/msg/*.msg``) against the decision record.
 
 Runs without ROS 2: the message definitions are read as text, so a field added to the
-core's record (``qtvpr.OnlineDecision.FIELDS``, ``GATE_FIELDS``) and not to
-``Decision.msg`` fails here on every machine. ``tests/test_ros.py`` checks the generated
+core's record (``qtvpr.OnlineDecision.RECORD``) and not to ``Decision.msg`` fails here
+on every machine. ``tests/test_ros.py`` checks the generated
 package against the same lists where ROS 2 is installed.
 """
 
@@ -14,8 +14,8 @@ import qtvpr
 
 MSG = Path(__file__).resolve().parents[1] / "ros" / "qtvpr_msgs" / "msg"
 
-# ROS 2's types of the record's values (an index or a count is a uint64, exact).
-TYPES = {"query": "uint64", "best": "uint64", "accepted": "uint64", "accept": "bool"}
+# ROS 2's type of each kind of the record's values (an index or a count is a uint64, exact).
+TYPES = {"count": "uint64", "real": "float64", "flag": "bool"}
 
 
 def fields(name: str) -> list[tuple[str, str]]:
@@ -30,9 +30,8 @@ def fields(name: str) -> list[tuple[str, str]]:
 
 
 def test_decision_msg_is_the_record_field_for_field() -> None:
-    record = qtvpr.OnlineDecision.FIELDS + qtvpr.OnlineDecision.GATE_FIELDS
     want = [("std_msgs/Header", "header")]
-    want += [(TYPES.get(f, "float64"), f) for f in record]
+    want += [(TYPES[kind], name) for name, _, kind, _ in qtvpr.OnlineDecision.RECORD]
     want += [("uint64[]", "accepted_indices")]
     assert fields("Decision") == want
 

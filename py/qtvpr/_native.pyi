@@ -6,7 +6,7 @@ Checked against the compiled module by ``python -m mypy.stubtest qtvpr._native``
 
 import os
 from collections.abc import Iterable, Sequence
-from typing import ClassVar, Literal, NotRequired, TypedDict, TypeVar, final, overload
+from typing import Any, ClassVar, Literal, NotRequired, TypedDict, TypeVar, final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -290,6 +290,8 @@ _Column = ArrayLike
 class OnlineDecision:
     FIELDS: ClassVar[tuple[str, ...]]
     GATE_FIELDS: ClassVar[tuple[str, ...]]
+    # (name, column, kind, gate) of every field: the core's record.
+    RECORD: ClassVar[tuple[tuple[str, str, Literal["count", "real", "flag"], _Gate], ...]]
     @property
     def query(self) -> int: ...
     @property
@@ -321,6 +323,7 @@ class OnlineDecision:
 
 @final
 class OnlineDecisions:
+    COLUMNS: ClassVar[tuple[str, ...]]
     @property
     def queries(self) -> NDArray[np.int64]: ...
     @property
@@ -348,21 +351,7 @@ class OnlineDecisions:
     @property
     def confidences_lower95(self) -> NDArray[np.float64]: ...
     @staticmethod
-    def _from_parts(
-        queries: NDArray[np.int64],
-        query_quantiles: NDArray[np.float64],
-        weights: NDArray[np.float64],
-        quantiles: NDArray[np.float64],
-        thresholds: NDArray[np.float64],
-        best: NDArray[np.int64],
-        score: NDArray[np.float64],
-        accepted: NDArray[np.int64],
-        accept: NDArray[np.bool_],
-        confidences: NDArray[np.float64],
-        confidences_lower95: NDArray[np.float64],
-        margins: NDArray[np.float64] | None = None,
-        gates: NDArray[np.float64] | None = None,
-    ) -> OnlineDecisions: ...
+    def _from_parts(*columns: NDArray[Any] | None) -> OnlineDecisions: ...
     def __len__(self) -> int: ...
 
 @final

@@ -126,7 +126,7 @@ def online(
     k: int | None = None,
     precision: float | None = None,
     window: int | None = None,
-    min_window: int = 1,
+    min_window: int | None = None,
     gate: str | None = None,
     query_major: bool = False,
 ) -> OnlineDecisions:
@@ -134,7 +134,7 @@ def online(
 
     ``s_val`` is as in :func:`transfer`. ``k``, ``precision``, ``window``,
     ``min_window`` and ``gate`` are those of :class:`qtvpr.Online` (``None``: the calibration's
-    :attr:`qtvpr.Calibration.defaults`). Each chunk of the query axis is one task: a
+    :attr:`qtvpr.Calibration.defaults`, and no warm-up). Each chunk of the query axis is one task: a
     fresh :class:`qtvpr.Online` is pushed the ``window - 1`` queries before the chunk
     (fewer at the start of the stream; none for the first chunk, so that the warm-up of
     ``min_window`` applies to the stream's first queries only), then the chunk. As a
@@ -171,10 +171,10 @@ def online(
         block = _block(s_val, first, end, query_major)
         tasks.append(dask.delayed(_online_block)(cal, block, first, start, params, query_major))
     parts = _computed(tasks)
-    fields = ("queries", "query_quantiles", "weights", "quantiles", "thresholds", "best", "score", "accepted",
-              "accept", "confidences", "confidences_lower95", "margins", "gates")
+    # The columns of the core's record, in its order (a gate's are None without it).
+    columns = OnlineDecisions.COLUMNS
     return OnlineDecisions._from_parts(
-        *(None if parts[0][name] is None else np.concatenate([p[name] for p in parts]) for name in fields)
+        *(None if parts[0][name] is None else np.concatenate([p[name] for p in parts]) for name in columns)
     )
 
 
@@ -281,21 +281,7 @@ def _online_block(
         state = Online(calibration, **params)
         state._resume(start, head, query_major=query_major)
         d = state._push_stream(body, query_major=query_major)
-        return {
-            "queries": d.queries,
-            "query_quantiles": d.query_quantiles,
-            "weights": d.weights,
-            "quantiles": d.quantiles,
-            "thresholds": d.thresholds,
-            "best": d.best,
-            "score": d.score,
-            "accepted": d.accepted,
-            "accept": d.accept,
-            "confidences": d.confidences,
-            "confidences_lower95": d.confidences_lower95,
-            "margins": d.margins,
-            "gates": d.gates,
-        }
+        return {name: getattr(d, name) for name in OnlineDecisions.COLUMNS}
 
     # An error in the resumed queries is the previous block's too, raised first by
     # _computed (blocks in query order) with the same message.

@@ -7,7 +7,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMetho
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use qtvpr::{Matching, Params, QuerySplit, Split};
+use qtvpr::{Matching, Params, QuerySplit, ScoreSource, Split, SplitError};
 
 use crate::convert::{self, GroundTruthArgs, Int, count, non_negative};
 use crate::descriptors::SourceArg;
@@ -72,22 +72,24 @@ impl PyCalibration {
     }
 }
 
-impl PyCalibration {
-    /// The calibration of `s_cal`, every query or the first queries of `split` (then
-    /// `gt_cal` labels every query), and with `transfer` the transfer of the queries
-    /// after the split at those parameters (resolved by the caller against
-    /// [`qtvpr::Defaults::default`], which a calibration from arrays has).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn build(
-        py: Python<'_>,
-        s_cal: &Bound<'_, PyAny>,
-        gt_cal: &Bound<'_, PyAny>,
-        gt_soft: Option<&Bound<'_, PyAny>>,
+/// The arguments of a calibration traverse, converted: the similarity (a matrix, a path
+/// or descriptors), its ground truth (built), the matching, and how errors name them.
+pub(crate) struct CalibrationArgs<'py> {
+    s: SourceArg<'py>,
+    gt: qtvpr::GroundTruth,
+    matching: Matching,
+    args: Args,
+}
+
+impl<'py> CalibrationArgs<'py> {
+    pub(crate) fn extract(
+        py: Python<'py>,
+        s_cal: &Bound<'py, PyAny>,
+        gt_cal: &Bound<'py, PyAny>,
+        gt_soft: Option<&Bound<'py, PyAny>>,
         matching: &str,
         query_major: bool,
-        split: Option<Split>,
-        transfer: Option<Params>,
-    ) -> PyResult<(Self, Option<TransferResult>)> {
+    ) -> PyResult<Self> {
         let args = Args {
             gt: "gt_cal",
             query_major,
@@ -97,25 +99,42 @@ impl PyCalibration {
         let gt = GroundTruthArgs::extract("gt_cal", gt_cal, gt_soft)?;
         let gt = gt.view(query_major);
         let gt = py.detach(|| gt.build())?;
-        // A transfer's error is returned apart: it is about the queries after the split.
-        let (inner, out) = s
-            .with(py, |s| {
-                let Some(split) = split else {
-                    return qtvpr::Calibration::new(s, &gt, matching).map(|c| (c, None));
-                };
-                let split = QuerySplit::new(split, s.dim())?;
-                let gt = split.calibration_truth(&gt)?;
-                let cal = qtvpr::Calibration::new(s.columns(split.calibration()), &gt, matching)?;
-                let out = transfer.map(|p| {
-                    cal.transfer(s.columns(split.deployment()), &p)
-                        .map_err(|e| split.deployment_error(e))
-                });
-                Ok((cal, out))
+        Ok(Self { s, gt, matching, args })
+    }
+
+    /// The calibration of every query, or of the first queries of `split` (then the
+    /// ground truth labels every query).
+    pub(crate) fn calibrate(self, py: Python<'_>, split: Option<Split>) -> PyResult<PyCalibration> {
+        let Self { s, gt, matching, args } = self;
+        let inner = s
+            .with(py, |s| match split {
+                None => qtvpr::Calibration::new(s, &gt, matching),
+                Some(split) => {
+                    let split = QuerySplit::new(split, s.dim())?;
+                    let gt = split.calibration_truth(&gt)?;
+                    qtvpr::Calibration::new(s.columns(split.calibration()), &gt, matching)
+                }
             })?
             .map_err(|e| args.error(e))?;
-        let out = out.transpose().map_err(|e| args.split_error(e))?;
-        let out = out.map(|out| TransferResult::new(py, out));
-        Ok((Self { inner: Arc::new(inner) }, out))
+        Ok(PyCalibration { inner: Arc::new(inner) })
+    }
+
+    /// The transfer within the queries split by `split` (the core's
+    /// [`QuerySplit::transfer`]): the first calibrate on their columns of the ground
+    /// truth, which labels every query, and the rest are thresholded at `params`. Errors
+    /// of the transfer name `s_cal`, with positions in the whole matrix.
+    pub(crate) fn split_transfer(self, py: Python<'_>, split: Split, params: Params) -> PyResult<TransferResult> {
+        let Self { s, gt, matching, args } = self;
+        let transfer = |s: ScoreSource<'_, '_>| {
+            let split = QuerySplit::new(split, s.dim()).map_err(SplitError::Calibration)?;
+            let gt = split.calibration_truth(&gt).map_err(SplitError::Calibration)?;
+            split.transfer(s, gt, matching, &params)
+        };
+        match s.with(py, |s| Ok(transfer(s)))?.map_err(|e| args.error(e))? {
+            Ok((_, out)) => Ok(TransferResult::new(py, out)),
+            Err(SplitError::Calibration(e)) => Err(args.error(e)),
+            Err(SplitError::Deployment(e)) => Err(args.split_error(e)),
+        }
     }
 }
 
@@ -183,8 +202,7 @@ impl PyCalibration {
         cal_fraction: Option<f64>,
     ) -> PyResult<Self> {
         let split = split_arg(cal_queries, cal_fraction)?;
-        let (cal, _) = Self::build(py, s_cal, gt_cal, gt_soft, matching, query_major, split, None)?;
-        Ok(cal)
+        CalibrationArgs::extract(py, s_cal, gt_cal, gt_soft, matching, query_major)?.calibrate(py, split)
     }
 
     /// Write this calibration to ``path`` as a calibration file, atomically.

@@ -2,7 +2,7 @@
 //!
 //! The results are the core's serde values turned into Python objects by `pythonize`,
 //! so the dicts have exactly the keys of `qtvpr-cli evaluate --format json` (listed in
-//! `qtvpr::report`); a reject-all threshold is `math.inf` here, `null` in JSON.
+//! `qtvpr::Report`, semantics §9); a reject-all threshold is `math.inf` here, `null` in JSON.
 
 use std::path::PathBuf;
 
@@ -274,18 +274,7 @@ pub(crate) fn ablation<'py>(
         query_major,
     )?;
     // Every setting is checked before any input is read (an empty list: the base's).
-    for &k in ks.iter().chain(ks.is_empty().then_some(&protocol.k)) {
-        let base = calibrations.is_empty().then_some(&protocol.calibration);
-        for &calibration in calibrations.iter().chain(base) {
-            Protocol {
-                k,
-                calibration,
-                ..protocol
-            }
-            .validate()
-            .map_err(|e| args.error(e))?;
-        }
-    }
+    protocol.ablation(&ks, &calibrations).map_err(|e| args.error(e))?;
     let (s, gt, dataset) = inputs(s, gt, gt_soft, query_major)?;
     let gt = build_ground_truth(py, &gt, query_major)?;
     let orientation = s.orientation(py, &gt)?;

@@ -27,7 +27,7 @@ mod similarity;
 use pyo3::prelude::*;
 use qtvpr::Matching;
 
-use crate::calibration::{PyCalibration, TransferResult};
+use crate::calibration::{CalibrationArgs, PyCalibration, TransferResult};
 use crate::convert::{GroundTruthArgs, Int, MatrixArg};
 use crate::error::Args;
 use qtvpr::with_scores;
@@ -88,9 +88,10 @@ fn quantile_transfer(
     // from arrays has the library's defaults).
     let params = qtvpr::Params::resolve(&qtvpr::Defaults::default(), k, precision, segment_size, gate)
         .map_err(|e| args.error(e))?;
+    let calibration = || CalibrationArgs::extract(py, s_cal, gt_cal, gt_soft, matching, query_major);
     match (s_val, split) {
         (Some(s_val), None) => {
-            let (cal, _) = PyCalibration::build(py, s_cal, gt_cal, gt_soft, matching, query_major, None, None)?;
+            let cal = calibration()?.calibrate(py, None)?;
             cal.transfer(
                 py,
                 s_val,
@@ -101,19 +102,7 @@ fn quantile_transfer(
                 query_major,
             )
         }
-        (None, Some(split)) => {
-            let (_, out) = PyCalibration::build(
-                py,
-                s_cal,
-                gt_cal,
-                gt_soft,
-                matching,
-                query_major,
-                Some(split),
-                Some(params),
-            )?;
-            Ok(out.expect("a split with parameters transfers"))
-        }
+        (None, Some(split)) => calibration()?.split_transfer(py, split, params),
         (Some(_), Some(_)) => Err(pyo3::exceptions::PyValueError::new_err(
             "s_val and cal_queries/cal_fraction exclude each other: give s_val, or split s_cal",
         )),
@@ -305,5 +294,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<online::PyOnline>()?;
     m.add_class::<online::OnlineDecision>()?;
     m.add_class::<online::OnlineDecisions>()?;
+    // Their attributes, from the core's record.
+    online::add_record(m.py())?;
     Ok(())
 }

@@ -4,15 +4,18 @@
 use std::sync::Arc;
 
 use numpy::{PyArray1, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyTuple;
-use qtvpr::{Decision, Error, OnlineParams};
+use pyo3::types::{PyCFunction, PyTuple};
+use qtvpr::{Decision, Error, Kind, OnlineParams, Value};
 
 use crate::calibration::PyCalibration;
 use crate::convert::{self, Column, Int, MatrixArg, count, non_negative};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
+
+/// The `min_window` default `help()` shows (the core's, which a `None` takes).
+const _: () = assert!(qtvpr::DEFAULT_MIN_WINDOW == 1);
 
 /// Online thresholds for deployment queries that arrive one at a time.
 ///
@@ -55,7 +58,7 @@ pub(crate) struct PyOnline {
 impl PyOnline {
     #[new]
     #[pyo3(
-        signature = (calibration, *, k = None, precision = None, window = None, min_window = Int::Small(1), gate = None),
+        signature = (calibration, *, k = None, precision = None, window = None, min_window = None, gate = None),
         text_signature = "(calibration, *, k=None, precision=None, window=None, min_window=1, gate=None)"
     )]
     fn new(
@@ -63,17 +66,17 @@ impl PyOnline {
         k: Option<Int>,
         precision: Option<f64>,
         window: Option<Int>,
-        min_window: Int,
+        min_window: Option<Int>,
         gate: Option<&str>,
     ) -> PyResult<Self> {
         let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
         let (k, window, min_window) = (
             k.map(|k| count("k", k)).transpose()?,
             window.map(|m| count("window", m)).transpose()?,
-            count("min_window", min_window)?,
+            min_window.map(|w| count("min_window", w)).transpose()?,
         );
         let params = convert::gate(gate)
-            .and_then(|gate| OnlineParams::resolve(cal.defaults(), k, precision, window, Some(min_window), gate))
+            .and_then(|gate| OnlineParams::resolve(cal.defaults(), k, precision, window, min_window, gate))
             .map_err(|e| ARGS.error(e))?;
         let inner = qtvpr::Online::new(Arc::clone(cal), params).map_err(|e| ARGS.error(e))?;
         Ok(Self {
@@ -268,6 +271,7 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// One deployment query decided by :meth:`Online.push`: the decision record, with the
 /// values of a ``qtvpr-cli stream`` line and of C's ``qtvpr_decision``.
 ///
+/// Its attributes are the record's fields, :attr:`FIELDS` (then :attr:`GATE_FIELDS`):
 /// ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
 /// its own quantile and weight (from its calibration neighbours, as in
 /// :class:`TransferResult`); ``quantile`` and ``threshold`` its window's weighted-median
@@ -286,45 +290,8 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// ``accepted_indices`` are the accepted database indices, ascending (int64).
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecision")]
 pub(crate) struct OnlineDecision {
-    /// The query's index in arrival order, from 0.
-    #[pyo3(get)]
-    query: usize,
-    /// Its own quantile q_j.
-    #[pyo3(get)]
-    query_quantile: f64,
-    /// Its weight w_j.
-    #[pyo3(get)]
-    weight: f64,
-    /// The window's quantile (1 during warm-up).
-    #[pyo3(get)]
-    quantile: f64,
-    /// The window's threshold: accept a score ``>=`` it.
-    #[pyo3(get)]
-    threshold: f64,
-    /// The best match's database index (the first maximum).
-    #[pyo3(get)]
-    best: usize,
-    /// The best match's score.
-    #[pyo3(get)]
-    score: f64,
-    /// The number of accepted database images (0 or 1 in single matching).
-    #[pyo3(get)]
-    accepted: usize,
-    /// Whether anything is accepted (``accepted > 0``).
-    #[pyo3(get)]
-    accept: bool,
-    /// With the margin gate: the query's margin (``None`` without it).
-    #[pyo3(get)]
-    margin: Option<f64>,
-    /// With the margin gate: m*, the margin the best match needs (``None`` without it).
-    #[pyo3(get)]
-    gate: Option<f64>,
-    /// The probability that the best match is right (NaN in multi matching).
-    #[pyo3(get)]
-    confidence: f64,
-    /// Its one-sided 95% Clopper-Pearson lower bound (NaN in multi matching).
-    #[pyo3(get)]
-    confidence_lower95: f64,
+    /// The core's record, which the properties of its fields read ([`add_record`]).
+    decision: Decision,
     /// The accepted database indices, ascending (int64).
     #[pyo3(get)]
     accepted_indices: Py<PyArray1<i64>>,
@@ -333,19 +300,7 @@ pub(crate) struct OnlineDecision {
 impl OnlineDecision {
     fn new(py: Python<'_>, d: &Decision, accepted: &[usize]) -> Self {
         Self {
-            query: d.query,
-            query_quantile: d.query_quantile,
-            weight: d.weight,
-            quantile: d.quantile,
-            threshold: d.threshold,
-            best: d.best,
-            score: d.score,
-            accepted: d.accepted,
-            accept: d.accept(),
-            margin: d.margin,
-            gate: d.gate,
-            confidence: d.confidence,
-            confidence_lower95: d.confidence_lower95,
+            decision: *d,
             // Indices are below |DB|, so they fit in an i64.
             accepted_indices: PyArray1::from_iter(py, accepted.iter().map(|&i| i as i64)).unbind(),
         }
@@ -371,21 +326,34 @@ impl OnlineDecision {
         Ok(PyTuple::new(py, Decision::GATE_FIELDS)?.unbind())
     }
 
+    /// Every field of the record, in order, as ``(name, column, kind, gate)``: its
+    /// attribute here, its attribute of :class:`OnlineDecisions`, what it holds
+    /// (``"count"``, ``"real"`` or ``"flag"``) and the gate that brings it (``"none"``:
+    /// every record). The core's list, which this class and :class:`OnlineDecisions`
+    /// are laid out from.
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn RECORD(py: Python<'_>) -> PyResult<Py<PyTuple>> {
+        let rows = Decision::RECORD.map(|f| (f.name, f.column, f.kind.as_str(), f.gate.as_str()));
+        Ok(PyTuple::new(py, rows)?.unbind())
+    }
+
     fn __repr__(&self) -> String {
+        let d = &self.decision;
         // With the margin gate, what the decision also rested on.
-        let gated = match (self.margin, self.gate) {
+        let gated = match (d.margin, d.gate) {
             (Some(margin), Some(gate)) => format!(", margin={margin:?}, gate={gate:?}"),
             _ => String::new(),
         };
         format!(
             "OnlineDecision(query={}, quantile={:?}, threshold={:?}, best={}, score={:?}, accepted={}{gated}, accept={})",
-            self.query,
-            self.quantile,
-            self.threshold,
-            self.best,
-            self.score,
-            self.accepted,
-            if self.accept { "True" } else { "False" }
+            d.query,
+            d.quantile,
+            d.threshold,
+            d.best,
+            d.score,
+            d.accepted,
+            if d.accept() { "True" } else { "False" }
         )
     }
 }
@@ -393,147 +361,118 @@ impl OnlineDecision {
 /// The decisions of :meth:`Online.push_many`, one entry per pushed query, in order:
 /// the fields of :class:`OnlineDecision` as arrays, in both matching modes.
 ///
-/// ``queries`` (int64, their indices in arrival order), ``query_quantiles``,
-/// ``weights``, ``quantiles``, ``thresholds`` and ``score`` (float64), ``best`` and
-/// ``accepted`` (int64), ``accept`` (bool), ``confidences`` and
-/// ``confidences_lower95`` (float64, NaN in multi matching); with the margin gate
-/// ``margins`` and ``gates`` (float64), ``None`` without it.
+/// Its attributes are the record's columns, :attr:`COLUMNS`: ``queries`` (int64, their
+/// indices in arrival order), ``query_quantiles``, ``weights``, ``quantiles``,
+/// ``thresholds`` and ``score`` (float64), ``best`` and ``accepted`` (int64),
+/// ``accept`` (bool), ``confidences`` and ``confidences_lower95`` (float64, NaN in
+/// multi matching); with the margin gate ``margins`` and ``gates`` (float64), ``None``
+/// without it.
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecisions")]
 pub(crate) struct OnlineDecisions {
-    /// Each query's index in arrival order (int64).
-    #[pyo3(get)]
-    queries: Py<PyArray1<i64>>,
-    /// Each query's own quantile q_j.
-    #[pyo3(get)]
-    query_quantiles: Py<PyArray1<f64>>,
-    /// Each query's weight w_j.
-    #[pyo3(get)]
-    weights: Py<PyArray1<f64>>,
-    /// Each query's window quantile.
-    #[pyo3(get)]
-    quantiles: Py<PyArray1<f64>>,
-    /// Each query's threshold.
-    #[pyo3(get)]
-    thresholds: Py<PyArray1<f64>>,
-    /// Each query's best match (int64).
-    #[pyo3(get)]
-    best: Py<PyArray1<i64>>,
-    /// Each best match's score.
-    #[pyo3(get)]
-    score: Py<PyArray1<f64>>,
-    /// Each query's number of accepted database images (int64).
-    #[pyo3(get)]
-    accepted: Py<PyArray1<i64>>,
-    /// Whether each query accepts anything.
-    #[pyo3(get)]
-    accept: Py<PyArray1<bool>>,
-    /// With the margin gate: each query's margin (``None`` without it).
-    #[pyo3(get)]
-    margins: Option<Py<PyArray1<f64>>>,
-    /// With the margin gate: each query's m* (``None`` without it).
-    #[pyo3(get)]
-    gates: Option<Py<PyArray1<f64>>>,
-    /// Each query's confidence (NaN in multi matching).
-    #[pyo3(get)]
-    confidences: Py<PyArray1<f64>>,
-    /// Each confidence's one-sided 95% Clopper-Pearson lower bound.
-    #[pyo3(get)]
-    confidences_lower95: Py<PyArray1<f64>>,
+    /// One array per field of the core's record, in its order; `None` for the field of
+    /// a gate the decisions were made without. The properties of the columns read them
+    /// ([`add_record`]).
+    columns: Vec<Option<Py<PyAny>>>,
     len: usize,
 }
 
 impl OnlineDecisions {
     /// The arrays of `decisions`, made by an `Online` with `gate`.
     fn new(py: Python<'_>, decisions: &[Decision], gate: qtvpr::Gate) -> Self {
-        // An `Online` gates all its decisions or none.
-        let gated = |f: fn(&Decision) -> Option<f64>| {
-            gate.is_on()
-                .then(|| PyArray1::from_iter(py, decisions.iter().map(|d| f(d).unwrap_or(f64::NAN))).unbind())
-        };
-        let f64s = |f: fn(&Decision) -> f64| PyArray1::from_iter(py, decisions.iter().map(f)).unbind();
-        // Indices and counts are below |DB| and the number of queries: they fit in an i64.
-        let i64s = |f: fn(&Decision) -> usize| PyArray1::from_iter(py, decisions.iter().map(|d| f(d) as i64)).unbind();
+        let columns = Decision::RECORD.iter().map(|field| {
+            // An `Online` gates all its decisions or none.
+            field.in_record(gate).then(|| {
+                let values = decisions.iter().map(|d| field.value(d));
+                match field.kind {
+                    // Indices and counts are below |DB| and the number of queries: they
+                    // fit in an i64.
+                    Kind::Count => PyArray1::from_iter(py, values.map(|v| count_of(v) as i64)).into_any(),
+                    Kind::Real => PyArray1::from_iter(py, values.map(real_of)).into_any(),
+                    Kind::Flag => PyArray1::from_iter(py, values.map(|v| v == Some(Value::Flag(true)))).into_any(),
+                }
+                .unbind()
+            })
+        });
         Self {
-            queries: i64s(|d| d.query),
-            query_quantiles: f64s(|d| d.query_quantile),
-            weights: f64s(|d| d.weight),
-            quantiles: f64s(|d| d.quantile),
-            thresholds: f64s(|d| d.threshold),
-            best: i64s(|d| d.best),
-            score: f64s(|d| d.score),
-            accepted: i64s(|d| d.accepted),
-            accept: PyArray1::from_iter(py, decisions.iter().map(Decision::accept)).unbind(),
-            margins: gated(|d| d.margin),
-            gates: gated(|d| d.gate),
-            confidences: f64s(|d| d.confidence),
-            confidences_lower95: f64s(|d| d.confidence_lower95),
+            columns: columns.collect(),
             len: decisions.len(),
         }
     }
 }
 
+/// A count of the record (a field of every record, so always there).
+fn count_of(value: Option<Value>) -> usize {
+    match value {
+        Some(Value::Count(n)) => n,
+        other => unreachable!("a count field holds a count, not {other:?}"),
+    }
+}
+
+/// A real of the record, NaN where the record has none.
+fn real_of(value: Option<Value>) -> f64 {
+    match value {
+        Some(Value::Real(x)) => x,
+        _ => f64::NAN,
+    }
+}
+
 #[pymethods]
 impl OnlineDecisions {
-    /// Decisions from their fields, as the properties return them (what ``qtvpr.dask``
+    /// The names of the record's columns, in order (the core's list: ``column`` of
+    /// :attr:`OnlineDecision.RECORD`): the attributes of this class, and the arguments
+    /// of :meth:`_from_parts`.
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn COLUMNS(py: Python<'_>) -> PyResult<Py<PyTuple>> {
+        Ok(PyTuple::new(py, Decision::RECORD.map(|f| f.column))?.unbind())
+    }
+
+    /// Decisions from their columns, in the order of :attr:`COLUMNS` (a gate's columns
+    /// may be left out or ``None``), as the properties return them (what ``qtvpr.dask``
     /// assembles from the results of its blocks). The arrays are kept, not copied.
     ///
-    /// Raises ``TypeError`` for an array of another dtype or dimension, and
-    /// ``ValueError`` for arrays of different lengths.
+    /// Raises ``TypeError`` for a missing column or an array of another dtype or
+    /// dimension, and ``ValueError`` for arrays of different lengths.
     #[staticmethod]
-    #[pyo3(signature = (
-        queries, query_quantiles, weights, quantiles, thresholds, best, score, accepted, accept, confidences,
-        confidences_lower95, margins = None, gates = None,
-    ))]
-    #[allow(clippy::too_many_arguments)]
-    fn _from_parts(
-        queries: Bound<'_, PyArray1<i64>>,
-        query_quantiles: Bound<'_, PyArray1<f64>>,
-        weights: Bound<'_, PyArray1<f64>>,
-        quantiles: Bound<'_, PyArray1<f64>>,
-        thresholds: Bound<'_, PyArray1<f64>>,
-        best: Bound<'_, PyArray1<i64>>,
-        score: Bound<'_, PyArray1<f64>>,
-        accepted: Bound<'_, PyArray1<i64>>,
-        accept: Bound<'_, PyArray1<bool>>,
-        confidences: Bound<'_, PyArray1<f64>>,
-        confidences_lower95: Bound<'_, PyArray1<f64>>,
-        margins: Option<Bound<'_, PyArray1<f64>>>,
-        gates: Option<Bound<'_, PyArray1<f64>>>,
-    ) -> PyResult<Self> {
-        let len = queries.len();
-        let lengths = [
-            query_quantiles.len(),
-            weights.len(),
-            quantiles.len(),
-            thresholds.len(),
-            best.len(),
-            score.len(),
-            accepted.len(),
-            accept.len(),
-            confidences.len(),
-            confidences_lower95.len(),
-            margins.as_ref().map_or(len, |m| m.len()),
-            gates.as_ref().map_or(len, |g| g.len()),
-        ];
+    #[pyo3(signature = (*columns))]
+    fn _from_parts(columns: &Bound<'_, PyTuple>) -> PyResult<Self> {
+        let given = columns.len();
+        if given > Decision::RECORD.len() {
+            return Err(PyTypeError::new_err(format!(
+                "OnlineDecisions has {} columns, got {given}",
+                Decision::RECORD.len()
+            )));
+        }
+        let mut parts = Vec::with_capacity(Decision::RECORD.len());
+        for (i, field) in Decision::RECORD.iter().enumerate() {
+            let part = if i < given { Some(columns.get_item(i)?) } else { None };
+            let part = part.filter(|p| !p.is_none());
+            let Some(part) = part else {
+                if field.gate == qtvpr::Gate::None {
+                    return Err(PyTypeError::new_err(format!(
+                        "OnlineDecisions needs column {} in both matching modes",
+                        field.column
+                    )));
+                }
+                parts.push(None);
+                continue;
+            };
+            let len = match field.kind {
+                Kind::Count => part.cast::<PyArray1<i64>>()?.len(),
+                Kind::Real => part.cast::<PyArray1<f64>>()?.len(),
+                Kind::Flag => part.cast::<PyArray1<bool>>()?.len(),
+            };
+            parts.push(Some((part.unbind(), len)));
+        }
+        let len = parts[0].as_ref().map_or(0, |p| p.1);
+        let lengths: Vec<usize> = parts[1..].iter().map(|p| p.as_ref().map_or(len, |p| p.1)).collect();
         if lengths.iter().any(|&n| n != len) {
             return Err(PyValueError::new_err(format!(
                 "OnlineDecisions parts differ in length: queries {len}, the others {lengths:?}"
             )));
         }
         Ok(Self {
-            queries: queries.unbind(),
-            query_quantiles: query_quantiles.unbind(),
-            weights: weights.unbind(),
-            quantiles: quantiles.unbind(),
-            thresholds: thresholds.unbind(),
-            best: best.unbind(),
-            score: score.unbind(),
-            accepted: accepted.unbind(),
-            accept: accept.unbind(),
-            margins: margins.map(Bound::unbind),
-            gates: gates.map(Bound::unbind),
-            confidences: confidences.unbind(),
-            confidences_lower95: confidences_lower95.unbind(),
+            columns: parts.into_iter().map(|p| p.map(|p| p.0)).collect(),
             len,
         })
     }
@@ -543,10 +482,58 @@ impl OnlineDecisions {
     }
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let thresholds = self.thresholds.bind(py).repr()?;
+        let thresholds = self.column(py, "thresholds").repr()?;
         Ok(format!(
             "OnlineDecisions(queries={}, thresholds={thresholds})",
             self.len
         ))
     }
+}
+
+impl OnlineDecisions {
+    /// The column named `name` (`None` without its gate).
+    fn column<'py>(&self, py: Python<'py>, name: &str) -> Bound<'py, PyAny> {
+        let i = Decision::RECORD
+            .iter()
+            .position(|f| f.column == name)
+            .expect("a column of the record");
+        self.columns[i]
+            .as_ref()
+            .map_or_else(|| py.None().into_bound(py), |c| c.bind(py).clone())
+    }
+}
+
+/// Lay out [`OnlineDecision`] and [`OnlineDecisions`] from the core's record: one
+/// read-only property per field of [`Decision::RECORD`], named by its `name` on a
+/// decision and by its `column` on a table of decisions (an int, a float, a bool, or
+/// `None` for a gate's field without that gate; int64, float64 or bool arrays). So a
+/// field added to the core is an attribute here, with no edit; the stubs
+/// (`py/qtvpr/_native.pyi`, checked by `mypy.stubtest`) list them for type checkers.
+pub(crate) fn add_record(py: Python<'_>) -> PyResult<()> {
+    let property = py.import("builtins")?.getattr("property")?;
+    let (decision, decisions) = (py.get_type::<OnlineDecision>(), py.get_type::<OnlineDecisions>());
+    for (i, field) in Decision::RECORD.into_iter().enumerate() {
+        let one = PyCFunction::new_closure(py, None, None, move |args, _| -> PyResult<Py<PyAny>> {
+            let slf = args.get_item(0)?;
+            let d = &slf.cast::<OnlineDecision>()?.get().decision;
+            let py = slf.py();
+            Ok(match field.value(d) {
+                None => py.None(),
+                Some(Value::Count(n)) => n.into_pyobject(py)?.into_any().unbind(),
+                Some(Value::Real(x)) => x.into_pyobject(py)?.into_any().unbind(),
+                Some(Value::Flag(b)) => b.into_pyobject(py)?.to_owned().into_any().unbind(),
+            })
+        })?;
+        let doc = format!("The record's ``{}`` (a {}).", field.name, field.kind.as_str());
+        decision.setattr(field.name, property.call1((one, py.None(), py.None(), doc))?)?;
+        let many = PyCFunction::new_closure(py, None, None, move |args, _| -> PyResult<Py<PyAny>> {
+            let slf = args.get_item(0)?;
+            let column = &slf.cast::<OnlineDecisions>()?.get().columns[i];
+            let py = slf.py();
+            Ok(column.as_ref().map_or_else(|| py.None(), |c| c.clone_ref(py)))
+        })?;
+        let doc = format!("Every decision's ``{}``, one per query.", field.name);
+        decisions.setattr(field.column, property.call1((many, py.None(), py.None(), doc))?)?;
+    }
+    Ok(())
 }
