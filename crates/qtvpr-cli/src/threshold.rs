@@ -140,11 +140,15 @@ pub fn run(args: &ThresholdArgs, global: &Global) -> Result<()> {
     }
     let gt_source = match (from_file, args.cal_gt.source()) {
         (false, None) => match &args.cal {
-            Some(cal) => bail!(
-                "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
-                 --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
-                cal.display()
-            ),
+            Some(cal) => {
+                // Not a calibration file may be no file at all: say so, naming it.
+                qtvpr::npy::open_input(cal).context("--cal")?;
+                bail!(
+                    "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
+                     --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
+                    cal.display()
+                )
+            }
             None => bail!(
                 "the calibration queries need their ground truth: give --cal-gt, --cal-gt-tolerance or \
                  --cal-gt-db-positions"

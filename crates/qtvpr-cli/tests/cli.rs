@@ -333,6 +333,33 @@ fn broken_files() {
 }
 
 #[test]
+fn a_missing_cal_without_ground_truth_is_named_missing() {
+    // Issue 49: `threshold --cal missing.npz` without --cal-gt called it "a similarity
+    // matrix, which needs its ground truth". A file that cannot be opened says why.
+    let case = Case::new();
+    std::fs::create_dir(case.path("dir.npz")).unwrap();
+    for (cal, why) in [
+        (
+            "missing.npz",
+            "--cal: cannot read missing.npz: No such file or directory",
+        ),
+        ("dir.npz", "--cal: cannot read dir.npz: is a directory"),
+    ] {
+        let out = run_in(case.dir.path(), &["threshold", "--cal", cal, "--val", "val.npy"]);
+        assert_clean_failure(&out, case.dir.path(), &[], &[why]);
+        assert!(!String::from_utf8_lossy(&out.stderr).contains("similarity matrix"));
+    }
+    // A file that is there is still a matrix that needs its ground truth.
+    let out = run_in(case.dir.path(), &["threshold", "--cal", "cal.npy", "--val", "val.npy"]);
+    assert_clean_failure(
+        &out,
+        case.dir.path(),
+        &[],
+        &["--cal cal.npy is a similarity matrix, which needs its ground truth"],
+    );
+}
+
+#[test]
 fn npz_ground_truth() {
     let case = Case::new();
     let write_npz = |path: &Path, names: &[&str]| {
