@@ -231,3 +231,11 @@ def test_lists_are_accepted_and_checked():
         qtvpr.quantile_transfer([[1, 2], [3, 4]], [[1, 0], [0, 1]], [[1.0], [2.0]])
     with pytest.raises(ValueError, match="s_cal"):
         qtvpr.quantile_transfer([0.5, 0.25], [1, 0], [[1.0], [2.0]])
+
+
+def test_more_threads_than_the_cap_are_refused():
+    """Issue 49: ``set_threads(10**6)`` started up to 65,535 threads, one by one, for
+    minutes. The cap is 1024; a count above it is refused before a thread starts."""
+    for n in (1025, 10**6):
+        with pytest.raises(ValueError, match=rf"^threads must be at most 1024, got {n}$"):
+            qtvpr.set_threads(n)

@@ -131,8 +131,8 @@ pub extern "C" fn qtvpr_version() -> *const c_char {
 /// kept by a child forked afterwards, which gets a pool of its own (a process that
 /// forks after using the library has a working library in the child).
 ///
-/// Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0, or the threads cannot be
-/// started). Thread-safe.
+/// Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0 or more than 1024, or the
+/// threads cannot be started; nothing is changed). Thread-safe.
 #[unsafe(no_mangle)]
 pub extern "C" fn qtvpr_set_threads(n: usize) -> c_int {
     let done = guard("qtvpr_set_threads", || Ok(qtvpr::set_threads(n)?));

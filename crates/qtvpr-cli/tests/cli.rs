@@ -174,6 +174,18 @@ fn bad_parameters() {
 }
 
 #[test]
+fn more_threads_than_the_cap_exit_2() {
+    // Issue 49: --threads 1000000 used to start up to 65,535 threads one by one, for
+    // minutes. The cap is 1024 (qtvpr::MAX_THREADS); refused before any thread starts.
+    let case = Case::new();
+    for n in ["1025", "1000000"] {
+        let out = run_in(case.dir.path(), &["--threads", n, "evaluate"]);
+        let want = format!("--threads: threads must be at most 1024, got {n}");
+        assert_clean_failure(&out, case.dir.path(), &[], &[&want]);
+    }
+}
+
+#[test]
 fn shape_mismatches() {
     let case = Case::new();
     npy_bool(&case.path("gt_wide.npy"), &[&[1, 1, 0], &[0, 1, 0], &[1, 0, 0]]);

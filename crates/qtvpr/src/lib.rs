@@ -93,7 +93,7 @@ pub use operations::online::{Decision, Online};
 pub use operations::source::ScoreSource;
 pub use operations::split::QuerySplit;
 pub use operations::transfer::{Calibration, Segment, Transfer};
-pub use platform::threads::{current_threads, install as run_in_pool, set_threads};
+pub use platform::threads::{MAX_THREADS, current_threads, install as run_in_pool, set_threads};
 pub use rules::baselines::schubert_threshold;
 pub use rules::best_threshold::best_threshold;
 pub use rules::decisions::{Counts, Matching, best_match, counts};
