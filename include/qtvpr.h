@@ -217,8 +217,9 @@ typedef struct {
     double gate;
     /**
      * The probability that the best match is right: the calibration's hit rate at the
-     * query's PA-score, whatever the gate. NaN in multi matching (or for a calibration
-     * without a decision).
+     * query's PA-score, whatever the gate. NaN in multi matching, with one database
+     * image (n_db = 1: no second-best score, so no PA-score), or for a calibration
+     * without a decision.
      */
     double confidence;
     /**

@@ -89,8 +89,9 @@ pub struct qtvpr_decision {
     /// threshold (accepted is 1 only with both). NaN without it.
     pub gate: f64,
     /// The probability that the best match is right: the calibration's hit rate at the
-    /// query's PA-score, whatever the gate. NaN in multi matching (or for a calibration
-    /// without a decision).
+    /// query's PA-score, whatever the gate. NaN in multi matching, with one database
+    /// image (n_db = 1: no second-best score, so no PA-score), or for a calibration
+    /// without a decision.
     pub confidence: f64,
     /// The one-sided 95% Clopper-Pearson lower bound on confidence. NaN where it is.
     pub confidence_lower95: f64,

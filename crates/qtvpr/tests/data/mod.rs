@@ -1,8 +1,9 @@
 //! The real data of `../shared/data` for the Rust tests.
 //!
 //! One module for the core's and the CLI's tests (the CLI's include it by path). A test
-//! that needs the data is `#[ignore = "needs ../shared/data; ..."]`, so that `cargo test`
-//! reports it ignored, not passed, where the data may be absent; `scripts/test.sh` runs
+//! that needs the data is `#[ignore = "needs ../shared/data DATASET: why"]` (the folder
+//! it reads, and what it checks there), so that `cargo test` reports it ignored, with
+//! that reason, not passed, where the data may be absent; `scripts/test.sh` runs
 //! them with `--include-ignored` when `../shared/data` is there. Run by hand without the
 //! data, such a test returns at once after a note on standard error naming it (written
 //! to the stream itself, which the harness does not capture).
