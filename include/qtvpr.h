@@ -99,7 +99,7 @@ typedef enum {
     /**
      * k, precision, window or min_window is out of range (a window too large to be
      * allocated included), no window is given and the calibration file sets none, or
-     * qtvpr_set_threads got 0 threads.
+     * qtvpr_set_threads got 0 threads or more than 1024.
      */
     QTVPR_ERR_PARAM = 4,
     /**
@@ -218,8 +218,9 @@ typedef struct {
     double gate;
     /**
      * The probability that the best match is right: the calibration's hit rate at the
-     * query's PA-score, whatever the gate. NaN in multi matching (or for a calibration
-     * without a decision).
+     * query's PA-score, whatever the gate. NaN in multi matching, with one database
+     * image (n_db = 1: no second-best score, so no PA-score), or for a calibration
+     * without a decision.
      */
     double confidence;
     /**
@@ -250,8 +251,8 @@ const char *qtvpr_version(void);
  * kept by a child forked afterwards, which gets a pool of its own (a process that
  * forks after using the library has a working library in the child).
  *
- * Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0, or the threads cannot be
- * started). Thread-safe.
+ * Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0 or more than 1024, or the
+ * threads cannot be started; nothing is changed). Thread-safe.
  */
 int qtvpr_set_threads(size_t n);
 

@@ -4,7 +4,8 @@
 by ``scripts/capi_check.py`` (the C library's hostile-file test).
 
 ``hostile(members, descr)`` takes a valid archive's members (name, ``.npy`` bytes, in
-order), makes its first member hostile and keeps the others valid, and returns
+order), makes its first member hostile and keeps the others valid (two cases instead
+add a bad member or move the directory), and returns
 ``(case, bytes, error)`` triples: ``error`` is a part of the one error message the file
 must get (after its path).
 """
@@ -112,6 +113,19 @@ def hostile(members: list[tuple[str, bytes]], descr: str, shape: tuple[int, int]
     three = npy_header(descr, (1000, 100_000, 100_000))
     cases.append(("a 3-D array of 10^13 values", archive([(victim, three), *rest], (victim,)),
                   f"(array {array}) holds a 3-D array"))
+    # Issue 49: two that np.load and unzip -t reject. A member no reader uses, with a bad
+    # CRC-32 (the first member stays valid here).
+    extra = archive([*members, ("notes.txt", b"not an array")])
+    (crc,) = struct.unpack("<I", extra[headers(extra, "notes.txt")[0] + 14 :][:4])
+    cases.append(("an extra member with a bad CRC-32", patch(extra, "notes.txt", 14, 16, "<I", crc ^ 1),
+                  "(member notes.txt) is corrupt: its CRC-32 does not match its data"))
+    # An end record that puts the directory 10 bytes after where it starts.
+    end = good.rfind(b"PK\x05\x06")
+    (at,) = struct.unpack("<I", good[end + 16 : end + 20])
+    b = bytearray(good)
+    struct.pack_into("<I", b, end + 16, at + 10)
+    cases.append(("a directory offset 10 bytes off", bytes(b),
+                  f"its end record puts the zip directory at byte {at + 10}, but it starts at byte {at}"))
     return cases
 
 

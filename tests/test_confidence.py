@@ -55,6 +55,41 @@ def test_pa_score_by_hand():
     close(ref._pa_scores(s), [0.5, 1.0, 1.0, 0.0, 2 / math.sqrt(8)], 1e-15)
 
 
+def test_pa_score_at_the_extremes_of_float32_and_float64():
+    # The Rust scenario (pa_score_is_finite_at_the_extremes_of_f32_and_f64), d computed
+    # as sqrt((1 - s) / 2): -2^1021 gives sqrt(2^1020) = 2^510, -2^1023 gives 2^511, so
+    # 0.5 (2 - 2 s overflowed for -2^1023: 0, and inf / inf = NaN for two of them);
+    # -f64::MAX twice: 1; the best at f64::MAX (d1 = 0): 0. In float32, -2^125 and
+    # -2^127: 2^62 / 2^63 = 0.5; f32::MIN twice: 1.
+    big = np.finfo(np.float64).max
+    s = np.array([[-(2.0**1021), -(2.0**1023), -big, big], [-(2.0**1023), -(2.0**1023), -big, -big]])
+    assert ref._pa_scores(s).tolist() == [0.5, 1.0, 1.0, 0.0]
+    low = float(np.finfo(np.float32).min)
+    s = np.array([[-(2.0**125), low], [-(2.0**127), low]], dtype=np.float32).astype(np.float64)
+    assert ref._pa_scores(s).tolist() == [0.5, 1.0]
+
+
+def test_a_calibration_query_of_extreme_scores_leaves_every_confidence_finite(cli, tmp_path):
+    # Issue 49: the embedded Corridor with its first calibration query's scores all
+    # -f64::MAX (finite, accepted). Its PA-score is 1, not NaN, so no NaN centre enters
+    # the map: the wheel equals the reference and every confidence is a number, in
+    # Online, the batch transfer, evaluate (Brier and ECE) and the CLI's stream.
+    s = np.concatenate([np.load(CORRIDOR / "cal_S.npy"), np.load(CORRIDOR / "deploy_S.npy")], axis=1)
+    gt = np.concatenate([np.load(CORRIDOR / "cal_GT.npy"), np.load(CORRIDOR / "deploy_GT.npy")], axis=1)
+    s[:, 0] = -np.finfo(np.float64).max
+    cal, d = check_parity(s[:, :11], gt[:, :11], s[:, 11:])
+    assert all(math.isfinite(centre) for centre, _, _ in cal.confidence_blocks())
+    assert np.isfinite(d.confidences).all() and np.isfinite(d.confidences_lower95).all()
+    got = qtvpr.evaluate(s, gt, methods=["oracle"])["confidence"]
+    assert_same_signals(got, ref.evaluate(s, gt, methods=["oracle"])["confidence"])
+    assert got["signals"]["confidence"]["brier"] is not None and got["signals"]["confidence"]["ece"] is not None
+    cal.save(tmp_path / "cal.npz", window=7)
+    np.save(tmp_path / "val.npy", s[:, 11:])
+    out = run_cli(cli, "stream", "--calibration", str(tmp_path / "cal.npz"), "--val", str(tmp_path / "val.npy"))
+    assert out.returncode == 0, out.stderr
+    close([json.loads(line)["confidence"] for line in out.stdout.splitlines()], d.confidences)
+
+
 def test_pooling_by_hand():
     # The Rust scenario (two_passes_of_pooling). Descending PA-score: 0.9 (0 of 1), 0.5
     # (1 of 10): apart by x/n (0 < 0.1), pooled by (x + 1) / (n + 2) (1/3 >= 2/12).

@@ -231,3 +231,30 @@ def test_lists_are_accepted_and_checked():
         qtvpr.quantile_transfer([[1, 2], [3, 4]], [[1, 0], [0, 1]], [[1.0], [2.0]])
     with pytest.raises(ValueError, match="s_cal"):
         qtvpr.quantile_transfer([0.5, 0.25], [1, 0], [[1.0], [2.0]])
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "call"),
+    [
+        ("k", True, lambda cal: qtvpr.Online(cal, k=True, window=2)),
+        ("window", True, lambda cal: qtvpr.Online(cal, window=True)),
+        ("min_window", False, lambda cal: qtvpr.Online(cal, window=2, min_window=False)),
+        ("segment_size", True, lambda cal: cal.transfer(S_VAL, segment_size=True)),
+        ("k", True, lambda cal: qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, k=True)),
+        ("threads", True, lambda cal: qtvpr.set_threads(True)),
+    ],
+)
+def test_a_bool_is_not_an_integer_argument(name, value, call):
+    """Issue 49: ``Online(k=True)`` ran with k = 1, since Python counts True as 1. An
+    integer argument refuses a bool with a ``TypeError`` naming it."""
+    with pytest.raises(TypeError) as info:
+        call(qtvpr.Calibration(S_CAL, GT_CAL))
+    assert str(info.value) == f"{name} must be an int, got a bool ({value})"
+
+
+def test_more_threads_than_the_cap_are_refused():
+    """Issue 49: ``set_threads(10**6)`` started up to 65,535 threads, one by one, for
+    minutes. The cap is 1024; a count above it is refused before a thread starts."""
+    for n in (1025, 10**6):
+        with pytest.raises(ValueError, match=rf"^threads must be at most 1024, got {n}$"):
+            qtvpr.set_threads(n)

@@ -580,7 +580,7 @@ def test_every_hostile_npz_is_one_error_as_calibration_and_as_ground_truth(tmp_p
             message = str(info.value)
             assert message.startswith(prefix) and error in message, (case, message)
             n += 1
-    assert n == 2 * 52, n
+    assert n == 2 * 54, n
 
 
 def test_a_refused_shape_costs_no_more_than_its_header(tmp_path, saved):

@@ -285,7 +285,8 @@ def test_float64_scores_with_parameters_and_gate(
     want = expected(cli, cal, val, "--window", "5", "--min-window", "3", "--gate", "margin", "--k", "4")
     assert not math.isnan(want[0][DECISION_FIELDS.index("gate")])
 
-    proc = node(cal, ros_env, "window:=5", "min_window:=3", "gate:=margin", "k:=4", f"qos_depth:={DEPTH}")
+    proc = node(cal, ros_env, "window:=5", "min_window:=3", "gate:=margin", "k:=4", f"qos_depth:={DEPTH}",
+                "use_sim_time:=false")  # a parameter every node has: not refused
     client.wait_for(proc)
     for j in range(s_val.shape[1]):
         if j == 50:
@@ -478,6 +479,14 @@ def test_launch_file_and_parameters_of_the_docs(
         (("calibration:={cal}", "window:=4", "min_window:=5"), "min_window"),
         (("calibration:={cal}", "gate:=fast"), "gate"),
         (("calibration:={cal}", "qos_depth:=0"), "parameter qos_depth must be an integer of at least 1, not 0"),
+        # Issue 49: a misspelt name ran at the file's precision; a bool was taken as 1.
+        (("calibration:={cal}", "precison:=0.5"),
+         "unknown parameter precison (the node's parameters: calibration, k, precision, window, min_window, gate, "
+         "qos_depth)"),
+        (("calibration:={cal}", "precison:=0.5", "windw:=3"), "unknown parameters precison, windw"),
+        (("calibration:={cal}", "k:=true"), "parameter k must be an integer, not a bool (True)"),
+        (("calibration:={cal}", "precision:=true"), "parameter precision must be a number, not a bool (True)"),
+        (("calibration:={cal}", "qos_depth:=true"), "parameter qos_depth must be an integer, not a bool (True)"),
     ],
 )
 def test_start_up_errors_exit_1(

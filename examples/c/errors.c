@@ -120,6 +120,9 @@ int main(int argc, char **argv) {
     /* The thread pool cannot be empty. */
     CHECK(qtvpr_set_threads(0) == QTVPR_ERR_PARAM);
     EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_set_threads: threads must be >= 1, got 0", NULL);
+    /* Nor larger than 1024 threads: 2^40 is refused at once, before a thread starts. */
+    CHECK(qtvpr_set_threads((size_t)1 << 40) == QTVPR_ERR_PARAM);
+    EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_set_threads: threads must be at most 1024, got 1099511627776", NULL);
     CHECK(qtvpr_online_new(cal, 0, 0.0, 3, 4) == NULL);
 
     /* qtvpr_version does not touch the last error. */

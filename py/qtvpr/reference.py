@@ -685,9 +685,11 @@ def _check_confident(matching: str, n_db: int) -> None:
 def _pa_scores(s: np.ndarray) -> np.ndarray:
     """The PA-score of every column of a validated float64 matrix: d1 / d2 with
     d = sqrt(max(0, 2 - 2 s)) for its largest and second-largest score (equal when the
-    largest occurs twice); 1 when d2 = 0."""
+    largest occurs twice); 1 when d2 = 0. Each d is computed halved, as
+    sqrt(max(0, (1 - s) / 2)), which no finite score overflows; the halves cancel, to
+    the bit, wherever 2 - 2 s is finite."""
     top2 = np.sort(s, axis=0)[-2:]
-    d2, d1 = np.sqrt(np.maximum(0.0, 2.0 - 2.0 * top2))
+    d2, d1 = np.sqrt(np.maximum(0.0, (1.0 - top2) / 2.0))
     out = np.ones(s.shape[1])
     apart = d2 > 0
     out[apart] = d1[apart] / d2[apart]

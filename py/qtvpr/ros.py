@@ -15,6 +15,10 @@ Parameters (``--ros-args -p name:=value``):
 - ``qos_depth`` (integer, default :data:`QOS_DEPTH`): the keep-last depth of every topic
   (all reliable), the backlog of messages the node holds while it decides.
 
+Any other parameter (a misspelt ``precison``, say) is refused at start-up, as is a bool
+for a number (``-p k:=true``, which Python would count as 1); ``use_sim_time`` and the
+other parameters every ROS 2 node declares are accepted.
+
 Topics (relative to the node: ``/qtvpr/...`` by default; remap them as any ROS topic):
 
 - subscribes ``~/scores_msg`` (``qtvpr_msgs/Scores``): a header (the query's stamp and
@@ -99,6 +103,10 @@ ONLINE_PARAMETERS: tuple[str, ...] = ("k", "precision", "window", "min_window", 
 #: queries a second, about three seconds of backlog.
 QOS_DEPTH = 100
 
+#: The numeric parameters and what each must be: a bool is none of them.
+_NUMBERS = {"k": "an integer", "precision": "a number", "window": "an integer", "min_window": "an integer",
+            "qos_depth": "an integer"}
+
 
 class StartupError(Exception):
     """A calibration or parameter the node cannot start with; its message says which."""
@@ -146,6 +154,18 @@ class QtvprNode(Node):  # type: ignore[misc]
         for name in ONLINE_PARAMETERS:
             self.declare_parameter(name, None, untyped)
         self.declare_parameter("qos_depth", QOS_DEPTH, untyped)
+        # The parameters given (the command line's, a parameter file's) that no one
+        # declared: rclpy keeps them as overrides of the node (an attribute Node sets
+        # for its subclasses) and would silently ignore them.
+        unknown = sorted(name for name in self._parameter_overrides if not self.has_parameter(name))
+        if unknown:
+            known = ", ".join(("calibration", *ONLINE_PARAMETERS, "qos_depth"))
+            plural = "s" if len(unknown) > 1 else ""
+            raise StartupError(f"unknown parameter{plural} {', '.join(unknown)} (the node's parameters: {known})")
+        for name, kind in _NUMBERS.items():
+            value = self.get_parameter(name).value
+            if isinstance(value, bool):
+                raise StartupError(f"parameter {name} must be {kind}, not a bool ({value})")
 
         path = self.get_parameter("calibration").value
         if not isinstance(path, str) or not path:

@@ -34,7 +34,7 @@ pub enum qtvpr_status {
     QTVPR_ERR_INPUT = 3,
     /// k, precision, window or min_window is out of range (a window too large to be
     /// allocated included), no window is given and the calibration file sets none, or
-    /// qtvpr_set_threads got 0 threads.
+    /// qtvpr_set_threads got 0 threads or more than 1024.
     QTVPR_ERR_PARAM = 4,
     /// A file cannot be read: missing, a directory, no permission.
     QTVPR_ERR_IO = 5,

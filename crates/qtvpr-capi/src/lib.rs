@@ -92,8 +92,9 @@ pub struct qtvpr_decision {
     /// threshold (accepted is 1 only with both). NaN without it.
     pub gate: f64,
     /// The probability that the best match is right: the calibration's hit rate at the
-    /// query's PA-score, whatever the gate. NaN in multi matching (or for a calibration
-    /// without a decision).
+    /// query's PA-score, whatever the gate. NaN in multi matching, with one database
+    /// image (n_db = 1: no second-best score, so no PA-score), or for a calibration
+    /// without a decision.
     pub confidence: f64,
     /// The one-sided 95% Clopper-Pearson lower bound on confidence. NaN where it is.
     pub confidence_lower95: f64,
@@ -134,8 +135,8 @@ pub extern "C" fn qtvpr_version() -> *const c_char {
 /// kept by a child forked afterwards, which gets a pool of its own (a process that
 /// forks after using the library has a working library in the child).
 ///
-/// Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0, or the threads cannot be
-/// started). Thread-safe.
+/// Returns QTVPR_OK (0), or on error: QTVPR_ERR_PARAM (n is 0 or more than 1024, or the
+/// threads cannot be started; nothing is changed). Thread-safe.
 #[unsafe(no_mangle)]
 pub extern "C" fn qtvpr_set_threads(n: usize) -> c_int {
     let done = guard("qtvpr_set_threads", || Ok(qtvpr::set_threads(n)?));

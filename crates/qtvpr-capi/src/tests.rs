@@ -391,3 +391,12 @@ fn the_header_struct_is_the_record() {
     want.sort();
     assert_eq!(members, want);
 }
+
+#[test]
+fn more_threads_than_the_cap_is_a_parameter_error() {
+    // 2^40 = 1099511627776 threads: refused before one starts (it used to start up to
+    // 65,535 of them, one by one).
+    assert_eq!(qtvpr_set_threads(1 << 40), code(qtvpr_status::QTVPR_ERR_PARAM));
+    let message = "qtvpr_set_threads: threads must be at most 1024, got 1099511627776";
+    assert_eq!(last(), (code(qtvpr_status::QTVPR_ERR_PARAM), Some(message.into())));
+}

@@ -45,7 +45,7 @@ const GLOBAL_HEADING: &str = "Global options";
 #[derive(Debug, clap::Args)]
 #[command(next_help_heading = GLOBAL_HEADING)]
 pub struct Global {
-    /// Worker threads (default: RAYON_NUM_THREADS if set, else all cores).
+    /// Worker threads, at most 1024 (default: RAYON_NUM_THREADS if set, else all cores).
     #[arg(long, global = true, value_name = "N")]
     threads: Option<usize>,
     /// No progress bar (it is shown only when stderr is a terminal anyway).
@@ -103,7 +103,7 @@ fn main() -> ExitCode {
 
 /// Size the library's own pool (qtvpr::set_threads), not rayon's global one: the core runs
 /// every parallel region there, so that a forked child gets live threads. The core
-/// refuses 0.
+/// refuses 0 and more than qtvpr::MAX_THREADS.
 fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
     threads.map_or(Ok(()), |n| qtvpr::set_threads(n).context("--threads"))
 }

@@ -181,11 +181,15 @@ impl<'a> Request<'a> {
                 cal.display()
             ),
             (_, Some(cal), true, None) => CalibrationInput::File(cal),
-            (_, Some(cal), false, None) => bail!(
-                "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
-                 --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
-                cal.display()
-            ),
+            (_, Some(cal), false, None) => {
+                // Not a calibration file may be no file at all: say so, naming it.
+                qtvpr::npy::open_input(cal).context("--cal")?;
+                bail!(
+                    "--cal {} is a similarity matrix, which needs its ground truth: give --cal-gt, \
+                     --cal-gt-tolerance or --cal-gt-db-positions (or a calibration file written by `calibrate` as --cal)",
+                    cal.display()
+                )
+            }
             (_, Some(cal), false, Some(source)) => CalibrationInput::Matrix(cal, source),
             (Some(_), None, _, None) => bail!(
                 "the calibration queries need their ground truth: give --cal-gt, --cal-gt-tolerance or \

@@ -174,6 +174,18 @@ fn bad_parameters() {
 }
 
 #[test]
+fn more_threads_than_the_cap_exit_2() {
+    // Issue 49: --threads 1000000 used to start up to 65,535 threads one by one, for
+    // minutes. The cap is 1024 (qtvpr::MAX_THREADS); refused before any thread starts.
+    let case = Case::new();
+    for n in ["1025", "1000000"] {
+        let out = run_in(case.dir.path(), &["--threads", n, "evaluate"]);
+        let want = format!("--threads: threads must be at most 1024, got {n}");
+        assert_clean_failure(&out, case.dir.path(), &[], &[&want]);
+    }
+}
+
+#[test]
 fn shape_mismatches() {
     let case = Case::new();
     npy_bool(&case.path("gt_wide.npy"), &[&[1, 1, 0], &[0, 1, 0], &[1, 0, 0]]);
@@ -329,6 +341,33 @@ fn broken_files() {
         &[("--val", case.path("dir.npy"))],
         &[],
         &["--val", "dir.npy: is a directory"],
+    );
+}
+
+#[test]
+fn a_missing_cal_without_ground_truth_is_named_missing() {
+    // Issue 49: `threshold --cal missing.npz` without --cal-gt called it "a similarity
+    // matrix, which needs its ground truth". A file that cannot be opened says why.
+    let case = Case::new();
+    std::fs::create_dir(case.path("dir.npz")).unwrap();
+    for (cal, why) in [
+        (
+            "missing.npz",
+            "--cal: cannot read missing.npz: No such file or directory",
+        ),
+        ("dir.npz", "--cal: cannot read dir.npz: is a directory"),
+    ] {
+        let out = run_in(case.dir.path(), &["threshold", "--cal", cal, "--val", "val.npy"]);
+        assert_clean_failure(&out, case.dir.path(), &[], &[why]);
+        assert!(!String::from_utf8_lossy(&out.stderr).contains("similarity matrix"));
+    }
+    // A file that is there is still a matrix that needs its ground truth.
+    let out = run_in(case.dir.path(), &["threshold", "--cal", "cal.npy", "--val", "val.npy"]);
+    assert_clean_failure(
+        &out,
+        case.dir.path(),
+        &[],
+        &["--cal cal.npy is a similarity matrix, which needs its ground truth"],
     );
 }
 

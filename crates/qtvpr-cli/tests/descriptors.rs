@@ -59,7 +59,7 @@ fn args<'a>(a: &[&'a str], b: &[&'a str]) -> Vec<&'a str> {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: descriptors in = `similarity` then the matrix path"]
 fn threshold_and_calibrate_from_descriptors_equal_the_matrix_path() {
     let Some((dir, _)) = case() else {
         return;
@@ -163,7 +163,7 @@ fn without_dataset(json: &str) -> String {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: `evaluate` of descriptors = of their matrix"]
 fn evaluate_from_descriptors_equals_the_matrix_path() {
     let Some((dir, _)) = case() else {
         return;
@@ -206,7 +206,7 @@ fn evaluate_from_descriptors_equals_the_matrix_path() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: the valid descriptor files its bad ones are made from"]
 fn bad_descriptors_and_options_exit_2_naming_the_file() {
     let Some((dir, q)) = case() else {
         return;

@@ -411,7 +411,7 @@ fn nordland_folder() -> Option<Folder> {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: a VPR-methods-evaluation folder, 3576 images each side"]
 fn vpr_methods_evaluation_folder_to_the_evaluate_table() {
     let Some(f) = nordland_folder() else {
         return;
@@ -452,7 +452,7 @@ fn vpr_methods_evaluation_folder_to_the_evaluate_table() {
 /// The on-ramp in one command: descriptors and image names to the evaluation table, the
 /// table of `similarity` followed by `evaluate --similarity` with the dataset's truth.
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: a VPR-methods-evaluation folder, 3576 images each side"]
 fn vpr_methods_evaluation_folder_in_one_command() {
     let Some(f) = nordland_folder() else {
         return;

@@ -158,7 +158,7 @@ fn assert_csv_equals(csv: &str, expected: &[Decision]) {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (NetVLAD): `stream` = qtvpr::Online, bit for bit"]
 fn single_matching_stream_equals_online() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -253,7 +253,7 @@ fn single_matching_stream_equals_online() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (CoHOG, f32): `stream` in multi matching, query-major"]
 fn multi_matching_query_major_soft_ground_truth() {
     // float32 scores, stored query-major; soft ground truth |i - j| <= 3 around the hard
     // |i - j| <= 2 (by tolerance, from the calibration's own columns 0..11).
@@ -347,7 +347,7 @@ fn multi_matching_query_major_soft_ground_truth() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (NetVLAD): `threshold --cal FILE` = the matrices' thresholds"]
 fn threshold_takes_a_calibration_file() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -479,7 +479,7 @@ fn threshold_takes_a_calibration_file() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (NetVLAD): the valid file its bad ones are made from"]
 fn bad_calibration_files_name_the_file() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -647,7 +647,7 @@ fn array2(rows: &[&[f64]]) -> Array2<f64> {
 
 #[cfg(unix)]
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (NetVLAD): the inputs of the commands that write"]
 fn written_files_get_the_mode_of_a_plain_create() {
     use std::os::unix::fs::PermissionsExt;
     let Some(case) = Case::new("NetVLAD") else {
@@ -701,7 +701,7 @@ fn written_files_get_the_mode_of_a_plain_create() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (NetVLAD): `evaluate`'s online method = qtvpr::Online"]
 fn evaluate_reports_the_online_method() {
     let Some(case) = Case::new("NetVLAD") else {
         return;
@@ -819,7 +819,7 @@ fn bombs_and_huge_claims_exit_2_under_a_memory_cap() {
 /// every line carries `margin` and `gate` equal to `qtvpr::Online`'s, `evaluate` has
 /// both gated methods, and multi matching with the gate exits 2 naming `--gate`.
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (AlexNet_VPR): the gate through every command"]
 fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
     let Some(case) = Case::new("AlexNet_VPR") else {
         return;

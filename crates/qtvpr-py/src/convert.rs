@@ -35,7 +35,7 @@ use numpy::{
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::PyString;
+use pyo3::types::{PyBool, PyString};
 use qtvpr::ScoresView;
 use qtvpr::npy::FloatMatrix;
 
@@ -410,6 +410,9 @@ pub(crate) enum Int {
     Small(i64),
     /// Does not: its decimal digits, for the message.
     Large(String),
+    /// A bool, which Python counts as an int (`True == 1`): refused by [`Int::at_least`]
+    /// with a `TypeError` naming the argument, since `k=True` is a mistake, not 1.
+    Bool(bool),
 }
 
 impl From<usize> for Int {
@@ -422,6 +425,9 @@ impl FromPyObject<'_, '_> for Int {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'_, '_, PyAny>) -> PyResult<Self> {
+        if let Ok(flag) = obj.cast::<PyBool>() {
+            return Ok(Int::Bool(flag.is_true()));
+        }
         match obj.extract::<i64>() {
             Ok(n) => Ok(Int::Small(n)),
             Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(obj.py()) => {
@@ -434,10 +440,14 @@ impl FromPyObject<'_, '_> for Int {
 
 impl Int {
     /// As a `usize` of at least `min` (0 or 1), or a `ValueError` naming `name` that
-    /// says what it must be (`rule`, e.g. ">= 1").
+    /// says what it must be (`rule`, e.g. ">= 1"); a bool is a `TypeError` naming it.
     pub(crate) fn at_least(&self, name: &str, min: usize, rule: &str) -> PyResult<usize> {
         let bad = |shown: &dyn std::fmt::Display| PyValueError::new_err(format!("{name} must be {rule}, got {shown}"));
         match self {
+            Int::Bool(flag) => Err(PyTypeError::new_err(format!(
+                "{name} must be an int, got a bool ({})",
+                if *flag { "True" } else { "False" }
+            ))),
             Int::Small(n) => match usize::try_from(*n) {
                 Ok(n) if n >= min => Ok(n),
                 _ => Err(bad(n)),

@@ -256,7 +256,8 @@ fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
 /// that environment variable is set when the pool is first used, else one per core.
 /// This replaces the pool with one of ``n`` threads; calls already running finish on the
 /// old one. A process forked afterwards (``multiprocessing`` on Linux) builds a pool of
-/// its own, of the same size. Raises ``ValueError`` for ``n < 1``.
+/// its own, of the same size. Raises ``ValueError`` for ``n < 1`` or ``n > 1024`` (the
+/// work is CPU-bound: more threads than cores only contend).
 #[pyfunction]
 #[pyo3(signature = (n))]
 fn set_threads(py: Python<'_>, n: Int) -> PyResult<()> {

@@ -2,9 +2,10 @@
 //! matrices it holds ([`VPRBENCH`], [`TECHNIQUES`]; `scripts/shared_data.py` lists the
 //! same for the Python tests and benches), and the Nordland HOG descriptors.
 //!
-//! A test that needs the data is `#[ignore = "needs ../shared/data; ..."]`, so that
-//! `cargo test` reports it ignored, not passed, where the data may be absent;
-//! `scripts/test.sh` runs them with `--include-ignored` when `../shared/data` is there.
+//! A test that needs the data is `#[ignore = "needs ../shared/data DATASET: why"]` (the
+//! folder it reads, and what it checks there), so that `cargo test` reports it ignored,
+//! with that reason, not passed, where the data may be absent; `scripts/test.sh` runs
+//! them with `--include-ignored` when `../shared/data` is there.
 //! Run by hand without the data, such a test returns at once after a note on standard
 //! error naming it (written to the stream itself, which the harness does not capture).
 

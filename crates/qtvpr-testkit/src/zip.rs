@@ -214,6 +214,7 @@ pub struct Hostile {
 /// `.npy` bytes, in order): its first member, a `rows` x `cols` matrix of `descr`, is
 /// the one made hostile (encrypted, compressed with an unsupported method, duplicated,
 /// given a bad CRC, made a bomb, given another rank); every other member stays valid.
+/// Two more keep every member valid and add a bad one, or move the directory.
 /// `other_methods` is how many of the unsupported method numbers to try (all 65,534
 /// is cheap in the core, not as one process each).
 pub fn hostile(members: &[(&str, &[u8])], descr: &str, (rows, cols): (u64, u64), other_methods: usize) -> Vec<Hostile> {
@@ -383,6 +384,32 @@ pub fn hostile(members: &[(&str, &[u8])], descr: &str, (rows, cols): (u64, u64),
         "a 3-D array of 10^13 values",
         with(Member::deflated(victim, &three)),
         format!("(array {array}) holds a 3-D array"),
+    );
+    // Issue 49: two that np.load and unzip -t reject. A member no reader uses, with a
+    // bad CRC-32 (its first member stays valid here).
+    let mut extra = vec![Member::stored(victim, data)];
+    extra.extend(rest.iter().cloned());
+    extra.push(Member {
+        crc: Some(0x1234_5678),
+        ..Member::deflated("notes.txt", b"not an array")
+    });
+    add(
+        "an extra member with a bad CRC-32",
+        zip(&extra),
+        "(member notes.txt) is corrupt: its CRC-32 does not match its data".into(),
+    );
+    // An end record that puts the directory 10 bytes after where it starts.
+    let mut b = with(Member::stored(victim, data));
+    let end = b.windows(4).rposition(|w| w == b"PK\x05\x06").unwrap();
+    let at = u32_at(&b, end + 16);
+    b[end + 16..end + 20].copy_from_slice(&(at as u32 + 10).to_le_bytes());
+    add(
+        "a directory offset 10 bytes off",
+        b,
+        format!(
+            "is not a valid .npz archive: its end record puts the zip directory at byte {}, but it starts at byte {at}",
+            at + 10
+        ),
     );
     set
 }

@@ -109,7 +109,7 @@ pub use operations::evaluate::{
 pub use operations::online::{Decision, Online};
 pub use operations::source::ScoreSource;
 pub use operations::transfer::{Segment, Transfer};
-pub use platform::threads::{current_threads, set_threads};
+pub use platform::threads::{MAX_THREADS, current_threads, set_threads};
 pub use rules::baselines::schubert_threshold;
 pub use rules::best_threshold::best_threshold;
 pub use rules::decisions::{Counts, Matching, best_match, counts};

@@ -168,3 +168,44 @@ fn multi_matching_has_none() {
     let batch = qtvpr::with_scores!(s.view(), |v| cal.transfer(v, &params)).unwrap();
     assert!(batch.query_confidences.is_none() && batch.query_confidences_lower95.is_none());
 }
+
+#[test]
+fn a_calibration_query_of_extreme_scores_leaves_the_map_finite() {
+    // Issue 49: a score at or below about -9e307 overflowed 2 - 2 s, the PA-score of
+    // its column was inf / inf = NaN, and NaN centres made every confidence NaN. With
+    // d = sqrt((1 - s) / 2): column 2 (all -f64::MAX, best row 0, wrong) has PA-score 1;
+    // the others d1 / d2 over a second-best of 0.5 (d = 0.5): 0.98 gives d = 0.1, PA
+    // 0.2 (right); 0.92, d = 0.2, PA 0.4 (right); 0.68, d = 0.4, PA 0.8 (row 2, wrong).
+    let m = -f64::MAX;
+    let s = ndarray::array![[0.98, 0.5, m, 0.5], [0.5, 0.92, m, 0.0], [0.0, 0.0, m, 0.68]];
+    let gt = ndarray::array![
+        [true, false, false, true],
+        [false, true, false, false],
+        [false, false, true, false]
+    ];
+    let gt = qtvpr::GroundTruth::new(gt.view()).unwrap();
+    let cal = Arc::new(Calibration::new(s.view(), &gt, Matching::Single).unwrap());
+    // By descending PA-score: 1 and 0.8 wrong, 0.4 and 0.2 right. x / n pools the two
+    // wrong (0 >= 0) and the two right (1 >= 1); Laplace keeps 1/4 < 3/4 apart. Blocks
+    // by ascending confidence: centre 0.9, 0 of 2; centre 0.3, 2 of 2.
+    let map = cal.confidence_map().unwrap();
+    let blocks: Vec<(usize, usize)> = map.blocks().iter().map(|b| (b.n, b.x)).collect();
+    assert_eq!(blocks, [(2, 0), (2, 2)]);
+    assert!((map.blocks()[0].pa_score - 0.9).abs() < 1e-12);
+    assert!((map.blocks()[1].pa_score - 0.3).abs() < 1e-12);
+    // A deployment query of 0.82 over 0.5 (d = 0.3 over 0.5, PA 0.6), halfway between
+    // the centres: (1/4 + 3/4) / 2 = 1/2. Another of -f64::MAX twice: PA 1, beyond the
+    // first centre, at its lower bound for 0 of 2: 0.
+    let p = OnlineParams {
+        k: 1,
+        precision: 1.0,
+        window: 2,
+        min_window: 1,
+        gate: Gate::None,
+    };
+    let mut online = Online::new(cal, p).unwrap();
+    let d = online.push(ndarray::array![0.82, 0.5, 0.0].view()).unwrap();
+    assert!((d.confidence - 0.5).abs() < 1e-12, "{}", d.confidence);
+    let d = online.push(ndarray::array![m, m, m].view()).unwrap();
+    assert_eq!(d.confidence, 0.0);
+}

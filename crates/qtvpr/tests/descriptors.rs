@@ -44,7 +44,7 @@ fn old_cosine(db: ArrayView2<'_, f32>, q: ArrayView2<'_, f32>) -> Array2<f32> {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: the tiled cosine kernel within an ulp of the old, on real descriptors"]
 fn tiled_kernel_matches_the_previous_implementation() {
     let Some((db, q)) = data::nordland(1000) else {
         return;
@@ -118,7 +118,7 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: the fused transfer = the matrix path, bit for bit, across tiles"]
 fn fused_transfer_gives_the_bits_of_the_matrix_path() {
     // 600 queries: 137 calibrate (not a multiple of 64, so the deployment queries
     // start inside a tile), 463 deploy.
@@ -137,7 +137,7 @@ fn fused_transfer_gives_the_bits_of_the_matrix_path() {
 /// ablation of descriptors (a range of their queries) equal those of the matrix, and
 /// the progress of `Options` counts the same steps.
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: every operation on descriptors = on their matrix"]
 fn every_operation_reads_descriptors_as_its_matrix() {
     let Some((db, q)) = data::nordland(300) else {
         return;
@@ -209,7 +209,7 @@ fn every_operation_reads_descriptors_as_its_matrix() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: real descriptors with a zero row, whose error names it"]
 fn errors_name_the_row() {
     let Some((mut db, q)) = data::nordland(10) else {
         return;

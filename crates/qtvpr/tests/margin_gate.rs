@@ -182,7 +182,7 @@ fn run(dir: &str, technique: &str, n_cal: usize) -> usize {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor and -spedtest: the gate on 4 real matrices, f32 and f64"]
 fn corridor_and_spedtest() {
     let rejected = run("vprbench-corridor", "NetVLAD", 11)
         + run("vprbench-corridor", "CoHOG", 11)
@@ -194,7 +194,7 @@ fn corridor_and_spedtest() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (HOG): multi matching refused on a real matrix"]
 fn multi_matching_has_no_gate() {
     let Some(path) = data::shared("vprbench-corridor/S_HOG.npy") else {
         return;

@@ -73,19 +73,19 @@ fn run(dir: &str, technique: &str, n_cal: usize) {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (NetVLAD, f64): Online = the batch of each window"]
 fn corridor_float64() {
     run("vprbench-corridor", "NetVLAD", 11);
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor (CoHOG, f32): Online = the batch of each window"]
 fn corridor_float32() {
     run("vprbench-corridor", "CoHOG", 11);
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-spedtest (CALC, f32): Online = the batch of each window"]
 fn spedtest_float32() {
     run("vprbench-spedtest", "CALC", 60);
 }

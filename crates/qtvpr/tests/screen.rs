@@ -49,7 +49,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, n_cal: usize) {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data nordland-hog: the screen's top-k, bit for bit, at |DB| = 3576 (above the screen)"]
 fn nordland_hog() {
     // 357 calibration and 643 deployment queries.
     let Some((db, q)) = data::nordland(1000) else {
@@ -60,7 +60,7 @@ fn nordland_hog() {
 }
 
 #[test]
-#[ignore = "needs ../shared/data; scripts/test.sh runs it with --include-ignored when it is there"]
+#[ignore = "needs ../shared/data vprbench-corridor and -spedtest: the screen's top-k on all 22 real matrices"]
 fn vprbench() {
     if data::shared("").is_none() {
         return;

@@ -193,7 +193,8 @@ mod file {
     /// (methods, flags, extra fields, local headers: `npy/archive.rs`); here every
     /// array's `.npy` header is read (dtype, rank, the size the zip directory declares)
     /// and the shapes compared before any array data is decompressed; each array is then
-    /// read to its end, so that its CRC-32 is checked, and never past its declared size.
+    /// read to its end, so that its CRC-32 is checked, and never past its declared size;
+    /// and so is any other member the archive holds.
     fn read<R: rawzip::ReaderAt>(npz: npy::Archive<R>, path: &Path) -> Result<Calibration> {
         use npy::Kind;
         let missing = |name: &str| {
@@ -236,6 +237,7 @@ mod file {
             let soft_gt = npy::read_bool_matrix(soft.npy, &soft.label)?;
             gt = gt.with_soft(soft_gt.view()).map_err(|e| in_file(path, e))?;
         }
+        npz.check_unread_members()?;
         let calibration =
             with_scores!(scores.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
         calibration.with_defaults(defaults).map_err(|e| in_file(path, e))

@@ -47,8 +47,14 @@ use crate::rules::decisions::{Candidates, Counts, Matching};
 /// The PA-score of scores `s1 >= s2`, the best and the second-best of a column:
 /// `d1 / d2` with `d = sqrt(max(0, 2 - 2 s))` (a cosine similarity's distance), 1 when
 /// both distances are 0. In [0, 1]; lower is more distinctive.
+///
+/// Each `d` is computed halved, as `sqrt(max(0, (1 - s) / 2))`, which no finite `s`
+/// overflows (`2 - 2 s` is infinite below about -9e307, and two such scores gave NaN).
+/// Where `2 - 2 s` is finite the halved form is exactly its quarter (a scale by a power
+/// of two commutes with rounding), the square root of a quarter is exactly half the
+/// root, and the halves cancel: the ratio is the same bits.
 pub fn pa_score(s1: f64, s2: f64) -> f64 {
-    let distance = |s: f64| (2.0 - 2.0 * s).max(0.0).sqrt();
+    let distance = |s: f64| ((1.0 - s) / 2.0).max(0.0).sqrt();
     let (d1, d2) = (distance(s1), distance(s2));
     if d2 > 0.0 { d1 / d2 } else { 1.0 }
 }
@@ -542,6 +548,80 @@ mod tests {
         assert_eq!(pa_scores_of_columns(s.view()), want);
         assert_eq!(want[0], 0.5);
         assert_eq!(want[1], 1.0);
+    }
+
+    #[test]
+    fn pa_score_is_finite_at_the_extremes_of_f32_and_f64() {
+        // d = sqrt(max(0, (1 - s) / 2)). s = -2^1021: 1 + 2^1021 rounds to 2^1021, so
+        // d = sqrt(2^1020) = 2^510; s = -2^1023: d = 2^511. 2^510 / 2^511 = 0.5, where
+        // 2 - 2 s overflowed to inf for the second score (the old form gave 0).
+        let p = |e: i32| -(2f64.powi(e));
+        assert_eq!(pa_score(p(1021), p(1023)), 0.5);
+        // Two scores whose 2 - 2 s overflowed (inf / inf was NaN): equal distances, 1.
+        assert_eq!(pa_score(p(1023), p(1023)), 1.0);
+        assert_eq!(pa_score(-f64::MAX, -f64::MAX), 1.0);
+        // -2^1023 against -f64::MAX = -(2 - 2^-52) 2^1023: d2 = 2^511 sqrt(2 - 2^-52),
+        // so the ratio is 1 / sqrt(2 - 2^-52), 1 / sqrt(2) to 1e-16.
+        assert!(close(pa_score(p(1023), -f64::MAX), 0.5f64.sqrt()));
+        // The best at f64::MAX (1 - s < 0, d1 = 0): 0; both there (0 / 0): 1.
+        assert_eq!(pa_score(f64::MAX, -f64::MAX), 0.0);
+        assert_eq!(pa_score(f64::MAX, f64::MAX), 1.0);
+        // f32: -2^125 and -2^127 (f32::MAX is about 2^128): 1 + 2^125 rounds to 2^125,
+        // d = sqrt(2^124) = 2^62, and 2^63: 0.5. In a float32 column too.
+        assert_eq!(
+            pa_score(f64::from(-(2f32.powi(125))), f64::from(-(2f32.powi(127)))),
+            0.5
+        );
+        let s = ndarray::array![
+            [f32::MIN, f32::MAX, -(2f32.powi(125))],
+            [f32::MIN, f32::MIN, -(2f32.powi(127))]
+        ];
+        assert_eq!(pa_scores_of_columns(s.view()), [1.0, 0.0, 0.5]);
+        let s = ndarray::array![[f64::MIN, p(1021)], [f64::MIN, p(1023)], [f64::MIN, p(1023)]];
+        assert_eq!(pa_scores_of_columns(s.view()), [1.0, 0.5]);
+    }
+
+    #[test]
+    fn pa_score_is_the_bits_of_the_unhalved_form_where_that_is_finite() {
+        // sqrt(max(0, 2 - 2 s1)) / sqrt(max(0, 2 - 2 s2)) where 2 - 2 s is finite: the
+        // form before the halved one, held to the same bits on scores near 1 (the ulps
+        // below 1), subnormal, ordinary and large.
+        let unhalved = |s1: f64, s2: f64| {
+            let d = |s: f64| (2.0 - 2.0 * s).max(0.0).sqrt();
+            if d(s2) > 0.0 { d(s1) / d(s2) } else { 1.0 }
+        };
+        let mut scores = vec![
+            0.0,
+            1.0,
+            -1.0,
+            5e-324,
+            -5e-324,
+            f64::MIN_POSITIVE,
+            1e300,
+            -1e300,
+            -8e307,
+        ];
+        let mut below_one = 1.0f64;
+        for _ in 0..64 {
+            below_one = below_one.next_down();
+            scores.push(below_one);
+        }
+        // xorshift64: scores over many magnitudes, either sign.
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        for _ in 0..2000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
+            let exponent = (state % 61) as i32 - 40;
+            scores.push((2.0 * unit - 1.0) * 2f64.powi(exponent));
+        }
+        for &a in &scores {
+            for &b in scores.iter().step_by(7) {
+                let (s1, s2) = if a >= b { (a, b) } else { (b, a) };
+                assert_eq!(pa_score(s1, s2).to_bits(), unhalved(s1, s2).to_bits(), "{s1:e} {s2:e}");
+            }
+        }
     }
 
     #[test]

@@ -14,11 +14,16 @@
 //!   not UTF-8 is a name like any other, shown lossily in messages only);
 //! - the local header agrees with the directory (name, method, CRC-32 and sizes; with a
 //!   data descriptor, the descriptor does);
-//! - a stored member's compressed and uncompressed sizes are equal.
+//! - a stored member's compressed and uncompressed sizes are equal;
+//! - the directory lies where the end record declares it, or after bytes prepended to
+//!   the archive (a self-extracting archive), which shift every local header alike.
 //!
 //! A member is then read through [`Member`]: never decompressed past the size the
 //! directory declares, and its CRC-32 and size compared when its last byte is read.
+//! A member no reader reads to its end (one the library does not use) is read into
+//! nothing by [`Archive::check_unread_members`], so that its CRC-32 is checked too.
 
+use std::cell::Cell;
 use std::collections::HashSet;
 use std::fs::File;
 use std::io::{self, Read};
@@ -63,6 +68,8 @@ struct Entry {
     /// Its uncompressed size.
     size: u64,
     crc: u32,
+    /// Read to its end, its CRC-32 and size found right.
+    verified: Cell<bool>,
 }
 
 /// An opened `.npz` archive whose every member has been checked (module docs).
@@ -117,6 +124,7 @@ impl<R: ReaderAt> Archive<R> {
         let zip = rawzip::ZipLocator::new()
             .locate_in_reader(reader, &mut buffer, end)
             .map_err(|(_, e)| not_an_archive(path, e))?;
+        check_directory_offset(&zip, path)?;
         let mut entries: Vec<Entry> = Vec::new();
         // The names seen, as bytes: two names that differ only in bytes that are not
         // UTF-8 are two members, though their messages show them alike.
@@ -150,6 +158,7 @@ impl<R: ReaderAt> Archive<R> {
                 deflated,
                 size,
                 crc: record.crc32(),
+                verified: Cell::new(false),
             });
         }
         if entries.len() as u64 != zip.entries_hint() {
@@ -238,7 +247,7 @@ impl<R: ReaderAt> Archive<R> {
     }
 
     /// The stream of `entry`'s uncompressed bytes, and its declared size ([`Archive::member`]).
-    fn open(&self, entry: &Entry) -> Result<(Member<'_, R>, u64)> {
+    fn open<'a>(&'a self, entry: &'a Entry) -> Result<(Member<'a, R>, u64)> {
         let label = entry_label(&self.path, &entry.name);
         let data = self
             .zip
@@ -256,9 +265,59 @@ impl<R: ReaderAt> Archive<R> {
             read: 0,
             size: entry.size,
             expected_crc: entry.crc,
+            verified: &entry.verified,
         };
         Ok((member, entry.size))
     }
+
+    /// `entry` read to its end into nothing, a block at a time (its CRC-32 and size
+    /// checked); the bytes read.
+    fn read_to_end(&self, entry: &Entry) -> Result<u64> {
+        let (mut member, _) = self.open(entry)?;
+        io::copy(&mut member, &mut io::sink()).map_err(|e| corrupt(&entry_label(&self.path, &entry.name), e))
+    }
+
+    /// Every member not yet read to its end (one the library does not use, or whose
+    /// header alone was read) read into nothing, so that its CRC-32 and size are
+    /// checked as a read member's are: an archive that `np.load` or `unzip -t` rejects
+    /// is an error here too (semantics §12). Call it after the members that are used
+    /// have been read.
+    ///
+    /// # Errors
+    /// [`Error::File`] naming the first such member that is corrupt.
+    pub(crate) fn check_unread_members(&self) -> Result<()> {
+        for entry in self.entries.iter().filter(|e| !e.verified.get()) {
+            self.read_to_end(entry)?;
+        }
+        Ok(())
+    }
+}
+
+/// The directory `zip` located (`path` names it) against the offset its end record
+/// declares. rawzip finds a directory that is not at its declared offset where it must
+/// end (before the end record) and takes the difference as bytes prepended to the
+/// archive, shifting every local header by as much (checked when they are read); but a
+/// directory found *before* its declared offset is no such archive (`np.load` and
+/// `unzip -t` reject it), and rawzip would read its local headers unshifted. A zip64
+/// archive's directory is at its declared offset (rawzip moves none).
+fn check_directory_offset<R: ReaderAt>(zip: &rawzip::ZipArchive<R>, path: &Path) -> Result<()> {
+    // The end record: its signature, four 2-byte counts, the directory's size, then its
+    // offset (APPNOTE 4.3.16).
+    let mut field = [0u8; 4];
+    zip.get_ref()
+        .read_exact_at(&mut field, zip.eocd_offset() + 16)
+        .map_err(|e| not_an_archive(path, e))?;
+    let declared = u32::from_le_bytes(field);
+    if declared != u32::MAX && u64::from(declared) > zip.directory_offset() {
+        return Err(not_an_archive(
+            path,
+            format!(
+                "its end record puts the zip directory at byte {declared}, but it starts at byte {}",
+                zip.directory_offset()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The zip layer alone on `bytes`, for the fuzz target `npz_archive` and the fixed
@@ -274,8 +333,7 @@ pub fn read_every_member(bytes: &[u8]) -> Result<u64> {
     let archive = Archive::new(bytes, bytes.len() as u64, path)?;
     let mut total = 0;
     for entry in &archive.entries {
-        let (mut member, _) = archive.open(entry)?;
-        total += io::copy(&mut member, &mut io::sink()).map_err(|e| corrupt(&entry_label(path, &entry.name), e))?;
+        total += archive.read_to_end(entry)?;
     }
     Ok(total)
 }
@@ -368,6 +426,8 @@ pub(crate) struct Member<'a, R> {
     read: u64,
     size: u64,
     expected_crc: u32,
+    /// Its entry's flag, set once its CRC-32 and size are found right.
+    verified: &'a Cell<bool>,
 }
 
 impl<R: ReaderAt> Read for Member<'_, R> {
@@ -406,8 +466,11 @@ impl<R: ReaderAt> Read for Member<'_, R> {
                 format!("it holds {} of its {} bytes", self.read, self.size),
             ));
         }
-        if self.read == self.size && (n > 0 || self.size == 0) && self.crc.checksum() != self.expected_crc {
-            return Err(invalid("its CRC-32 does not match its data".into()));
+        if self.read == self.size && (n > 0 || self.size == 0) {
+            if self.crc.checksum() != self.expected_crc {
+                return Err(invalid("its CRC-32 does not match its data".into()));
+            }
+            self.verified.set(true);
         }
         Ok(n)
     }
@@ -587,6 +650,109 @@ mod tests {
                 "{len}"
             );
         }
+    }
+
+    #[test]
+    fn the_directory_is_where_its_end_record_puts_it_or_after_bytes_prepended() {
+        // One stored member: local header 30 bytes, name 5, data 5, data descriptor 16,
+        // so the directory starts at byte 56.
+        let b = test_zip::zip(&[test_zip::Member::stored("a.npy", b"first")]);
+        let end = b.windows(4).rposition(|w| w == b"PK\x05\x06").unwrap();
+        assert_eq!(b[end + 16..end + 20], 56u32.to_le_bytes());
+        let declare = |at: u32| {
+            let mut b = b.clone();
+            b[end + 16..end + 20].copy_from_slice(&at.to_le_bytes());
+            b
+        };
+        // 10 bytes after it: np.load and unzip -t reject it, and so does this reader.
+        let e = read_every_member(&declare(66)).unwrap_err().to_string();
+        let want = "its end record puts the zip directory at byte 66, but it starts at byte 56";
+        assert_eq!(e, format!("fuzz.npz is not a valid .npz archive: {want}"));
+        // 10 bytes before it: read as 10 bytes prepended, so the local header is looked
+        // for at byte 10, where it is not.
+        let e = read_every_member(&declare(46)).unwrap_err().to_string();
+        assert!(
+            e.starts_with("fuzz.npz (array a) is corrupt: its local header cannot be read"),
+            "{e}"
+        );
+        // 10 bytes really prepended: the directory and the local header 10 bytes on.
+        let mut prepended = vec![b'#'; 10];
+        prepended.extend_from_slice(&b);
+        assert_eq!(read_every_member(&prepended), Ok(5));
+    }
+
+    #[test]
+    fn every_member_is_read_to_its_end_once() {
+        use rawzip::ReaderAt;
+        /// The bytes read from a slice, counted.
+        struct Counted<'a>(&'a [u8], &'a std::cell::Cell<u64>);
+        impl ReaderAt for Counted<'_> {
+            fn read_at(&self, buf: &mut [u8], offset: u64) -> std::io::Result<usize> {
+                let n = self.0.read_at(buf, offset)?;
+                self.1.set(self.1.get() + n as u64);
+                Ok(n)
+            }
+        }
+        // a.npy read whole by its reader, b.npy by none, c.npy only its first 10 bytes.
+        let (a, b, c) = (vec![1u8; 1000], vec![2u8; 3000], vec![3u8; 5000]);
+        let bytes = test_zip::zip(&[
+            test_zip::Member::stored("a.npy", &a),
+            test_zip::Member::stored("b.npy", &b),
+            test_zip::Member::stored("c.npy", &c),
+        ]);
+        let count = std::cell::Cell::new(0);
+        let archive = Archive::new(Counted(&bytes, &count), bytes.len() as u64, Path::new("n.npz")).unwrap();
+        let (mut member, _) = archive.member("a.npy").unwrap().unwrap();
+        std::io::copy(&mut member, &mut std::io::sink()).unwrap();
+        let (mut member, _) = archive.member("c.npy").unwrap().unwrap();
+        member.read_exact(&mut [0u8; 10]).unwrap();
+        let before = count.get();
+        archive.check_unread_members().unwrap();
+        // b and c whole, each after its local header's 30 fixed bytes (the name after
+        // them is skipped): 30 + 3000 + 30 + 5000 = 8060 bytes; a not again.
+        assert_eq!(count.get() - before, 8060);
+        // Now every member is checked: nothing more is read.
+        archive.check_unread_members().unwrap();
+        assert_eq!(count.get() - before, 8060);
+    }
+
+    #[test]
+    fn a_member_no_reader_uses_is_checked_as_calibration_and_as_ground_truth() {
+        // A calibration file and a VPR_Tutorial ground truth, each with an extra member
+        // whose CRC-32 is wrong, and a ground truth whose GTsoft is wrong while only
+        // GThard is used (a soft ground truth given apart).
+        let (cal, tutorial) = valid();
+        let bad = test_zip::Member {
+            crc: Some(0x1234_5678),
+            ..test_zip::Member::deflated("notes.txt", b"not an array")
+        };
+        let with_bad = |members: &Members| {
+            let mut all: Vec<_> = members.iter().map(|(n, d)| test_zip::Member::stored(n, d)).collect();
+            all.push(bad.clone());
+            test_zip::zip(&all)
+        };
+        let want = "h.npz (member notes.txt) is corrupt: its CRC-32 does not match its data";
+        let e = Calibration::from_bytes(&with_bad(&cal), "h.npz").err().unwrap();
+        assert_eq!(e.to_string(), want);
+        let e = ground_truth_from_bytes(&with_bad(&tutorial), "h.npz").err().unwrap();
+        assert_eq!(e.to_string(), want);
+        let dir = tempfile::tempdir().unwrap();
+        let (hard, soft) = (dir.path().join("hard.npz"), dir.path().join("soft.npy"));
+        let gt_soft = &tutorial[1].1;
+        let members = [
+            test_zip::Member::stored("GThard.npy", &tutorial[0].1),
+            test_zip::Member {
+                crc: Some(0x1234_5678),
+                ..test_zip::Member::stored("GTsoft.npy", gt_soft)
+            },
+        ];
+        std::fs::write(&hard, test_zip::zip(&members)).unwrap();
+        std::fs::write(&soft, gt_soft).unwrap();
+        let e = read_ground_truth(&hard, Some(&soft)).err().unwrap().to_string();
+        assert!(
+            e.ends_with("(array GTsoft) is corrupt: its CRC-32 does not match its data"),
+            "{e}"
+        );
     }
 
     /// A fixed fuzzing budget on the zip layer ([`super::read_every_member`]), the

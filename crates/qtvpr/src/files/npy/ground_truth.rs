@@ -145,8 +145,10 @@ fn archive_ground_truth<R: ReaderAt>(npz: &Archive<R>, with_soft: bool) -> Resul
         });
     }
     let gt = ground_truth_of(hard.npy, &hard.label, None)?;
-    match soft {
-        Some(soft) if with_soft => ground_truth_of(soft.npy, &soft.label, Some(gt)),
-        _ => Ok(gt),
-    }
+    let gt = match soft {
+        Some(soft) if with_soft => ground_truth_of(soft.npy, &soft.label, Some(gt))?,
+        _ => gt,
+    };
+    npz.check_unread_members()?;
+    Ok(gt)
 }
