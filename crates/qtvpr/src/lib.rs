@@ -97,6 +97,7 @@ pub use extensions::image_names::{utm_position, utm_positions};
 pub use extensions::sequence::{Sequence, sequence_match};
 pub use extensions::similarity::{Descriptors, cosine_similarity};
 pub use gates::margin::margins;
+pub use gates::sequence::{DEFAULT_SEQUENCE_LEVEL, DEFAULT_SEQUENCE_WINDOW, SequenceParams, sequence_consistency};
 pub use input::params::{
     DEFAULT_K, DEFAULT_MIN_WINDOW, DEFAULT_PRECISION, Defaults, Gate, OnlineParams, Options, Params,
 };
@@ -110,12 +111,17 @@ pub use operations::online::{Decision, Online};
 pub use operations::source::ScoreSource;
 pub use operations::transfer::{Segment, Transfer};
 pub use platform::threads::{MAX_THREADS, current_threads, set_threads};
+pub use rules::agreement::{DEFAULT_DRIFT, DEFAULT_SPEED, DEFAULT_TOLERANCE, Line};
 pub use rules::baselines::schubert_threshold;
 pub use rules::best_threshold::best_threshold;
 pub use rules::decisions::{Counts, Matching, best_match, counts};
 pub use rules::deployment::deployment_threshold;
 pub use rules::ranked_correlation::ranked_correlation;
 pub use signals::confidence::{Block as ConfidenceBlock, ConfidenceMap, Signal, Signals, pa_score};
+pub use signals::self_motion::{
+    DEFAULT_NEGATIVE_LEVEL, DEFAULT_NEIGHBOURS, DEFAULT_POSITIVE_LEVEL, LabelParams, SelfMotionLabel, SelfMotionLabels,
+    self_motion_labels,
+};
 
 // Front-end plumbing (the crate docs' heading of that name): reading, dispatching on the
 // score type, naming inputs, laying out records and documents, early checks.

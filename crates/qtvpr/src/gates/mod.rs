@@ -16,6 +16,7 @@
 //! request ([`Gate`]).
 
 pub(crate) mod margin;
+pub(crate) mod sequence;
 
 use crate::error::Result;
 use crate::input::params::Gate;

@@ -2,3 +2,4 @@
 //! is right (semantics §14).
 
 pub(crate) mod confidence;
+pub(crate) mod self_motion;
