@@ -226,6 +226,7 @@ fuzz_target!(
         precision,
         segment_size: input.segment_size.map(|m| usize::from(m % 14)),
         gate: if input.gate { Gate::Margin } else { Gate::None },
+        sequence_gate: Default::default(),
     };
     // Query-major callers hand the core transposed views of |Q| x |DB| arrays.
     let (cal_t, val_t) = (s_cal.t().to_owned(), s_val.t().to_owned());

@@ -16,7 +16,7 @@
 //! |---|---|---|
 //! | `input/` | `mod.rs` (§1), `orientation` (§1), `params` | what an operation is given: scores and ground truth and their checks, the layout they were read in; the parameters (the gate among them), resolved once |
 //! | `rules/` | `decisions` (§2), `best_threshold` (§3), `ranked_correlation/` (§4), `subset_quantile` (§5), `deployment` (§6), `baselines` (§7) | the paper's rules, one per section |
-//! | `gates/` | `mod.rs`, `margin` (§13) | the gates of a decision, composed once: a best match is kept when its score reaches the threshold and every enabled gate passes |
+//! | `gates/` | `mod.rs`, `margin` (§13), `sequence` (§15) | the gates of a decision, composed once: a best match is kept when its score reaches the threshold and every enabled gate passes |
 //! | `signals/` | `confidence` (§14) | what is said of each query beyond its decision |
 //! | `operations/` | `calibration`, `transfer` (§4-§6), `online/` (§11), `evaluate/` (§8), `split` (§8.1), `source`, `chunks` | what a user runs: a batch, a stream, the protocol; the calibration all of them read; what each reads (a matrix or descriptors, a chunk at a time), and one matrix split into calibration and deployment |
 //! | `extensions/` | `similarity`, `sequence`, `ground_truth`, `kd_tree`, `image_names` | beyond the paper: the matrices from what users have |
@@ -97,9 +97,11 @@ pub use extensions::image_names::{utm_position, utm_positions};
 pub use extensions::sequence::{Sequence, sequence_match};
 pub use extensions::similarity::{Descriptors, cosine_similarity};
 pub use gates::margin::margins;
-pub use gates::sequence::{DEFAULT_SEQUENCE_LEVEL, DEFAULT_SEQUENCE_WINDOW, SequenceParams, sequence_consistency};
+pub use gates::sequence::sequence_consistency;
 pub use input::params::{
-    DEFAULT_K, DEFAULT_MIN_WINDOW, DEFAULT_PRECISION, Defaults, Gate, OnlineParams, Options, Params,
+    DEFAULT_DRIFT, DEFAULT_K, DEFAULT_MIN_WINDOW, DEFAULT_PRECISION, DEFAULT_SEQUENCE_LEVEL, DEFAULT_SEQUENCE_WINDOW,
+    DEFAULT_SPEED, DEFAULT_TOLERANCE, Defaults, Gate, Line, OnlineParams, Options, Params, SequenceOverrides,
+    SequenceParams,
 };
 pub use input::{GroundTruth, Label, Score, Truth};
 pub use operations::calibration::Calibration;
@@ -111,7 +113,6 @@ pub use operations::online::{Decision, Online};
 pub use operations::source::ScoreSource;
 pub use operations::transfer::{Segment, Transfer};
 pub use platform::threads::{MAX_THREADS, current_threads, set_threads};
-pub use rules::agreement::{DEFAULT_DRIFT, DEFAULT_SPEED, DEFAULT_TOLERANCE, Line};
 pub use rules::baselines::schubert_threshold;
 pub use rules::best_threshold::best_threshold;
 pub use rules::decisions::{Counts, Matching, best_match, counts};

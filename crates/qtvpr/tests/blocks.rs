@@ -36,6 +36,7 @@ fn blocks_of_whole_segments_concatenate_to_the_whole_transfer() {
             precision: 0.75,
             segment_size: Some(3),
             gate: qtvpr::Gate::None,
+            sequence_gate: Default::default(),
         };
         let whole = cal.transfer(s_val.view(), &params).unwrap();
         // Blocks 0..6 and 6..12: two segments each; the last block's segments count
@@ -77,6 +78,7 @@ fn a_request_is_checked_from_its_shape_as_the_whole_transfer_checks_it() {
         precision: 1.0,
         segment_size: Some(4),
         gate: qtvpr::Gate::None,
+        sequence_gate: Default::default(),
     };
     assert_eq!(cal.check_transfer((6, 12), &ok), Ok(()));
     let cases = [
@@ -131,6 +133,7 @@ fn a_resumed_state_decides_as_the_whole_stream() {
             window: 4,
             min_window: 3,
             gate: qtvpr::Gate::None,
+            sequence_gate: Default::default(),
         };
         let whole = Online::new(Arc::clone(&cal), p)
             .unwrap()
@@ -158,6 +161,7 @@ fn resume_errors() {
         window: 4,
         min_window: 1,
         gate: qtvpr::Gate::None,
+        sequence_gate: Default::default(),
     };
     let s_val = scores(6, 12, 4);
     let mut online = Online::new(Arc::clone(&cal), p).unwrap();

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use ndarray::{Array2, array};
 use qtvpr::npy::{NpyArray, write_npz};
-use qtvpr::{Calibration, Defaults, Error, Gate, GroundTruth, Matching, Online, OnlineParams, Params};
+use qtvpr::{Calibration, Defaults, Error, Gate, GroundTruth, Matching, Online, OnlineParams, Params, SequenceParams};
 use qtvpr_testkit::zip::{self as test_zip, Member};
 
 /// A fixed LCG matrix with ties, and GT i == j % 6 with a soft neighbour row.
@@ -48,6 +48,7 @@ const DEFAULTS: Defaults = Defaults {
     precision: 0.9,
     window: Some(4),
     gate: Gate::None,
+    sequence_gate: SequenceParams::DEFAULT,
 };
 
 fn same_results(a: &Calibration, b: &Calibration) {
@@ -58,6 +59,7 @@ fn same_results(a: &Calibration, b: &Calibration) {
             precision: 0.9,
             segment_size,
             gate: Gate::None,
+            sequence_gate: Default::default(),
         };
         assert_eq!(a.transfer(s.view(), &p).unwrap(), b.transfer(s.view(), &p).unwrap());
     }
@@ -67,6 +69,7 @@ fn same_results(a: &Calibration, b: &Calibration) {
         window: 4,
         min_window: 2,
         gate: Gate::None,
+        sequence_gate: Default::default(),
     };
     let run = |c: &Calibration| {
         let c = Arc::new(Calibration::from_bytes(&c.to_bytes(&DEFAULTS).unwrap(), "x").unwrap());

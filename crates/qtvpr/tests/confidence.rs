@@ -101,6 +101,7 @@ fn every_decision_carries_its_confidence() {
             window: 4,
             min_window: 1,
             gate,
+            sequence_gate: Default::default(),
         };
         let mut online = Online::new(Arc::clone(&cal), p).unwrap();
         let decisions = qtvpr::with_scores!(s.view(), |v| online.push_many(v)).unwrap();
@@ -109,6 +110,7 @@ fn every_decision_carries_its_confidence() {
             precision: 1.0,
             segment_size: Some(4),
             gate,
+            sequence_gate: Default::default(),
         };
         let batch = qtvpr::with_scores!(s.view(), |v| cal.transfer(v, &params)).unwrap();
         let (c, lower) = (
@@ -149,6 +151,7 @@ fn multi_matching_has_none() {
         window: 4,
         min_window: 1,
         gate: Gate::None,
+        sequence_gate: Default::default(),
     };
     let s = read_scores(&corridor("deploy_S.npy")).unwrap();
     let mut online = Online::new(Arc::clone(&cal), p).unwrap();
@@ -164,6 +167,7 @@ fn multi_matching_has_none() {
         precision: 1.0,
         segment_size: Some(20),
         gate: Gate::None,
+        sequence_gate: Default::default(),
     };
     let batch = qtvpr::with_scores!(s.view(), |v| cal.transfer(v, &params)).unwrap();
     assert!(batch.query_confidences.is_none() && batch.query_confidences_lower95.is_none());
@@ -202,6 +206,7 @@ fn a_calibration_query_of_extreme_scores_leaves_the_map_finite() {
         window: 2,
         min_window: 1,
         gate: Gate::None,
+        sequence_gate: Default::default(),
     };
     let mut online = Online::new(cal, p).unwrap();
     let d = online.push(ndarray::array![0.82, 0.5, 0.0].view()).unwrap();

@@ -91,6 +91,7 @@ fn fused_equals_matrix(d: &Descriptors<'_>, s: ArrayView2<'_, f32>, n_cal: usize
                 precision: 1.0,
                 segment_size,
                 gate: Gate::None,
+                sequence_gate: Default::default(),
             };
             let want = cal.transfer(s.slice(s![.., n_cal..]), &p).unwrap();
             let got = fused.transfer(ScoreSource::Descriptors(d, n_cal..n_q), &p).unwrap();

@@ -29,6 +29,7 @@ const PARAMS: OnlineParams = OnlineParams {
     window: 20,
     min_window: 1,
     gate: Gate::None,
+    sequence_gate: qtvpr::SequenceParams::DEFAULT,
 };
 
 /// The calibration (111 x 11) and the deployment scores (111 x 100).
@@ -52,6 +53,7 @@ fn transfer(cal: &Calibration, s: ArrayView2<'_, f64>) -> Transfer {
         precision: 1.0,
         segment_size: Some(20),
         gate: Gate::None,
+        sequence_gate: Default::default(),
     };
     cal.transfer(s, &params).unwrap()
 }

@@ -13,3 +13,4 @@ mod properties;
 mod regressions;
 mod screen;
 mod semantics;
+mod sequence_gate;

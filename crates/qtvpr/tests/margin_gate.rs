@@ -64,6 +64,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize) -> usiz
             precision: tau,
             segment_size: Some(10),
             gate: Gate::Margin,
+            sequence_gate: Default::default(),
         };
         let gated = cal.transfer(s_val, &params).unwrap();
         let plain = cal
@@ -87,6 +88,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize) -> usiz
             window: 7,
             min_window: 1,
             gate: Gate::Margin,
+            sequence_gate: Default::default(),
         };
         let online = Online::new(Arc::clone(&cal), p).unwrap().push_many(s_val).unwrap();
         let ungated = Online::new(Arc::clone(&cal), OnlineParams { gate: Gate::None, ..p })
@@ -110,7 +112,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize) -> usiz
     };
     let loaded = Calibration::from_bytes(&cal.to_bytes(&defaults).unwrap(), "cal.npz").unwrap();
     assert_eq!(loaded.defaults().gate, Gate::Margin);
-    let p = Params::resolve(loaded.defaults(), None, None, None, None).unwrap();
+    let p = Params::resolve(loaded.defaults(), None, None, None, None, Default::default()).unwrap();
     assert_eq!(loaded.transfer(s_val, &p).unwrap().gate, Some(cal.gate(1.0).unwrap()));
     rejected_by_gate
 }
@@ -227,6 +229,7 @@ fn refused_in_multi_matching<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth) {
         window: 5,
         min_window: 1,
         gate: Gate::Margin,
+        sequence_gate: Default::default(),
     };
     assert_eq!(Online::new(Arc::clone(&cal), p).err().unwrap().to_string(), why);
     let file = Defaults {
@@ -246,5 +249,6 @@ fn refused_in_multi_matching<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth) {
     // "All methods" in multi matching are those that apply.
     assert!(!Method::all_for(Matching::Multi).contains(&Method::QuantileTransferMargin));
     let e = evaluate(s, gt, &protocol, &Method::all_for(Matching::Multi)).unwrap();
-    assert_eq!(e.methods.len(), Method::ALL.len() - 2);
+    // Less the five gated methods: two of the margin gate, three of the sequence gate.
+    assert_eq!(e.methods.len(), Method::ALL.len() - 5);
 }

@@ -24,6 +24,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, gt: &GroundTruth, n_cal: usize, matchin
         precision: p.precision,
         segment_size: None,
         gate: Gate::None,
+        sequence_gate: Default::default(),
     };
     for (j, d) in decisions.iter().enumerate() {
         if j + 1 < p.min_window {
@@ -63,6 +64,7 @@ fn run(dir: &str, technique: &str, n_cal: usize) {
                 window,
                 min_window,
                 gate: Gate::None,
+                sequence_gate: Default::default(),
             };
             match scores.view() {
                 ScoresView::F32(v) => check(v, &gt, n_cal, matching, p),

@@ -63,6 +63,7 @@ impl Problem {
             precision: self.tau,
             segment_size: self.segment_size,
             gate: Gate::None,
+            sequence_gate: Default::default(),
         }
     }
 

@@ -38,6 +38,7 @@ fn check<T: Score>(s: ArrayView2<'_, T>, n_cal: usize) {
             precision: 1.0,
             segment_size: None,
             gate: qtvpr::Gate::None,
+            sequence_gate: Default::default(),
         };
         let out = cal.transfer(s_val, &p).unwrap();
         for (j, row) in r.rows().into_iter().enumerate() {

@@ -15,40 +15,29 @@
 //! velocity search does at velocity 1.
 //!
 //! # Cost
-//! O(|DB| |Q|) whatever `L`, by a running sum along the diagonals: the window sums of
-//! row `i + 1` are those of row `i` shifted by one column, less the entries that leave
-//! and plus the entries that enter. Rows are processed in parallel blocks, each block
-//! starting from freshly summed windows, so rounding cannot drift across the matrix:
-//! sums are in `f64` and the running error stays below (block length) x 2^-52 x (the
-//! largest |score| in the block), under 1e-13 for cosine scores.
+//! Centred: O(|DB| |Q|) whatever `L`, by a running sum along the diagonals: the window
+//! sums of row `i + 1` are those of row `i` shifted by one column, less the entries that
+//! leave and plus the entries that enter. Rows are processed in parallel blocks, each
+//! block starting from freshly summed windows, so rounding cannot drift across the
+//! matrix: sums are in `f64` and the running error stays below (block length) x 2^-52 x
+//! (the largest |score| in the block), under 1e-13 for cosine scores.
+//!
+//! Causal: O(L |DB| |Q|), every entry summed afresh from its own terms, oldest first, by
+//! one function ([`causal_mean`]). So a causal column depends on its `L` raw columns
+//! alone, bit for bit: a stream that keeps only the last `L - 1` raw columns
+//! ([`CausalStream`], semantics §15's online sequence matching) and a block of columns
+//! preceded by its `L - 1` raw columns give exactly the matrix's values. (A running sum
+//! would tie each entry's bits to every column back to the start of its row block.)
 
 use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
+
+use ndarray::ArrayView1;
 
 use crate::error::names::Input;
 use crate::error::{Error, Result};
 use crate::input::{Score, validate_scores};
 use crate::platform::threads;
-
-/// A score type [`sequence_match`] can return: `f32` or `f64`.
-pub trait FromF64: Score {
-    /// Round an `f64` to this type.
-    fn from_f64(v: f64) -> Self;
-}
-
-impl FromF64 for f32 {
-    #[inline]
-    fn from_f64(v: f64) -> Self {
-        v as f32
-    }
-}
-
-impl FromF64 for f64 {
-    #[inline]
-    fn from_f64(v: f64) -> Self {
-        v
-    }
-}
 
 /// The sequence window: its length and whether it looks back only.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -109,10 +98,13 @@ impl Sequence {
 /// # Errors
 /// [`Error::InvalidParameter`] for an even or zero length, [`Error::Empty`] or
 /// [`Error::NotFinite`] for an empty or non-finite `s`.
-pub fn sequence_match<T: FromF64>(s: ArrayView2<'_, T>, sequence: Sequence) -> Result<Array2<T>> {
+pub fn sequence_match<T: Score>(s: ArrayView2<'_, T>, sequence: Sequence) -> Result<Array2<T>> {
     threads::install(|| {
         sequence.validate()?;
         validate_scores(Input::Similarity, s)?;
+        if sequence.causal {
+            return Ok(causal_match(s, sequence.length));
+        }
         let (n, m) = s.dim();
         let (lo, hi) = sequence.offsets();
         // Rows per block: at least the window length, so that the O(L |Q|) start of each
@@ -140,6 +132,138 @@ pub fn sequence_match<T: FromF64>(s: ArrayView2<'_, T>, sequence: Sequence) -> R
         });
         Ok(Array2::from_shape_vec((n, m), out).expect("shape matches length"))
     })
+}
+
+/// The causal mean of one entry from its terms `S[i - d, j - d]`, oldest first
+/// (`d = n - 1, ..., 0`, those inside the stream and the database): summed in `f64` from
+/// `0.0` in that order and divided by their number. The one computation of a causal
+/// sequence-matched score, for a matrix ([`sequence_match`]) and a stream
+/// ([`CausalStream`]), so that both give the same bits.
+#[inline]
+pub(crate) fn causal_mean(terms: impl Iterator<Item = f64>) -> f64 {
+    let (mut sum, mut n) = (0.0, 0u32);
+    for t in terms {
+        sum += t;
+        n += 1;
+    }
+    sum / f64::from(n)
+}
+
+/// The causal sequence matching of a checked matrix: every entry its [`causal_mean`],
+/// rows in parallel blocks (each row reads `L` rows of `s`, along its diagonals).
+fn causal_match<T: Score>(s: ArrayView2<'_, T>, length: usize) -> Array2<T> {
+    let (n, m) = s.dim();
+    let mut out = vec![T::default(); n * m];
+    out.par_chunks_mut(64 * m.max(1)).enumerate().for_each(|(b, rows)| {
+        for (r, row) in rows.chunks_mut(m).enumerate() {
+            let i = b * 64 + r;
+            for (j, o) in row.iter_mut().enumerate() {
+                let back = (length - 1).min(i).min(j);
+                *o = T::from_f64(causal_mean((0..=back).rev().map(|d| s[[i - d, j - d]].to_f64())));
+            }
+        }
+    });
+    Array2::from_shape_vec((n, m), out).expect("shape matches length")
+}
+
+/// The causal sequence matching of a stream, one column at a time (semantics §15): the
+/// last `L - 1` raw columns (as `f64`, a widening that changes no value), and each
+/// arriving column's matched column, bit for bit the column of [`sequence_match`] with
+/// [`Sequence::causal`] over the whole stream. Memory: `8 (L - 1) |DB|` bytes.
+#[derive(Debug, Clone)]
+pub(crate) struct CausalStream {
+    length: usize,
+    n_db: usize,
+    /// The raw columns kept, slot after slot (|DB| scores each); the most recent in
+    /// slot `(next + L - 2) % (L - 1)`.
+    ring: Vec<f64>,
+    /// How many are kept: up to `L - 1`.
+    held: usize,
+    /// The slot the next column goes into.
+    next: usize,
+}
+
+impl CausalStream {
+    /// A stream of columns of `n_db` scores, matched over `length` (odd, >= 1) of them;
+    /// it takes its memory as columns arrive.
+    pub(crate) fn new(length: usize, n_db: usize) -> Self {
+        Self {
+            length,
+            n_db,
+            ring: Vec::new(),
+            held: 0,
+            next: 0,
+        }
+    }
+
+    /// The sequence length `L`.
+    pub(crate) fn length(&self) -> usize {
+        self.length
+    }
+
+    /// The raw column `d` queries back (`1..=held`).
+    fn back(&self, d: usize) -> &[f64] {
+        let slots = self.length - 1;
+        let slot = (self.next + slots - d) % slots;
+        &self.ring[slot * self.n_db..(slot + 1) * self.n_db]
+    }
+
+    /// The matched column of `column`, the stream's next (finite, |DB| scores), into
+    /// `out` (|DB| long). The stream is not changed ([`CausalStream::keep`] does).
+    pub(crate) fn matched<T: Score>(&self, column: ArrayView1<'_, T>, out: &mut [T]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let back = self.held.min(i);
+            let term = |d: usize| {
+                if d == 0 {
+                    column[i].to_f64()
+                } else {
+                    self.back(d)[i - d]
+                }
+            };
+            *o = T::from_f64(causal_mean((0..=back).rev().map(term)));
+        }
+    }
+
+    /// Make room for one more raw column (fallibly: running out of memory is an error,
+    /// not an abort), so that [`CausalStream::keep`] cannot fail.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] named `sequence` when the memory cannot be had.
+    pub(crate) fn reserve(&mut self) -> Result<()> {
+        let full = (self.length - 1) * self.n_db;
+        if self.ring.len() >= full {
+            return Ok(());
+        }
+        self.ring.try_reserve_exact(self.n_db).map_err(|_| {
+            Error::param(
+                "sequence",
+                format!(
+                    "length {} needs memory for {} x {} raw scores, which cannot be allocated",
+                    self.length,
+                    self.length - 1,
+                    self.n_db
+                ),
+            )
+        })
+    }
+
+    /// Keep `column` as the most recent raw column (the oldest leaves once `L - 1` are
+    /// kept); [`CausalStream::reserve`] has made room for it.
+    pub(crate) fn keep<T: Score>(&mut self, column: ArrayView1<'_, T>) {
+        let slots = self.length - 1;
+        if slots == 0 {
+            return;
+        }
+        let values = column.iter().map(|v| v.to_f64());
+        if self.ring.len() < slots * self.n_db {
+            self.ring.extend(values);
+        } else {
+            let slot = &mut self.ring[self.next * self.n_db..(self.next + 1) * self.n_db];
+            slot.iter_mut().zip(values).for_each(|(s, v)| *s = v);
+        }
+        self.next = (self.next + 1) % slots;
+        self.held = (self.held + 1).min(slots);
+    }
 }
 
 /// The window sums of one matrix, with zero padding outside it.
@@ -298,5 +422,87 @@ mod tests {
             sequence_match(Array2::<f32>::zeros((0, 3)).view(), Sequence::centred(3)),
             Err(Error::Empty { .. })
         ));
+    }
+
+    #[test]
+    fn a_stream_of_columns_gives_the_bits_of_the_matrix() {
+        // 150 rows (three blocks of 64 rows, the last partial), 40 columns, L = 1, 3, 11
+        // and 151 (longer than the stream and the database), f32 and f64, a C-order and
+        // a transposed view: pushed one column at a time, each matched column is the
+        // matrix's, bit for bit.
+        let s = Array2::from_shape_fn((150, 40), |(i, j)| {
+            (((i * 7919 + j * 104729) % 1009) as f64) / 1009.0 - 0.3
+        });
+        for length in [1, 3, 11, 151] {
+            let want = sequence_match(s.view(), Sequence::causal(length)).unwrap();
+            let want_t = sequence_match(s.t(), Sequence::causal(length)).unwrap();
+            // The definition: each entry the mean of its terms.
+            let err = (&want - &naive(&s, Sequence::causal(length)))
+                .iter()
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            assert!(err < 1e-15, "{length}: {err}");
+            let mut stream = CausalStream::new(length, 150);
+            let mut out = vec![0.0; 150];
+            for (j, column) in s.columns().into_iter().enumerate() {
+                stream.matched(column, &mut out);
+                assert!(
+                    out.iter().zip(want.column(j)).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "L = {length}, column {j}"
+                );
+                stream.reserve().unwrap();
+                stream.keep(column);
+            }
+            // The transpose as a stream of its 150 columns of 40 scores.
+            let mut stream = CausalStream::new(length, 40);
+            let mut out = vec![0.0; 40];
+            for (j, column) in s.t().columns().into_iter().enumerate() {
+                stream.matched(column, &mut out);
+                assert!(
+                    out.iter()
+                        .zip(want_t.column(j))
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                );
+                stream.reserve().unwrap();
+                stream.keep(column);
+            }
+            let s32 = s.mapv(|v| v as f32);
+            let want32 = sequence_match(s32.view(), Sequence::causal(length)).unwrap();
+            let mut stream = CausalStream::new(length, 150);
+            let mut out = vec![0.0f32; 150];
+            for (j, column) in s32.columns().into_iter().enumerate() {
+                stream.matched(column, &mut out);
+                assert!(
+                    out.iter()
+                        .zip(want32.column(j))
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                );
+                stream.reserve().unwrap();
+                stream.keep(column);
+            }
+        }
+        // A block preceded by its L - 1 raw columns gives the whole matrix's columns.
+        let whole = sequence_match(s.view(), Sequence::causal(11)).unwrap();
+        let block = sequence_match(s.slice(ndarray::s![.., 20..]), Sequence::causal(11)).unwrap();
+        assert_eq!(block.slice(ndarray::s![.., 10..]), whole.slice(ndarray::s![.., 30..]));
+    }
+
+    #[test]
+    fn causal_means_by_hand() {
+        // L = 3, two terms at (1, 1) (d = 1: S[0, 0] = 1, d = 0: S[1, 1] = 5), oldest first.
+        assert_eq!(causal_mean([1.0, 5.0].into_iter()), 3.0);
+        // Summed in order from 0.0: 0.1 + 0.2 + 0.3 = 0.6000000000000001, / 3.
+        assert_eq!(causal_mean([0.1, 0.2, 0.3].into_iter()), (0.1 + 0.2 + 0.3) / 3.0);
+        // A stream keeps L - 1 = 2 columns: after 1, 2, 3 it holds 2 and 3, so the
+        // fourth column's row 2 is (S[0, 1] + S[1, 2] + S[2, 3]) / 3 with rows 0..2.
+        let mut stream = CausalStream::new(3, 3);
+        for v in [1.0, 2.0, 3.0] {
+            stream.reserve().unwrap();
+            stream.keep(ndarray::array![v, 10.0 * v, 100.0 * v].view());
+        }
+        let mut out = [0.0; 3];
+        stream.matched(ndarray::array![4.0, 40.0, 400.0].view(), &mut out);
+        // Row 0: 4 alone; row 1: (3 + 40) / 2; row 2: (2 + 30 + 400) / 3.
+        assert_eq!(out, [4.0, 21.5, 144.0]);
+        assert_eq!(stream.length(), 3);
     }
 }

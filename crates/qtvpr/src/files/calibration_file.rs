@@ -16,9 +16,14 @@
 //! ```
 //!
 //! `params` are [`Defaults`](crate::input::params::Defaults) for whoever uses the file (`window` is `null` when none is
-//! set; `gate`, `"none"` or `"margin"`, is `"none"` when left out); each can be
-//! overridden there. `qtvpr` is the version of the crate that wrote
-//! it. Keys beyond these are ignored on load.
+//! set; `gate`, `"none"`, `"margin"`, `"sequence"` or `"margin,sequence"`, is `"none"`
+//! when left out; `sequence_gate`, the sequence gate's `window`, `level`, `speed`,
+//! `tolerance` and `drift`, is written in full when the gate is on or a parameter is
+//! not its default, and each key left out is its default); each can be overridden
+//! there. `sequence` is the calibration's sequence length `L` (semantics §15: not a
+//! default but what `s` was matched over), written when it is above 1 and 1 when left
+//! out. `qtvpr` is the version of the crate that wrote it. Keys beyond these are
+//! ignored on load.
 //!
 //! Loading checks everything the same arrays are checked for as input (finite, non-empty
 //! scores; bool ground truth of the same shape), the `format` and `version`, the
@@ -41,9 +46,9 @@ mod file {
     use super::{FORMAT, VERSION};
     use crate::error::names::Input;
     use crate::error::{Error, Result};
+    use crate::extensions::sequence::Sequence;
     use crate::files::npy::{self, NpyArray};
-    use crate::input::params::Defaults;
-    use crate::input::params::Gate;
+    use crate::input::params::{Defaults, Gate, Line, SequenceParams};
     use crate::input::{GroundTruth, ScoreMatrix, Truth};
     use crate::operations::calibration::Calibration;
     use crate::rules::decisions::Matching;
@@ -69,6 +74,50 @@ mod file {
         /// Left out by files written before the gate: none.
         #[serde(default)]
         gate: Option<String>,
+        /// The sequence gate's parameters (semantics §15): left out when the gate is off
+        /// and they are the defaults, and by files written before the gate.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sequence_gate: Option<SequenceGate>,
+        /// The calibration's sequence length `L` (semantics §15): left out for 1.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sequence: Option<usize>,
+    }
+
+    /// `params.sequence_gate`: each key left out takes its default.
+    #[derive(Serialize, Deserialize)]
+    struct SequenceGate {
+        window: Option<usize>,
+        level: Option<f64>,
+        speed: Option<f64>,
+        tolerance: Option<f64>,
+        drift: Option<f64>,
+    }
+
+    impl From<SequenceParams> for SequenceGate {
+        fn from(p: SequenceParams) -> Self {
+            Self {
+                window: Some(p.window),
+                level: Some(p.level),
+                speed: Some(p.line.speed),
+                tolerance: Some(p.line.tolerance),
+                drift: Some(p.line.drift),
+            }
+        }
+    }
+
+    impl From<SequenceGate> for SequenceParams {
+        fn from(g: SequenceGate) -> Self {
+            let d = SequenceParams::default();
+            SequenceParams {
+                window: g.window.unwrap_or(d.window),
+                level: g.level.unwrap_or(d.level),
+                line: Line {
+                    speed: g.speed.unwrap_or(d.line.speed),
+                    tolerance: g.tolerance.unwrap_or(d.line.tolerance),
+                    drift: g.drift.unwrap_or(d.line.drift),
+                },
+            }
+        }
     }
 
     fn file_error(path: &Path, message: impl Into<String>) -> Error {
@@ -155,6 +204,9 @@ mod file {
                     precision: defaults.precision,
                     window: defaults.window,
                     gate: Some(defaults.gate.as_str().into()),
+                    sequence_gate: (defaults.gate.sequence() || defaults.sequence_gate != SequenceParams::default())
+                        .then(|| defaults.sequence_gate.into()),
+                    sequence: (self.sequence() > 1).then_some(self.sequence()),
                 },
                 qtvpr: env!("CARGO_PKG_VERSION").into(),
             };
@@ -229,7 +281,7 @@ mod file {
                 ));
             }
         }
-        let (matching, defaults) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
+        let (matching, defaults, sequence) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
         let scores = npy::read_owned_scores(s.npy, &s.label)?;
         let hard_gt = npy::read_bool_matrix(hard.npy, &hard.label)?;
         let mut gt = GroundTruth::new(hard_gt.view()).map_err(|e| in_file(path, e))?;
@@ -240,11 +292,15 @@ mod file {
         npz.check_unread_members()?;
         let calibration =
             with_scores!(scores.view(), |m| Calibration::new(m, &gt, matching)).map_err(|e| in_file(path, e))?;
-        calibration.with_defaults(defaults).map_err(|e| in_file(path, e))
+        // `s` is already matched over the file's sequence length.
+        calibration
+            .with_sequence(sequence)
+            .with_defaults(defaults)
+            .map_err(|e| in_file(path, e))
     }
 
-    /// The matching mode and defaults of a `meta` JSON text.
-    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults)> {
+    /// The matching mode, defaults and sequence length of a `meta` JSON text.
+    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults, usize)> {
         let bad = |message: String| file_error(path, message);
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| bad(format!("has a meta that is not JSON: {e}")))?;
@@ -285,8 +341,11 @@ mod file {
                 .as_deref()
                 .map_or(Ok(Gate::None), str::parse)
                 .map_err(bad_params)?,
+            sequence_gate: meta.params.sequence_gate.map(SequenceParams::from).unwrap_or_default(),
         };
         defaults.validate().map_err(bad_params)?;
-        Ok((matching, defaults))
+        let sequence = meta.params.sequence.unwrap_or(1);
+        Sequence::causal(sequence).validate().map_err(bad_params)?;
+        Ok((matching, defaults, sequence))
     }
 }

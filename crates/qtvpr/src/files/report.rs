@@ -38,8 +38,8 @@
 //!   `matching` is; a query whose best match is soft-only counts as a miss. `null` when
 //!   no deployment query has a hard match.
 //! - `methods`: one object per method asked for, keyed by its name
-//!   (`"quantile-transfer"`, `"schubert"`, `"schubert-calibrated"`,
-//!   `"calibration-threshold"`, `"oracle"`), in the order asked ([`MethodResult`]):
+//!   (`"quantile-transfer"`, `"quantile-transfer-sequence"`, `"schubert"`, ...:
+//!   [`Method`]), in the order asked ([`MethodResult`]):
 //!   - `pct_segs`: %Segs, 100 x segments that meet the target / segments counted;
 //!   - `avg_recall`: AvgR@tauP, the mean over counted segments of their recall if they
 //!     meet the target, else 0;
@@ -56,13 +56,17 @@
 //!     (deployment-query indices, end exclusive: deployment query i is column
 //!     `deployment_start + i`), `threshold` (the method's; reject-all is `null` /
 //!     `inf`; the `margin` method's is always `-inf`, also `null` in JSON: it accepts
-//!     every score and its gate decides), `oracle_threshold`, `gate` (the gated
-//!     methods only, semantics §13: `m*`; reject-all is `null` / `inf`), `tp`, `fp`,
+//!     every score and its gate decides, as the `sequence` method's), `oracle_threshold`,
+//!     `gate` (the methods with the margin gate only, semantics §13: `m*`; reject-all
+//!     is `null` / `inf`), `consistency_level` (the methods with the sequence gate
+//!     only, semantics §15: its level), `tp`, `fp`,
 //!     `positives`, `precision` (1 when nothing is accepted), `recall` (0 without
 //!     positives), `precision_lower95` and `meets` (precision >= tau - 1e-12).
 //! - `confidence` (single matching with |DB| >= 2 only, semantics §14): `{"signals":
-//!   {"score": {"auroc"}, "margin": {"auroc"}, "pa_score": {"auroc"}, "confidence": {"auroc", "brier",
-//!   "ece", "bins"}}}` over the full segments' decisions ([`Signals`]); `bins` is the
+//!   {"score": {"auroc"}, "margin": {"auroc"}, "pa_score": {"auroc"}, "consistency":
+//!   {"auroc"}, "confidence": {"auroc", "brier", "ece", "bins"}}}` over the full
+//!   segments' decisions ([`Signals`]; the consistency is semantics §15's, `null` on a
+//!   database too small for the sequence gate's parameters); `bins` is the
 //!   reliability summary the ECE is computed from, the non-empty ones of 10 equal-width
 //!   bins of [0, 1], each `{"lower", "upper", "n", "mean_confidence", "hit_rate"}`
 //!   ([`ReliabilityBin`]), `null` with the ECE.
@@ -84,7 +88,9 @@
 //! One transfer ([`ThresholdReport`]): `method` (`"quantile-transfer"`), `params`
 //! ([`Params`] with the segment size resolved, and `matching`), `segments` ([`Segment`]:
 //! `start`, `end`, `quantile`, `threshold`; reject-all is `null`), with the margin gate
-//! `gate` (`m*`, semantics §13), `calibration_queries`, `deployment_queries`,
+//! `gate` (`m*`, semantics §13), with the sequence gate `consistency_level` and
+//! `query_consistencies` (each deployment query's, semantics §15),
+//! `calibration_queries`, `deployment_queries`,
 //! `database_size` and, for a similarity matrix (`--val` or `--similarity`),
 //! `orientation` as above: `queries` are its columns, `evidence` that of the ground
 //! truth given (the calibration queries', or every query's for a split).
@@ -93,13 +99,15 @@
 //!
 //! [`Counts`] at one threshold: `tp`, `fp`, `positives`, `precision`, `recall` and
 //! `precision_lower95`, the keys of a segment of `evaluate`. A calibration's
-//! [`Defaults`]: `k`, `precision`, `window` (`None` when the file sets none) and `gate`,
-//! the `params` of its file.
+//! [`Defaults`]: `k`, `precision`, `window` (`None` when the file sets none), `gate`
+//! and `sequence_gate` (`window`, `level`, `speed`, `tolerance`, `drift`), the `params`
+//! of its file.
 //!
 //! [`Evaluation`]: crate::operations::evaluate::Evaluation
 //! [`Layout`]: crate::operations::evaluate::Layout
 //! [`Protocol`]: crate::operations::evaluate::Protocol
 //! [`MethodResult`]: crate::operations::evaluate::MethodResult
+//! [`Method`]: crate::operations::evaluate::Method
 //! [`SegmentResult`]: crate::operations::evaluate::SegmentResult
 //! [`Ablation`]: crate::operations::evaluate::Ablation
 //! [`Signals`]: crate::signals::confidence::Signals
@@ -154,6 +162,13 @@ pub(crate) mod serialize {
         /// With the margin gate (semantics §13): `m*`; left out without it.
         #[serde(skip_serializing_if = "Option::is_none")]
         pub gate: Option<f64>,
+        /// With the sequence gate (semantics §15): its level; left out without it.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        pub consistency_level: Option<f64>,
+        /// With the sequence gate: every deployment query's consistency; left out
+        /// without it.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        pub query_consistencies: Option<&'a [f64]>,
         /// |Qcal|.
         pub calibration_queries: usize,
         /// |Qval|, the queries thresholded.
@@ -192,6 +207,8 @@ pub(crate) mod serialize {
                 },
                 segments: &transfer.segments,
                 gate: transfer.gate,
+                consistency_level: transfer.consistency_level,
+                query_consistencies: transfer.query_consistencies.as_deref(),
                 calibration_queries: cal.len(),
                 deployment_queries,
                 database_size: cal.db_size(),
@@ -230,7 +247,8 @@ mod tests {
             serde_json::to_value(ThresholdReport::new(&cal, &params, &transfer)).unwrap(),
             json!({
                 "method": "quantile-transfer",
-                "params": {"k": 1, "precision": 1.0, "segment_size": 1, "gate": "none", "matching": "multi"},
+                "params": {"k": 1, "precision": 1.0, "segment_size": 1, "gate": "none", "sequence_gate": {
+                    "window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}, "matching": "multi"},
                 "segments": [
                     {"start": 0, "end": 1, "quantile": 0.5, "threshold": 4.0},
                     {"start": 1, "end": 2, "quantile": 1.0, "threshold": 5f64.next_up()},
@@ -265,7 +283,8 @@ mod tests {
         );
         assert_eq!(
             serde_json::to_value(Defaults::default()).unwrap(),
-            json!({"k": 10, "precision": 1.0, "window": null, "gate": "none"})
+            json!({"k": 10, "precision": 1.0, "window": null, "gate": "none", "sequence_gate": {
+                "window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}})
         );
     }
 }

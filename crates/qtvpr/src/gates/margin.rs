@@ -246,7 +246,8 @@ mod tests {
         assert_eq!("margin".parse::<Gate>().unwrap(), Gate::Margin);
         assert_eq!(
             "ratio".parse::<Gate>().unwrap_err().to_string(),
-            "gate must be one of none, margin, got \"ratio\""
+            "gate must be none, or one or more of margin, sequence joined by commas, got \"ratio\": unknown gate \
+             \"ratio\""
         );
         assert!(
             check(Matching::Multi, 10)

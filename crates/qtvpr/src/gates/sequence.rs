@@ -3,7 +3,8 @@
 //!
 //! A robot's queries are a sequence and its database a traverse: when query `j`'s best
 //! match `b_j` is right, the best matches of the queries just before it lie on the line
-//! it draws through the database (the agreement of [`Line`], shared with the
+//! it draws through the database (the agreement of
+//! [`Line`](crate::input::params::Line), shared with the
 //! self-motion labels of §16). The *consistency* of query `j` is the share of its
 //! previous `W` queries (the *window*) whose best matches agree, a query missing from the
 //! window (before the start of the stream) counting as disagreeing; the gate passes a
@@ -19,71 +20,21 @@
 
 use ndarray::ArrayView2;
 
+use super::{GateSignals, QueryGate};
 use crate::error::names::Input;
 use crate::error::{Error, Result};
+pub(crate) use crate::input::params::SequenceParams;
 use crate::input::{Score, validate_scores};
-use crate::rules::agreement::Line;
 use crate::rules::decisions::{Matching, best_match};
-
-/// The window when none is given: the previous 5 queries.
-pub const DEFAULT_SEQUENCE_WINDOW: usize = 5;
-/// The level when none is given: 4 of the previous 5 queries agree.
-pub const DEFAULT_SEQUENCE_LEVEL: f64 = 0.8;
 
 /// The slack of "at least the level" (semantics §3's).
 const LEVEL_SLACK: f64 = 1e-12;
 
-/// The parameters of the sequence gate (semantics §15).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize))]
-pub struct SequenceParams {
-    /// `W >= 1`: how many previous queries a query is compared with.
-    pub window: usize,
-    /// In (0, 1]: the consistency a query needs to pass.
-    pub level: f64,
-    /// The line a best match draws and how near its neighbours must lie
-    /// (`speed`, `tolerance`, `drift`).
-    #[cfg_attr(feature = "serde", serde(flatten))]
-    pub line: Line,
-}
-
-impl Default for SequenceParams {
-    fn default() -> Self {
-        Self {
-            window: DEFAULT_SEQUENCE_WINDOW,
-            level: DEFAULT_SEQUENCE_LEVEL,
-            line: Line::default(),
-        }
-    }
-}
-
 impl SequenceParams {
-    /// Check the window (>= 1), the level (in (0, 1]) and the line
-    /// ([`Line::validate`]).
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the parameter (`sequence window`, `sequence
-    /// level`, ...).
-    pub fn validate(&self) -> Result<()> {
-        if self.window < 1 {
-            return Err(Error::param(
-                "sequence window",
-                format!("must be >= 1, got {}", self.window),
-            ));
-        }
-        if !(self.level > 0.0 && self.level <= 1.0) {
-            return Err(Error::param(
-                "sequence level",
-                format!("must be in (0, 1], got {}", self.level),
-            ));
-        }
-        self.line.validate()
-    }
-
     /// Check that decisions in `matching` mode over a database of `n_db` images can be
     /// gated on their consistency: single matching (the gate keeps or drops a best
     /// match), and a database on which the widest tolerance does not cover every row
-    /// ([`Line`]: `2 floor(a + b W) + 1 < |DB|`).
+    /// (`Line::check_database`: `2 floor(a + b W) + 1 < |DB|`).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] named `gate`.
@@ -95,7 +46,13 @@ impl SequenceParams {
                  accepts every database entry at or above the threshold",
             ));
         }
-        self.line.check_database("the sequence gate", self.window, n_db)
+        // Named `gate`, as the other checks of a gate are (and as front ends spell it).
+        self.line
+            .check_database("sequence", self.window, n_db)
+            .map_err(|e| match e {
+                Error::InvalidParameter { name, message } => Error::param("gate", format!("{name} {message}")),
+                e => e,
+            })
     }
 
     /// How many queries a stream starts with that cannot pass: `ceil(level W)`, the
@@ -119,6 +76,28 @@ impl SequenceParams {
     /// Whether a consistency reaches the level (inclusive).
     pub fn passes(&self, consistency: f64) -> bool {
         consistency >= self.level - LEVEL_SLACK
+    }
+
+    /// How many queries before a query its consistency reads: the window.
+    pub(crate) fn lookback(&self) -> usize {
+        self.window
+    }
+}
+
+/// The sequence gate at its fixed level: nothing of it is calibrated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SequenceGate {
+    /// Its parameters; the level is theirs.
+    pub(crate) params: SequenceParams,
+}
+
+impl QueryGate for SequenceGate {
+    fn level(&self) -> f64 {
+        self.params.level
+    }
+
+    fn passes(&self, query: &GateSignals) -> bool {
+        query.consistency.is_none_or(|c| self.params.passes(c))
     }
 }
 
@@ -147,6 +126,7 @@ pub fn sequence_consistency<T: Score>(s: ArrayView2<'_, T>, params: &SequencePar
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::params::Line;
     use ndarray::Array2;
 
     /// The consistencies of a stream of best matches, with the defaults.

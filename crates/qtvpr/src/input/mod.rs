@@ -22,6 +22,9 @@ pub trait Score: Copy + Default + Send + Sync + PartialOrd + sealed::Sealed + 's
     const DTYPE: &'static str;
     /// Widen to `f64` (exact for both types).
     fn to_f64(self) -> f64;
+    /// Round an `f64` to this type (what a computed score, such as a sequence-matched
+    /// one, is stored as).
+    fn from_f64(v: f64) -> Self;
     /// Sort ascending in IEEE total order (-0.0 before +0.0): a vectorised quicksort
     /// where the CPU has AVX-512, else a radix sort.
     fn sort_ascending(v: &mut [Self]);
@@ -85,6 +88,10 @@ impl Score for f32 {
     fn to_f64(self) -> f64 {
         f64::from(self)
     }
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
 }
 
 impl Score for f64 {
@@ -101,6 +108,10 @@ impl Score for f64 {
     #[inline(always)]
     fn to_f64(self) -> f64 {
         self
+    }
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v
     }
 }
 

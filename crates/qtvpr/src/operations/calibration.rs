@@ -13,14 +13,17 @@ use std::sync::OnceLock;
 use ndarray::{Array2, ArrayView2, ShapeBuilder};
 use rayon::prelude::*;
 
+use crate::error::Error;
 use crate::error::Result;
 use crate::error::names::Input;
+use crate::extensions::sequence::{Sequence, sequence_match};
 use crate::extensions::similarity::{DescriptorColumns, TILE};
 use crate::gates::margin::{self, CalibrationMargins, MarginGate};
+use crate::gates::sequence::SequenceGate;
 use crate::gates::{self, GateSignals, Gates};
 use crate::input::params::Defaults;
-use crate::input::params::Gate;
-use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_precision};
+use crate::input::params::{Gate, SequenceParams};
+use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_precision, validate_scores};
 use crate::operations::chunks::{CHUNK_SCORES, column_major};
 use crate::operations::source::ScoreSource;
 use crate::platform::threads;
@@ -53,6 +56,9 @@ pub struct Calibration {
     input: Option<(ScoreMatrix, GroundTruth)>,
     /// The defaults of a calibration file's `params`.
     defaults: Defaults,
+    /// Its sequence length `L` (semantics §15): 1, or the causal sequence matching its
+    /// scores went through, which every deployment column goes through too.
+    sequence: usize,
     /// The single-match decisions with their margins, for the gate's `m*`: found on the
     /// first request for a gate (a pass over every profile that a calibration never
     /// gated should not pay).
@@ -157,6 +163,72 @@ impl Calibration {
         }
     }
 
+    /// A calibration that decides each query on its causal sequence-matched column
+    /// (semantics §15, online sequence matching): [`Calibration::new`] of the scores
+    /// matched by [`sequence_match`] with [`Sequence::causal`]`(length)` over the
+    /// calibration traverse (its columns in order), with sequence length `length`. Every
+    /// transfer and online state that uses it matches its deployment columns the same
+    /// way; a calibration file keeps the matched scores and `length`. A length of 1 is
+    /// [`Calibration::new`].
+    ///
+    /// # Errors
+    /// As [`Calibration::new`]; a length that is even or 0
+    /// ([`Error::InvalidParameter`] named `sequence`).
+    pub fn new_sequence<'s, 'd: 's>(
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        gt: &GroundTruth,
+        matching: Matching,
+        length: usize,
+    ) -> Result<Self> {
+        let sequence = Sequence::causal(length);
+        sequence.validate()?;
+        if length == 1 {
+            return Self::new(scores, gt, matching);
+        }
+        let source = scores.into();
+        let calibration = source.with_matrix(|s| {
+            with_scores!(s, |s| {
+                validate_scores(Input::CalSimilarity, s)?;
+                let matched = sequence_match(s, sequence)?;
+                Self::new(matched.view(), gt, matching)
+            })
+        })?;
+        Ok(calibration.with_sequence(length))
+    }
+
+    /// The same calibration, its scores taken as matched over `length` (a calibration
+    /// file's `params.sequence`, whose `s` is already matched).
+    pub(crate) fn with_sequence(mut self, length: usize) -> Self {
+        self.sequence = length;
+        self
+    }
+
+    /// Its sequence length `L` (semantics §15): 1 (each query decided on its own
+    /// column), or the causal sequence matching of [`Calibration::new_sequence`].
+    pub fn sequence(&self) -> usize {
+        self.sequence
+    }
+
+    /// Check a sequence length asked for against this calibration's: `None` (take the
+    /// calibration's) or the same length. `L` belongs to the calibration (semantics §15):
+    /// another one would decide on columns matched otherwise than the calibration's.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] named `sequence`, naming both lengths.
+    pub fn check_sequence(&self, sequence: Option<usize>) -> Result<()> {
+        match sequence {
+            Some(length) if length != self.sequence => Err(Error::param(
+                "sequence",
+                format!(
+                    "{length} is not the calibration's sequence length {}: the length belongs to the \
+                     calibration, whose scores were matched over it (calibrate with that length instead)",
+                    self.sequence
+                ),
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// A calibration that only transfers: the same thresholds, neighbours and records as
     /// [`Calibration::new`] of the same input, bit for bit, but it keeps neither its
     /// scores nor its ground truth, so it cannot be saved. It takes the ground truth by
@@ -252,6 +324,7 @@ impl Calibration {
             candidates,
             input,
             defaults: Defaults::default(),
+            sequence: 1,
             margins: OnceLock::new(),
             confidence: OnceLock::new(),
         }
@@ -261,8 +334,9 @@ impl Calibration {
     /// `params` (what `Calibration::load` gives a loaded one).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`](crate::Error::InvalidParameter) for `k` 0, a precision outside (0, 1], a window of 0,
-    /// or a margin gate on a calibration that cannot have one (`margin::check`).
+    /// [`Error::InvalidParameter`] for `k` 0, a precision outside (0, 1], a window of 0,
+    /// bad sequence gate parameters, or a gate the calibration cannot have
+    /// ([`Calibration::check_gate`]).
     pub fn with_defaults(mut self, defaults: Defaults) -> Result<Self> {
         self.check_defaults(&defaults)?;
         self.defaults = defaults;
@@ -276,16 +350,29 @@ impl Calibration {
     /// [`Error::InvalidParameter`](crate::Error::InvalidParameter) naming the parameter.
     pub fn check_defaults(&self, defaults: &Defaults) -> Result<()> {
         defaults.validate()?;
-        self.check_gate(defaults.gate)
+        self.check_gate(defaults.gate, &defaults.sequence_gate)
     }
 
-    /// Check that decisions on this calibration can be gated with `gate`.
+    /// Check that decisions on this calibration can be gated with `gate`, the sequence
+    /// gate with `sequence` ([`check_gate`](crate::check_gate)).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`](crate::Error::InvalidParameter) naming the gate when
-    /// one it enables does not apply (`margin::check`: multi matching, |DB| < 2).
-    pub fn check_gate(&self, gate: Gate) -> Result<()> {
-        gates::check(gate, self.matching, self.n_db)
+    /// [`Error::InvalidParameter`] naming the gate when one it enables does not apply
+    /// (multi matching; the margin gate with |DB| < 2, the sequence gate on a database
+    /// its widest tolerance covers).
+    pub fn check_gate(&self, gate: Gate, sequence: &SequenceParams) -> Result<()> {
+        gates::check(gate, sequence, self.matching, self.n_db)
+    }
+
+    /// How many queries before a deployment query its decision reads besides its own
+    /// column (semantics §15), when `gate` has the sequence gate with `sequence`: its
+    /// window (the previous best matches its consistency reads), and with a sequence
+    /// length `L > 1` the `L - 1` raw columns before each matched one. What a block of a
+    /// stream must be preceded by ([`Calibration::transfer_block`]); an online state adds
+    /// its threshold window ([`crate::Online::lookback`]).
+    pub fn lookback(&self, gate: Gate, sequence: &SequenceParams) -> usize {
+        let consistency = if gate.sequence() { sequence.lookback() } else { 0 };
+        consistency + (self.sequence - 1)
     }
 
     /// The defaults this calibration was loaded with ([`Defaults::default`] for one built
@@ -366,6 +453,8 @@ impl Calibration {
             quantile,
             gates: GateSignals {
                 margin: wanted.margin.then(|| margin::of_sorted(ranked.column(j))),
+                // Read from the stream, not the column: set where the stream is known.
+                consistency: None,
             },
             pa_score: wanted
                 .pa_score
@@ -449,17 +538,19 @@ impl Calibration {
     }
 
     /// The gates `gate` enables, each at its level on this calibration at precision
-    /// target `precision`: what every decision of a transfer, an online state or the
-    /// protocol is taken through ([`Gates`]).
+    /// target `precision` (the sequence gate's, `sequence`, fixed): what every decision
+    /// of a transfer, an online state or the protocol is taken through ([`Gates`]).
     ///
     /// # Errors
     /// As [`Calibration::check_gate`]; tau outside (0, 1].
-    pub(crate) fn gates(&self, gate: Gate, precision: f64) -> Result<Gates> {
-        self.check_gate(gate)?;
+    pub(crate) fn gates(&self, gate: Gate, sequence: &SequenceParams, precision: f64) -> Result<Gates> {
+        self.check_gate(gate, sequence)?;
         Ok(Gates {
-            margin: (gate == Gate::Margin)
+            margin: gate
+                .margin()
                 .then(|| self.gate(precision).map(|level| MarginGate { level }))
                 .transpose()?,
+            sequence: gate.sequence().then_some(SequenceGate { params: *sequence }),
         })
     }
 }

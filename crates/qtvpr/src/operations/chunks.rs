@@ -6,12 +6,13 @@
 
 use std::ops::Range;
 
-use ndarray::{ArrayView2, ArrayViewMut2, ShapeBuilder};
+use ndarray::{ArrayView1, ArrayView2, ArrayViewMut2, ShapeBuilder};
 
 use crate::error::Result;
 use crate::error::names::Input;
 use crate::extensions::similarity::DescriptorColumns;
 use crate::input::Score;
+use crate::rules::decisions::best_match;
 use crate::rules::ranked_correlation::Ranked;
 
 /// Deployment scores per chunk (32 MB of f64 working memory).
@@ -28,8 +29,16 @@ pub(crate) trait Chunks {
     /// only in consecutive chunks.
     fn whole(&self) -> Option<ArrayView2<'_, Self::T>>;
     /// Gather, check, sort and standardise the scores of deployment queries `r` into
-    /// `ranked`.
-    fn rank(&mut self, ranked: &mut Ranked<Self::T>, r: Range<usize>) -> Result<()>;
+    /// `ranked`; with `best`, also write each query's best match (semantics §2: the
+    /// first maximum of its column) there, before its column is sorted.
+    fn rank(&mut self, ranked: &mut Ranked<Self::T>, r: Range<usize>, best: Option<&mut [usize]>) -> Result<()>;
+}
+
+/// The best match of each column of a column-major |DB| x n buffer, into `best`.
+fn best_of_columns<T: Score>(n_db: usize, scores: &[T], best: &mut [usize]) {
+    for (b, column) in best.iter_mut().zip(scores.chunks_exact(n_db)) {
+        *b = best_match(ArrayView1::from(column));
+    }
 }
 
 impl<T: Score> Chunks for ArrayView2<'_, T> {
@@ -40,9 +49,16 @@ impl<T: Score> Chunks for ArrayView2<'_, T> {
     fn whole(&self) -> Option<ArrayView2<'_, T>> {
         Some(self.view())
     }
-    fn rank(&mut self, ranked: &mut Ranked<T>, r: Range<usize>) -> Result<()> {
+    fn rank(&mut self, ranked: &mut Ranked<T>, r: Range<usize>, best: Option<&mut [usize]>) -> Result<()> {
         let first = r.start;
-        ranked.refill(Input::DeploymentSimilarity, self.slice(ndarray::s![.., r]), first)
+        let columns = self.slice(ndarray::s![.., r]);
+        ranked.refill(Input::DeploymentSimilarity, columns, first)?;
+        if let Some(best) = best {
+            for (b, column) in best.iter_mut().zip(columns.columns()) {
+                *b = best_match(column);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -61,11 +77,14 @@ impl Chunks for Fused<'_, '_> {
     fn whole(&self) -> Option<ArrayView2<'_, f32>> {
         None
     }
-    fn rank(&mut self, ranked: &mut Ranked<f32>, r: Range<usize>) -> Result<()> {
+    fn rank(&mut self, ranked: &mut Ranked<f32>, r: Range<usize>, best: Option<&mut [usize]>) -> Result<()> {
         // Computed where they are sorted: the chunk is never copied.
         let shape = (self.dim.0, r.len());
         ranked.refill_with(Input::DeploymentSimilarity, shape, r.start, |out| {
-            self.columns.fill(r, column_major(shape, out));
+            self.columns.fill(r, column_major(shape, &mut *out));
+            if let Some(best) = best {
+                best_of_columns(shape.0, out, best);
+            }
         })
     }
 }

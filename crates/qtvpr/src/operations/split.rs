@@ -119,7 +119,9 @@ impl QuerySplit {
     ///
     /// The calibration keeps neither the scores nor the ground truth
     /// ([`Calibration::for_transfer`]); it is returned with the transfer, for what a
-    /// report says of it.
+    /// report says of it. The queries split are one traverse, one stream (semantics
+    /// §15): the deployment queries' decisions look back into the calibration queries
+    /// (the sequence gate's consistency reads their best matches, never their labels).
     ///
     /// # Errors
     /// [`SplitError::Calibration`] for the calibration's input (its similarity, its
@@ -135,9 +137,19 @@ impl QuerySplit {
         let scores = scores.into();
         let cal = Calibration::for_transfer(scores.columns(self.calibration()), gt, matching)
             .map_err(SplitError::Calibration)?;
+        let options = options.into();
+        let p = &options.params;
+        let before = cal.lookback(p.gate, &p.sequence_gate).min(self.calibration_queries);
+        let (dep, first) = (self.deployment(), self.queries.start);
+        // Errors name columns of the columns given, which start `before` columns into
+        // the calibration queries.
         let out = cal
-            .transfer(scores.columns(self.deployment()), options)
-            .map_err(|e| SplitError::Deployment(self.deployment_error(e)))?;
+            .transfer_after(
+                scores.columns(dep.start - before - first..dep.end - first),
+                options,
+                before,
+            )
+            .map_err(|e| SplitError::Deployment(e.shifted(self.calibration_queries - before)))?;
         Ok((cal, out))
     }
 }

@@ -18,6 +18,15 @@
 //! so the |DB| x |Qval| matrix never exists and the result is that of the matrix, bit
 //! for bit. Such a source has no random access, so a chunk then always holds whole
 //! segments (one segment when a segment is larger than the base chunk).
+//!
+//! With the sequence gate (semantics §15) the transfer also gives each query's
+//! consistency, from its best match and those of the queries before it in the stream:
+//! the deployment columns in order, preceded by the columns a caller gives as what
+//! comes before them ([`Calibration::transfer_block`]: a split traverse's calibration
+//! queries, a scheduler's previous block). A calibration with a sequence length `L > 1`
+//! matches the deployment matrix causally first ([`sequence_match`]), so the transfer
+//! is that of `similarity --sequence L --causal`'s matrix; from descriptors, that matrix
+//! is computed in memory.
 
 use std::ops::Range;
 
@@ -26,9 +35,11 @@ use rayon::prelude::*;
 
 use crate::error::names::Input;
 use crate::error::{Error, Result};
+use crate::extensions::sequence::{Sequence, sequence_match};
 use crate::extensions::similarity::DescriptorColumns;
-use crate::input::check_nonempty;
+use crate::gates::sequence::of_best_matches;
 use crate::input::params::{Options, Params};
+use crate::input::{check_nonempty, validate_scores};
 use crate::operations::calibration::{Calibration, Wanted};
 use crate::operations::chunks::{CHUNK_SCORES, Chunks, Fused};
 use crate::operations::source::ScoreSource;
@@ -75,6 +86,12 @@ pub struct Transfer {
     /// Beside [`Transfer::query_confidences`]: the one-sided 95% Clopper-Pearson lower
     /// bound of each.
     pub query_confidences_lower95: Option<Vec<f64>>,
+    /// With the sequence gate (semantics §15): its level, the consistency a query's best
+    /// match needs besides a score at or above its segment's threshold.
+    pub consistency_level: Option<f64>,
+    /// With the sequence gate: every deployment query's consistency with the queries
+    /// before it in the stream.
+    pub query_consistencies: Option<Vec<f64>>,
 }
 
 /// Every field equal, a NaN confidence (a calibration without a decision) equal to a
@@ -96,6 +113,8 @@ impl PartialEq for Transfer {
             && self.query_margins == other.query_margins
             && same(&self.query_confidences, &other.query_confidences)
             && same(&self.query_confidences_lower95, &other.query_confidences_lower95)
+            && self.consistency_level == other.consistency_level
+            && self.query_consistencies == other.query_consistencies
     }
 }
 impl Calibration {
@@ -123,7 +142,7 @@ impl Calibration {
         scores: impl Into<ScoreSource<'s, 'd>>,
         options: impl Into<Options<'p, Params>>,
     ) -> Result<Transfer> {
-        self.transfer_in_chunks(scores.into(), &options.into(), CHUNK_SCORES)
+        self.transfer_in_chunks(scores.into(), &options.into(), CHUNK_SCORES, 0)
     }
 
     /// [`Calibration::transfer`] of a block of a larger deployment set: the columns of
@@ -148,6 +167,61 @@ impl Calibration {
         Ok(out)
     }
 
+    /// [`Calibration::transfer_at`] of a block of a stream preceded by what its
+    /// decisions look back at: the first `before` columns of `scores` are the queries
+    /// `first_query - before .. first_query` of the stream, read only for the
+    /// consistency of the sequence gate (their best matches) and the causal sequence
+    /// matching of a calibration with `L > 1` (their raw scores); the other columns are
+    /// the block's queries, `first_query..`, thresholded. With `before` equal to
+    /// `min(first_query, self.lookback(...))` ([`Calibration::lookback`]) the block's
+    /// result is that of the whole stream's transfer, so that a scheduler can cut a
+    /// stream into blocks (or a split traverse's deployment queries can look back into
+    /// its calibration queries). Segments count from `first_query`, and the column of a
+    /// non-finite score in the stream (from `first_query - before`).
+    ///
+    /// # Errors
+    /// As [`Calibration::transfer`]; `before` larger than `first_query` or than the
+    /// columns of `scores` less one ([`Error::InvalidParameter`] named `before`).
+    pub fn transfer_block<'s, 'd: 's, 'p>(
+        &self,
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        options: impl Into<Options<'p, Params>>,
+        first_query: usize,
+        before: usize,
+    ) -> Result<Transfer> {
+        let scores = scores.into();
+        let n = scores.dim().1;
+        if before > first_query || before >= n.max(1) {
+            return Err(Error::param(
+                "before",
+                format!(
+                    "must be at most the block's first query ({first_query}) and leave a query of the {n} \
+                     columns to threshold, got {before}"
+                ),
+            ));
+        }
+        let mut out = self
+            .transfer_after(scores, options, before)
+            .map_err(|e| e.shifted(first_query - before))?;
+        for segment in &mut out.segments {
+            segment.start += first_query;
+            segment.end += first_query;
+        }
+        Ok(out)
+    }
+
+    /// The transfer of the columns of `scores` after its first `before`, which are what
+    /// the decisions look back at ([`Calibration::transfer_block`]); segments count from
+    /// the first column after them, errors name columns of `scores`.
+    pub(crate) fn transfer_after<'s, 'd: 's, 'p>(
+        &self,
+        scores: impl Into<ScoreSource<'s, 'd>>,
+        options: impl Into<Options<'p, Params>>,
+        before: usize,
+    ) -> Result<Transfer> {
+        self.transfer_in_chunks(scores.into(), &options.into(), CHUNK_SCORES, before)
+    }
+
     /// What [`Calibration::transfer`] of a deployment similarity of shape `shape`
     /// (|DB| x |Qval|) refuses before it reads a score, in the same order: invalid
     /// parameters, an empty matrix, a |DB| other than the calibration's, a segment size
@@ -166,23 +240,37 @@ impl Calibration {
             });
         }
         segments(shape.1, params.segment_size)?;
-        self.check_gate(params.gate)
+        self.check_gate(params.gate, &params.sequence_gate)
     }
 
-    /// The transfer, with deployment chunks of about `chunk_scores` scores.
+    /// The transfer, with deployment chunks of about `chunk_scores` scores, of the
+    /// columns of `source` after its first `before` (what the decisions look back at).
+    /// Errors name columns of `source`.
     fn transfer_in_chunks(
         &self,
         source: ScoreSource<'_, '_>,
         options: &Options<'_, Params>,
         chunk_scores: usize,
+        before: usize,
     ) -> Result<Transfer> {
         let params = &options.params;
         params.validate()?;
         let progress = |done, total| options.report(done, total);
+        if self.sequence() > 1 {
+            // Matched causally over the stream given, as the calibration was: in memory.
+            check_nonempty(Input::DeploymentSimilarity, source.dim())?;
+            return source.with_matrix(|s| {
+                with_scores!(s, |s| {
+                    validate_scores(Input::DeploymentSimilarity, s)?;
+                    let matched = sequence_match(s, Sequence::causal(self.sequence()))?;
+                    self.transfer_from(matched.view(), params, progress, chunk_scores, before)
+                })
+            });
+        }
         match source {
             ScoreSource::Matrix(s) => {
                 check_nonempty(Input::DeploymentSimilarity, s.dim())?;
-                with_scores!(s, |s| self.transfer_from(s, params, progress, chunk_scores))
+                with_scores!(s, |s| self.transfer_from(s, params, progress, chunk_scores, before))
             }
             ScoreSource::Descriptors(d, queries) => {
                 d.check_range(&queries)?;
@@ -190,30 +278,40 @@ impl Calibration {
                     dim: (d.shape().0, queries.len()),
                     columns: DescriptorColumns::new(d, queries.start),
                 };
-                self.transfer_from(columns, params, progress, chunk_scores)
+                self.transfer_from(columns, params, progress, chunk_scores, before)
             }
         }
     }
 
     /// The transfer, reading deployment scores from `source` in chunks of about
-    /// `chunk_scores` scores.
+    /// `chunk_scores` scores: its columns after the first `before`, which only give
+    /// their best matches to the consistency (semantics §15).
     fn transfer_from<S: Chunks>(
         &self,
         mut source: S,
         params: &Params,
         progress: impl Fn(usize, usize),
         chunk_scores: usize,
+        before: usize,
     ) -> Result<Transfer> {
-        let (n_db, n_val) = source.dim();
+        let (n_db, n_all) = source.dim();
         if n_db != self.db_size() {
             return Err(Error::DatabaseMismatch {
                 calibration: self.db_size(),
                 deployment: n_db,
             });
         }
+        let n_val = n_all - before;
         let ranges = segments(n_val, params.segment_size)?;
         let k = params.k.min(self.len());
-        let gates = self.gates(params.gate, params.precision)?;
+        let gates = self.gates(params.gate, &params.sequence_gate, params.precision)?;
+        // The best matches of the stream given, for the consistency: those of the
+        // columns before the deployment queries first (ranked for them alone).
+        let mut best = gates.sequence.map(|_| vec![0; n_all]);
+        let mut ranked = Ranked::default();
+        if let Some(best) = best.as_mut().filter(|_| before > 0) {
+            source.rank(&mut ranked, 0..before, Some(&mut best[..before]))?;
+        }
         let mut query_margins = gates.margin.map(|_| vec![0.0; n_val]);
         // Found before the parallel loops, which only read it.
         let confidence = self.confidence_of_decisions();
@@ -240,10 +338,10 @@ impl Calibration {
         } else {
             base
         };
-        let mut ranked = Ranked::default();
         for start in (0..n_val).step_by(chunk) {
             let end = (start + chunk).min(n_val);
-            source.rank(&mut ranked, start..end)?;
+            let here = best.as_mut().map(|b| &mut b[before + start..before + end]);
+            source.rank(&mut ranked, before + start..before + end, here)?;
             for (j, r) in (start..end).zip(self.queries(&ranked, k, params.precision, wanted)) {
                 neighbours
                     .row_mut(j)
@@ -277,12 +375,16 @@ impl Calibration {
                 ranges
                     .into_par_iter()
                     .map(|r| {
-                        let scores = s.slice(ndarray::s![.., r.clone()]);
+                        let scores = s.slice(ndarray::s![.., before + r.start..before + r.end]);
                         segment(r, &query_quantiles, &query_weights, |q| deployment_threshold(scores, q))
                     })
                     .collect()
             });
         }
+        let query_consistencies = gates
+            .sequence
+            .zip(best)
+            .map(|(g, best)| of_best_matches(&g.params, &best).split_off(before));
         Ok(Transfer {
             segments,
             query_quantiles,
@@ -293,6 +395,8 @@ impl Calibration {
             query_margins,
             query_confidences: query_confidences.as_ref().map(|c| c.0.clone()),
             query_confidences_lower95: query_confidences.map(|c| c.1),
+            consistency_level: gates.consistency_level(),
+            query_consistencies,
         })
     }
 }
@@ -340,6 +444,7 @@ pub(crate) mod tests {
             precision: 1.0,
             segment_size,
             gate: Gate::None,
+            sequence_gate: Default::default(),
         }
     }
 
@@ -425,6 +530,7 @@ pub(crate) mod tests {
                     precision: 0.6,
                     segment_size: None,
                     gate: Gate::None,
+                    sequence_gate: Default::default(),
                 },
             )
             .unwrap();
@@ -462,11 +568,12 @@ pub(crate) mod tests {
                     precision: 0.8,
                     segment_size,
                     gate: Gate::None,
+                    sequence_gate: Default::default(),
                 };
                 let one = cal
-                    .transfer_in_chunks(s_val.view().into(), &(&p).into(), usize::MAX)
+                    .transfer_in_chunks(s_val.view().into(), &(&p).into(), usize::MAX, 0)
                     .unwrap();
-                let many = cal.transfer_in_chunks(s_val.view().into(), &(&p).into(), 0).unwrap();
+                let many = cal.transfer_in_chunks(s_val.view().into(), &(&p).into(), 0, 0).unwrap();
                 assert_eq!(one, many, "{matching:?} {segment_size:?}");
                 let calls = std::cell::Cell::new(0);
                 let count = |done, total| {
@@ -474,7 +581,7 @@ pub(crate) mod tests {
                     assert_eq!(total, 45);
                     assert!(done <= total);
                 };
-                cal.transfer_in_chunks(s_val.view().into(), &Options::new(p).progress(&count), 0)
+                cal.transfer_in_chunks(s_val.view().into(), &Options::new(p).progress(&count), 0, 0)
                     .unwrap();
                 assert_eq!(calls.get(), 3, "45 queries in chunks of 16 (or 15)");
             }
@@ -514,6 +621,7 @@ pub(crate) mod tests {
                     precision: 0.8,
                     segment_size,
                     gate: Gate::None,
+                    sequence_gate: Default::default(),
                 };
                 let want = cal.transfer(s.slice(ndarray::s![.., 23..]), &p).unwrap();
                 for c in &lean {
@@ -528,6 +636,7 @@ pub(crate) mod tests {
                             ScoreSource::Descriptors(&d, 23..130),
                             &Options::new(p).progress(&record),
                             chunk_scores,
+                            0,
                         )
                         .unwrap();
                     assert_eq!(got, want, "{matching:?} {segment_size:?} {chunk_scores}");

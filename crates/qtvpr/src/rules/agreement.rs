@@ -11,63 +11,16 @@
 //! compared in `f64` (exact below 2^53).
 
 use crate::error::{Error, Result};
-
-/// The speed ratio when none is given: both traverses at the same spacing.
-pub const DEFAULT_SPEED: f64 = 1.0;
-/// The tolerance of one step when none is given, in database rows.
-pub const DEFAULT_TOLERANCE: f64 = 2.0;
-/// How much the tolerance widens per step away when none is given, in rows per step.
-pub const DEFAULT_DRIFT: f64 = 0.2;
+// The parameters, defined with every request's (`input/params.rs`), so that a request
+// below this layer can hold them.
+pub(crate) use crate::input::params::Line;
 
 /// The slack that makes a tolerance inclusive whatever the rounding of `a + b |d|`
 /// (`2 + 0.2 * 3` is `2.6000000000000001`): far below the spacing of the values
 /// compared (integer rows, and `v d` for speeds of a few digits), so it decides ties only.
 const SLACK: f64 = 1e-9;
 
-/// The line a query's best match draws through the database, and how near another
-/// query's best match must lie to agree with it (semantics §15).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize))]
-pub struct Line {
-    /// `v`: database rows per query (1: the same spacing; -1: the route driven backwards).
-    pub speed: f64,
-    /// `a >= 0`: how far from the prediction a neighbour one step away may lie, in rows.
-    pub tolerance: f64,
-    /// `b >= 0`: how much that widens per step away, in rows per step.
-    pub drift: f64,
-}
-
-impl Default for Line {
-    fn default() -> Self {
-        Self {
-            speed: DEFAULT_SPEED,
-            tolerance: DEFAULT_TOLERANCE,
-            drift: DEFAULT_DRIFT,
-        }
-    }
-}
-
 impl Line {
-    /// Check that the speed is finite and the tolerance and drift finite and `>= 0`.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the parameter (`sequence speed`, `sequence
-    /// tolerance` or `sequence drift`).
-    pub fn validate(&self) -> Result<()> {
-        if !self.speed.is_finite() {
-            return Err(Error::param(
-                "sequence speed",
-                format!("must be finite, got {}", self.speed),
-            ));
-        }
-        for (name, value) in [("sequence tolerance", self.tolerance), ("sequence drift", self.drift)] {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(Error::param(name, format!("must be finite and >= 0, got {value}")));
-            }
-        }
-        Ok(())
-    }
-
     /// Whether `other`, the best match of the query `d` steps from the query whose best
     /// match is `best` (`d < 0` earlier, `d > 0` later), lies on that query's line:
     /// `|other - (best + v d)| <= a + b |d|`, inclusive.

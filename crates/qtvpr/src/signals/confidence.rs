@@ -322,8 +322,8 @@ pub fn ece(bins: &[ReliabilityBin]) -> f64 {
 /// how well each signal ranks right above wrong best matches, and how well the
 /// confidence is calibrated. Serialised as
 /// `{"signals": {"score": {"auroc"}, "margin": {"auroc"}, "pa_score": {"auroc"},
-/// "confidence": {"auroc", "brier", "ece", "bins"}}}`; a figure without the decisions
-/// it needs is `null`.
+/// "consistency": {"auroc"}, "confidence": {"auroc", "brier", "ece", "bins"}}}`; a
+/// figure without the decisions it needs is `null`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Signals {
     /// AUROC of the best score `s1`.
@@ -332,6 +332,9 @@ pub struct Signals {
     pub margin_auroc: Option<f64>,
     /// AUROC of the PA-score, lower ranked higher (that of its negation).
     pub pa_score_auroc: Option<f64>,
+    /// AUROC of the consistency of semantics §15 (`None` also where the database is too
+    /// small for the sequence gate's parameters).
+    pub consistency_auroc: Option<f64>,
     /// AUROC of the confidence.
     pub confidence_auroc: Option<f64>,
     /// The confidence's Brier score: the mean of `(confidence - c)^2`.
@@ -353,6 +356,8 @@ pub struct Signal {
     pub margin: f64,
     /// The PA-score.
     pub pa_score: f64,
+    /// The consistency (semantics §15), where it can be had.
+    pub consistency: Option<f64>,
     /// Whether the best match is right.
     pub correct: bool,
 }
@@ -360,21 +365,23 @@ pub struct Signal {
 impl Signals {
     /// The figures' names, in the order of [`Signals::figures`]: the CSV columns and the
     /// keys of the table.
-    pub const FIGURES: [&'static str; 6] = [
+    pub const FIGURES: [&'static str; 7] = [
         "auroc_score",
         "auroc_margin",
         "auroc_pa_score",
+        "auroc_consistency",
         "auroc_confidence",
         "brier",
         "ece",
     ];
 
     /// The figures named by [`Signals::FIGURES`].
-    pub fn figures(&self) -> [Option<f64>; 6] {
+    pub fn figures(&self) -> [Option<f64>; 7] {
         [
             self.score_auroc,
             self.margin_auroc,
             self.pa_score_auroc,
+            self.consistency_auroc,
             self.confidence_auroc,
             self.brier,
             self.ece,
@@ -394,6 +401,11 @@ impl Signals {
             score_auroc: of(|d| d.score),
             margin_auroc: of(|d| d.margin),
             pa_score_auroc: of(|d| -d.pa_score),
+            consistency_auroc: decisions
+                .iter()
+                .map(|d| d.consistency)
+                .collect::<Option<Vec<f64>>>()
+                .and_then(|x| auroc(&x, &c)),
             confidence_auroc: auroc(&p, &c).filter(|_| calibrated),
             brier: calibrated.then(|| {
                 p.iter()
@@ -434,10 +446,11 @@ impl serde::Serialize for Signals {
         struct All<'a>(&'a Signals);
         impl serde::Serialize for All<'_> {
             fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
-                let mut m = serializer.serialize_map(Some(4))?;
+                let mut m = serializer.serialize_map(Some(5))?;
                 m.serialize_entry("score", &Auroc(self.0.score_auroc))?;
                 m.serialize_entry("margin", &Auroc(self.0.margin_auroc))?;
                 m.serialize_entry("pa_score", &Auroc(self.0.pa_score_auroc))?;
+                m.serialize_entry("consistency", &Auroc(self.0.consistency_auroc))?;
                 m.serialize_entry("confidence", &Calibrated(self.0))?;
                 m.end()
             }
@@ -742,16 +755,18 @@ mod tests {
         let map = ConfidenceMap::fit([(0.8, false), (0.8, false), (0.2, true), (0.2, true)]);
         // (score, margin, PA-score, correct): scores 0.9 (right), 0.8 (wrong), 0.8
         // (right), 0.5 (wrong); margins 3, 1, 2.5, 0.5; PA-scores 0.2, 0.5, 0.8, 1.
+        // Consistencies 1, 0.2, 0.6, 0.6.
         let d: Vec<Signal> = [
-            (0.9, 3.0, 0.2, true),
-            (0.8, 1.0, 0.5, false),
-            (0.8, 2.5, 0.8, true),
-            (0.5, 0.5, 1.0, false),
+            (0.9, 3.0, 0.2, 1.0, true),
+            (0.8, 1.0, 0.5, 0.2, false),
+            (0.8, 2.5, 0.8, 0.6, true),
+            (0.5, 0.5, 1.0, 0.6, false),
         ]
-        .map(|(score, margin, pa_score, correct)| Signal {
+        .map(|(score, margin, pa_score, consistency, correct)| Signal {
             score,
             margin,
             pa_score,
+            consistency: Some(consistency),
             correct,
         })
         .to_vec();
@@ -762,6 +777,18 @@ mod tests {
         // PA-score, lower ranked higher: right {0.2, 0.8} against wrong {0.5, 1}: 0.2
         // beats both, 0.8 beats 1 only: 3 / 4. The confidence ranks as it does.
         assert_eq!((s.pa_score_auroc, s.confidence_auroc), (Some(0.75), Some(0.75)));
+        // Consistency: right {1, 0.6} against wrong {0.2, 0.6}: 1 beats both, 0.6 beats
+        // 0.2 and ties 0.6 (a half): 3.5 / 4. Without it for every decision, none.
+        assert_eq!(s.consistency_auroc, Some(0.875));
+        let partial: Vec<Signal> = d
+            .iter()
+            .enumerate()
+            .map(|(i, x)| Signal {
+                consistency: (i > 0).then_some(0.5),
+                ..*x
+            })
+            .collect();
+        assert_eq!(Signals::of(&partial, &map).consistency_auroc, None);
         // Confidences 3/4, 1/2, 1/4, 0: Brier (1/16 + 1/4 + 9/16 + 0) / 4 = 7/32.
         assert_eq!(s.brier, Some(7.0 / 32.0));
         // Bins 7 (right), 5 (wrong), 2 (right), 0 (wrong): ECE (1/4 + 1/2 + 3/4 + 0) / 4.

@@ -40,6 +40,7 @@ use rayon::prelude::*;
 use crate::error::Result;
 use crate::error::names::Input;
 use crate::gates::margin;
+use crate::gates::sequence::of_best_matches;
 use crate::gates::{self, GateSignals};
 use crate::input::params::Gate;
 use crate::input::params::{Options, Params};
@@ -49,7 +50,7 @@ use crate::operations::source::ScoreSource;
 use crate::platform::threads;
 use crate::rules::baselines::schubert;
 use crate::rules::best_threshold::subset_threshold;
-use crate::rules::decisions::{Candidates, Matching};
+use crate::rules::decisions::{Candidates, Matching, best_match};
 use crate::signals::confidence::{self, ConfidenceMap, Signal, Signals};
 use online::online_segments;
 use results::{score, summarise};
@@ -124,10 +125,10 @@ fn evaluate_matrix<T: Score>(
             .map(|r| subset_threshold(&deployment, &r.clone().collect::<Vec<_>>(), tau))
             .collect()
     });
-    // The gate of the gated methods (semantics §13), checked before any work.
-    let gate = unique.iter().map(|m| m.gate()).find(|g| g.is_on()).unwrap_or_default();
+    // The gates of the gated methods (semantics §13, §15), checked before any work.
+    let gate = unique.iter().fold(Gate::None, |g, m| g.union(m.gate()));
     let gated = gate.is_on();
-    gates::check(gate, protocol.matching, s.nrows())?;
+    gates::check(gate, &protocol.sequence_gate, protocol.matching, s.nrows())?;
     let needs_calibration = unique.iter().any(|m| {
         m.is_gated()
             || matches!(
@@ -141,12 +142,26 @@ fn evaluate_matrix<T: Score>(
     // The gate's margins (of scores validated above) and m*, and the quantile-transfer
     // thresholds: each found once for the methods that share them.
     let confident = protocol.matching == Matching::Single && s.nrows() >= 2;
-    let dep_margins = (gated || confident).then(|| margin::of_columns(s_dep));
+    let dep_margins = (gate.margin() || confident).then(|| margin::of_columns(s_dep));
+    // Semantics §15: every deployment query's consistency, over the whole traverse in
+    // column order (the calibration queries are its first queries), for the sequence
+    // methods and as a signal (where the database can tell a line from chance).
+    let sequence = &protocol.sequence_gate;
+    let consistent = protocol.matching == Matching::Single && sequence.check(Matching::Single, s.nrows()).is_ok();
+    let dep_consistencies = (gate.sequence() || (confident && consistent)).then(|| {
+        let best: Vec<usize> = s.columns().into_iter().map(best_match).collect();
+        let first = layout.deployment_start;
+        of_best_matches(sequence, &best)[first..first + layout.segments * size].to_vec()
+    });
     let gates = if gated {
         let cal = calibration.as_ref().expect("built for the gate");
-        let margins = dep_margins.as_ref().expect("found for the gate");
-        let signals: Vec<GateSignals> = margins.iter().map(|&m| GateSignals { margin: Some(m) }).collect();
-        Some((cal.gates(gate, tau)?, signals))
+        let signals: Vec<GateSignals> = (0..layout.segments * size)
+            .map(|j| GateSignals {
+                margin: dep_margins.as_ref().filter(|_| gate.margin()).map(|m| m[j]),
+                consistency: dep_consistencies.as_ref().filter(|_| gate.sequence()).map(|c| c[j]),
+            })
+            .collect();
+        Some((cal.gates(gate, sequence, tau)?, signals))
     } else {
         None
     };
@@ -163,21 +178,19 @@ fn evaluate_matrix<T: Score>(
                     score: scores[0],
                     margin: margins[j],
                     pa_score: pa_scores[j],
+                    consistency: dep_consistencies.as_ref().map(|c| c[j]),
                     correct,
                 })
             })
             .collect();
         Signals::of(&decisions, &map)
     });
-    let transferred = if unique
-        .iter()
-        .any(|m| matches!(m, Method::QuantileTransfer | Method::QuantileTransferMargin))
-    {
+    let transferred = if unique.iter().any(|m| m.transfers()) {
         let params = Params {
             k: protocol.k,
             precision: tau,
             segment_size: Some(size),
-            gate: Gate::None,
+            ..Params::default()
         };
         let cal = calibration.as_ref().expect("built for quantile transfer");
         let segments = cal.transfer(s_dep, &params)?.segments;
@@ -190,14 +203,21 @@ fn evaluate_matrix<T: Score>(
     for &method in &unique {
         // Every method but the online one gives each segment one threshold.
         let scored = |thresholds: &[f64]| {
-            let gates = gates.as_ref().filter(|_| method.is_gated());
+            let gates = gates
+                .as_ref()
+                .filter(|_| method.is_gated())
+                .map(|(g, signals)| (g.only(method.gate()), signals.as_slice()));
             score(method, &deployment, &ranges, thresholds, &oracle, tau, gates)
         };
         let result = match method {
-            Method::QuantileTransfer | Method::QuantileTransferMargin => {
+            Method::QuantileTransfer
+            | Method::QuantileTransferMargin
+            | Method::QuantileTransferSequence
+            | Method::QuantileTransferMarginSequence => {
                 scored(transferred.as_deref().expect("transferred for quantile transfer"))
             }
-            Method::Margin => scored(&vec![f64::NEG_INFINITY; ranges.len()]),
+            // A gate alone: every score passes, the gates decide.
+            Method::Margin | Method::Sequence => scored(&vec![f64::NEG_INFINITY; ranges.len()]),
             Method::Schubert => scored(&threads::install(|| {
                 ranges
                     .par_iter()

@@ -10,8 +10,7 @@ use super::protocol::Protocol;
 use super::results::{EPS, SegmentResult};
 use crate::error::Result;
 use crate::input::Score;
-use crate::input::params::Gate;
-use crate::input::params::OnlineParams;
+use crate::input::params::{Gate, OnlineParams};
 use crate::operations::calibration::Calibration;
 use crate::operations::online::Online;
 use crate::rules::decisions::Candidates;
@@ -34,6 +33,7 @@ pub(super) fn online_segments<T: Score>(
         window: ranges[0].len(),
         min_window: 1,
         gate: Gate::None,
+        sequence_gate: protocol.sequence_gate,
     };
     let decisions = Online::new(Arc::clone(cal), params)?.push_many(s_dep)?;
     let segments = ranges
@@ -50,6 +50,7 @@ pub(super) fn online_segments<T: Score>(
                 threshold: decisions[r.end - 1].threshold,
                 oracle_threshold,
                 gate: None,
+                consistency_level: None,
                 counts,
                 meets: counts.precision() >= protocol.precision - EPS,
             }
@@ -115,6 +116,7 @@ mod tests {
                 k: 3,
                 precision: 0.9,
                 matching,
+                ..Protocol::default()
             };
             let e = evaluate(s.view(), &gt, &p, &[Method::QuantileTransferOnline]).unwrap();
             assert_eq!((e.layout.deployment_start, e.layout.segments), (8, 7));
@@ -130,6 +132,7 @@ mod tests {
                 window: 6,
                 min_window: 1,
                 gate: Gate::None,
+                sequence_gate: Default::default(),
             };
             let decisions = Online::new(Arc::new(cal), params)
                 .unwrap()

@@ -2,7 +2,7 @@
 //! splits the queries of a matrix ([`Layout`]).
 
 use crate::error::{Error, Result};
-use crate::input::params::{DEFAULT_K, DEFAULT_PRECISION, Gate, Params};
+use crate::input::params::{DEFAULT_K, DEFAULT_PRECISION, Gate, Params, SequenceOverrides, SequenceParams};
 use crate::rules::decisions::Matching;
 
 /// A way of choosing each segment's threshold (semantics §4-§7).
@@ -20,6 +20,15 @@ pub enum Method {
     /// The margin gate alone (section 13): threshold `-inf`, a best match accepted when
     /// its margin is at least `m*`. Single matching only.
     Margin,
+    /// Quantile transfer with the sequence gate (section 15): a best match is accepted
+    /// at the segment's quantile-transfer threshold when its consistency with the
+    /// previous queries' reaches the gate's level too. Single matching only.
+    QuantileTransferSequence,
+    /// Quantile transfer with both gates (sections 13 and 15). Single matching only.
+    QuantileTransferMarginSequence,
+    /// The sequence gate alone (section 15): threshold `-inf`, a best match accepted
+    /// when its consistency reaches the level. Single matching only.
+    Sequence,
     /// Schubert et al.'s threshold fitted to each segment's raw scores.
     Schubert,
     /// Schubert et al.'s threshold fitted once to the calibration scores.
@@ -33,11 +42,14 @@ pub enum Method {
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 11] = [
         Method::QuantileTransfer,
         Method::QuantileTransferOnline,
         Method::QuantileTransferMargin,
         Method::Margin,
+        Method::QuantileTransferSequence,
+        Method::QuantileTransferMarginSequence,
+        Method::Sequence,
         Method::Schubert,
         Method::SchubertCalibrated,
         Method::CalibrationThreshold,
@@ -51,6 +63,9 @@ impl Method {
             Method::QuantileTransferOnline => "quantile-transfer-online",
             Method::QuantileTransferMargin => "quantile-transfer-margin",
             Method::Margin => "margin",
+            Method::QuantileTransferSequence => "quantile-transfer-sequence",
+            Method::QuantileTransferMarginSequence => "quantile-transfer-margin-sequence",
+            Method::Sequence => "sequence",
             Method::Schubert => "schubert",
             Method::SchubertCalibrated => "schubert-calibrated",
             Method::CalibrationThreshold => "calibration-threshold",
@@ -65,6 +80,13 @@ impl Method {
             Method::QuantileTransferOnline => "quantile transfer on a causal window of the last queries (online)",
             Method::QuantileTransferMargin => "quantile transfer, a match also kept only if its margin clears m*",
             Method::Margin => "the margin gate alone: the best match kept when its margin clears m*",
+            Method::QuantileTransferSequence => {
+                "quantile transfer, a match also kept only if the previous queries' matches agree with it"
+            }
+            Method::QuantileTransferMarginSequence => {
+                "quantile transfer with both gates: the margin clears m* and the previous matches agree"
+            }
+            Method::Sequence => "the sequence gate alone: the best match kept when the previous queries' agree",
             Method::Schubert => "Schubert et al.'s threshold, fitted to each segment's raw scores",
             Method::SchubertCalibrated => "Schubert et al.'s threshold, fitted once to the calibration scores",
             Method::CalibrationThreshold => "the calibration's own best threshold, kept fixed (tuned once, offline)",
@@ -74,18 +96,33 @@ impl Method {
 }
 
 impl Method {
-    /// The gate the method decides through: [`Gate::Margin`] for the margin methods
-    /// (semantics §13), else [`Gate::None`].
+    /// The gates the method decides through: the margin gate (semantics §13), the
+    /// sequence gate (§15), both, or [`Gate::None`].
     pub fn gate(self) -> Gate {
         match self {
             Method::QuantileTransferMargin | Method::Margin => Gate::Margin,
+            Method::QuantileTransferSequence | Method::Sequence => Gate::Sequence,
+            Method::QuantileTransferMarginSequence => Gate::MarginSequence,
             _ => Gate::None,
         }
     }
 
-    /// Whether the method gates decisions (semantics §13), which needs single matching.
+    /// Whether the method gates decisions (semantics §13, §15), which needs single
+    /// matching.
     pub fn is_gated(self) -> bool {
         self.gate().is_on()
+    }
+
+    /// Whether the method thresholds each segment by quantile transfer (with or
+    /// without gates).
+    pub(crate) fn transfers(self) -> bool {
+        matches!(
+            self,
+            Method::QuantileTransfer
+                | Method::QuantileTransferMargin
+                | Method::QuantileTransferSequence
+                | Method::QuantileTransferMarginSequence
+        )
     }
 
     /// Every method that applies to `matching`, in report order: what "all methods"
@@ -94,6 +131,20 @@ impl Method {
         Method::ALL
             .into_iter()
             .filter(|m| matching == Matching::Single || !m.is_gated())
+            .collect()
+    }
+
+    /// Every method that applies to `matching` on a database of `n_db` images with the
+    /// sequence gate's parameters `sequence`: [`Method::all_for`] less the sequence
+    /// gate's methods on a database its widest tolerance covers (semantics §15: there
+    /// the gate cannot tell, and a user who did not name it is not refused for it). What
+    /// "all methods" means once the input is read; a method asked for by name that does
+    /// not apply is an error instead, as the margin gate's are on |DB| < 2.
+    pub fn all_applying(matching: Matching, n_db: usize, sequence: &SequenceParams) -> Vec<Method> {
+        let tells = sequence.check(matching, n_db).is_ok();
+        Method::all_for(matching)
+            .into_iter()
+            .filter(|m| tells || !m.gate().sequence())
             .collect()
     }
 }
@@ -149,6 +200,9 @@ pub struct Protocol {
     pub precision: f64,
     /// Single- or multi-match decisions.
     pub matching: Matching,
+    /// The sequence gate's parameters (semantics §15): of the sequence methods, and of
+    /// the consistency reported as a signal.
+    pub sequence_gate: SequenceParams,
 }
 
 /// The share of the queries that calibrates when none is given: the paper's 10%.
@@ -172,6 +226,7 @@ impl Default for Protocol {
             k: DEFAULT_K,
             precision: DEFAULT_PRECISION,
             matching: Matching::Single,
+            sequence_gate: SequenceParams::default(),
         }
     }
 }
@@ -278,6 +333,7 @@ impl Protocol {
         calibration: Option<Split>,
         segment: Option<Split>,
         deploy_fraction: Option<f64>,
+        sequence_gate: SequenceOverrides,
     ) -> Result<Self> {
         let d = Self::default();
         let protocol = Self {
@@ -287,6 +343,7 @@ impl Protocol {
             k: k.unwrap_or(d.k),
             precision: precision.unwrap_or(d.precision),
             matching: matching.unwrap_or(d.matching),
+            sequence_gate: d.sequence_gate.overridden(sequence_gate),
         };
         protocol.validate()?;
         Ok(protocol)
@@ -332,7 +389,7 @@ impl Protocol {
     }
 
     /// Check the parameters that do not depend on the matrix: `k >= 1`, tau in (0, 1],
-    /// fractions in (0, 1), counts >= 1.
+    /// fractions in (0, 1), counts >= 1, the sequence gate's parameters.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming the parameter.
@@ -340,6 +397,7 @@ impl Protocol {
         Params {
             k: self.k,
             precision: self.precision,
+            sequence_gate: self.sequence_gate,
             ..Params::default()
         }
         .validate()?;
@@ -415,7 +473,7 @@ mod tests {
 
     #[test]
     fn a_protocol_resolves_what_is_left_out_to_the_defaults() {
-        let none = Protocol::resolve(None, None, None, None, None, None).unwrap();
+        let none = Protocol::resolve(None, None, None, None, None, None, SequenceOverrides::default()).unwrap();
         assert_eq!(none, Protocol::default());
         assert_eq!(
             (none.calibration, none.segment, none.k, none.precision),
@@ -428,6 +486,10 @@ mod tests {
             Some(Split::Count(20)),
             Some(Split::Count(7)),
             Some(0.5),
+            SequenceOverrides {
+                window: Some(3),
+                ..SequenceOverrides::default()
+            },
         )
         .unwrap();
         assert_eq!(
@@ -439,9 +501,13 @@ mod tests {
                 k: 3,
                 precision: 0.9,
                 matching: Matching::Multi,
+                sequence_gate: SequenceParams {
+                    window: 3,
+                    ..SequenceParams::default()
+                },
             }
         );
-        let err = Protocol::resolve(Some(0), None, None, None, None, None).unwrap_err();
+        let err = Protocol::resolve(Some(0), None, None, None, None, None, SequenceOverrides::default()).unwrap_err();
         assert_eq!(err.to_string(), "k must be >= 1, got 0");
     }
 
@@ -514,7 +580,39 @@ mod tests {
         assert_eq!(
             "magic".parse::<Method>().unwrap_err().to_string(),
             "unknown method 'magic'; expected one of quantile-transfer, quantile-transfer-online, \
-             quantile-transfer-margin, margin, schubert, schubert-calibrated, calibration-threshold, oracle"
+             quantile-transfer-margin, margin, quantile-transfer-sequence, quantile-transfer-margin-sequence, \
+             sequence, schubert, schubert-calibrated, calibration-threshold, oracle"
+        );
+        assert_eq!(
+            "quantile-transfer-margin-sequence".parse::<Method>().unwrap().gate(),
+            Gate::MarginSequence
+        );
+        // The gated methods are single matching's only.
+        assert_eq!(Method::all_for(Matching::Single).len(), 11);
+        // On |DB| = 7 the default sequence gate (+-3 rows, 7 rows) cannot tell: all but
+        // its three methods; on |DB| = 8 all 11.
+        let p = SequenceParams::default();
+        let small = Method::all_applying(Matching::Single, 7, &p);
+        assert_eq!(small.len(), 8);
+        assert!(small.iter().all(|m| !m.gate().sequence()));
+        assert_eq!(
+            Method::all_applying(Matching::Single, 8, &p),
+            Method::all_for(Matching::Single)
+        );
+        assert_eq!(
+            Method::all_applying(Matching::Multi, 100, &p),
+            Method::all_for(Matching::Multi)
+        );
+        assert_eq!(
+            Method::all_for(Matching::Multi),
+            [
+                Method::QuantileTransfer,
+                Method::QuantileTransferOnline,
+                Method::Schubert,
+                Method::SchubertCalibrated,
+                Method::CalibrationThreshold,
+                Method::Oracle
+            ]
         );
         assert_eq!(
             "schubert-calibrated".parse::<Method>().unwrap(),

@@ -25,10 +25,14 @@ pub struct SegmentResult {
     pub threshold: f64,
     /// The oracle's threshold of the segment (`inf` when no threshold meets the target).
     pub oracle_threshold: f64,
-    /// A gated method's `m*` (semantics §13), the margin a best match needs besides its
-    /// score; `None` (and left out of the JSON) for the other methods.
+    /// A method with the margin gate: `m*` (semantics §13), the margin a best match
+    /// needs besides its score; `None` (and left out of the JSON) for the other methods.
     #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub gate: Option<f64>,
+    /// A method with the sequence gate: its level (semantics §15), the consistency a
+    /// best match needs; `None` (and left out of the JSON) for the other methods.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
+    pub consistency_level: Option<f64>,
     /// TP, FP and positives at `threshold` (serialised with the figures derived from
     /// them: precision, recall and the precision's lower bound).
     #[cfg_attr(feature = "serde", serde(flatten))]
@@ -181,8 +185,8 @@ pub struct Ablation {
 
 /// Count every segment at its threshold and summarise (semantics §8). With `gates`
 /// (the method's gates at their levels, and what every deployment query shows them), a
-/// query that a gate does not pass accepts nothing (semantics §13: the accept rule of
-/// [`Gates::threshold`]).
+/// query that a gate does not pass accepts nothing (semantics §13, §15: the accept rule
+/// of [`Gates::threshold`]).
 pub(super) fn score(
     method: Method,
     deployment: &Candidates,
@@ -190,7 +194,7 @@ pub(super) fn score(
     thresholds: &[f64],
     oracle: &[f64],
     tau: f64,
-    gates: Option<&(Gates, Vec<GateSignals>)>,
+    gates: Option<(Gates, &[GateSignals])>,
 ) -> MethodResult {
     let segments: Vec<SegmentResult> = threads::install(|| {
         (ranges, thresholds, oracle)
@@ -209,6 +213,7 @@ pub(super) fn score(
                     threshold,
                     oracle_threshold,
                     gate: gates.and_then(|g| g.0.margin_level()),
+                    consistency_level: gates.and_then(|g| g.0.consistency_level()),
                     counts,
                     meets: counts.precision() >= tau - EPS,
                 }
@@ -390,7 +395,7 @@ mod tests {
         assert_eq!(keys(&v["confidence"]), ["signals"]);
         assert_eq!(
             keys(&v["confidence"]["signals"]),
-            ["confidence", "margin", "pa_score", "score"]
+            ["confidence", "consistency", "margin", "pa_score", "score"]
         );
         assert_eq!(
             keys(&v["confidence"]["signals"]["confidence"]),
@@ -412,7 +417,8 @@ mod tests {
                 "queries",
                 "segment",
                 "segment_size",
-                "segments"
+                "segments",
+                "sequence_gate"
             ]
         );
         assert_eq!(v["params"]["calibration"], serde_json::json!({"count": 2}));

@@ -26,6 +26,7 @@
 //! sorted twice and no score copied again.
 
 use std::any::Any;
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 use ndarray::{ArrayView1, ArrayView2, ArrayViewMut1, Axis, ShapeBuilder, s};
@@ -34,10 +35,12 @@ mod record;
 
 pub use record::{Decision, Field, Kind, Value};
 
+use crate::error::names::Input;
 use crate::error::{Error, Result};
-use crate::gates::Gates;
-use crate::input::Score;
+use crate::extensions::sequence::CausalStream;
+use crate::gates::{GateSignals, Gates};
 use crate::input::params::OnlineParams;
+use crate::input::{Score, validate_scores};
 use crate::operations::calibration::{Calibration, QueryTransfer, Wanted};
 use crate::operations::chunks::CHUNK_SCORES;
 use crate::platform::threads;
@@ -50,12 +53,14 @@ use crate::rules::ranked_correlation::Ranked;
 /// ```
 /// use std::sync::Arc;
 /// use ndarray::array;
-/// use qtvpr::{Calibration, Gate, GroundTruth, Matching, Online, OnlineParams};
+/// use qtvpr::{Calibration, Gate, GroundTruth, Matching, Online, OnlineParams, SequenceParams};
 ///
 /// let s_cal = array![[0.9, 0.2], [0.1, 0.8], [0.3, 0.4]];
 /// let gt = GroundTruth::new(array![[true, false], [false, true], [false, false]].view())?;
 /// let cal = Arc::new(Calibration::new(s_cal.view(), &gt, Matching::Single)?);
-/// let params = OnlineParams { k: 1, precision: 1.0, window: 2, min_window: 1, gate: Gate::None };
+/// let params = OnlineParams {
+///     k: 1, precision: 1.0, window: 2, min_window: 1, gate: Gate::None, sequence_gate: SequenceParams::default(),
+/// };
 /// let mut online = Online::new(cal, params)?;
 /// let d = online.push(array![0.7, 0.2, 0.1].view())?;
 /// assert_eq!(d.query, 0);
@@ -78,6 +83,12 @@ pub struct Online {
     threshold: Option<f64>,
     /// The gates the parameters enable, at their levels on the calibration.
     gates: Gates,
+    /// With the sequence gate: the best matches of the last `W` queries decided, the
+    /// most recent last (semantics §15).
+    recent: VecDeque<usize>,
+    /// With a calibration of sequence length `L > 1`: the last `L - 1` raw columns,
+    /// which match each arriving column (semantics §15).
+    stream: Option<CausalStream>,
     /// What a push finds of its column: the signals of the gates, the PA-score for the
     /// confidence (semantics §14: single matching, |DB| >= 2).
     wanted: Wanted,
@@ -88,10 +99,12 @@ pub struct Online {
     profile: Vec<f64>,
 }
 
-/// A pushed column, contiguous, and its ranked copy.
+/// A pushed column, contiguous, its sequence-matched column (`L > 1`) and the ranked
+/// copy of the column decided.
 #[derive(Default)]
 struct Scratch<T> {
     column: Vec<T>,
+    matched: Vec<T>,
     ranked: Ranked<T>,
 }
 
@@ -101,14 +114,17 @@ impl Online {
     /// The window's memory is taken as queries arrive, up to `8 x window x |DB|` bytes
     /// once it is full.
     ///
+    /// A calibration of sequence length `L > 1` ([`Calibration::sequence`]) makes a
+    /// state that decides each query on its causal sequence-matched column.
+    ///
     /// # Errors
     /// Invalid `params` ([`OnlineParams::validate`]), a gate the calibration cannot
-    /// have ([`Calibration::gate`]), or a window whose full state
+    /// have ([`Calibration::check_gate`]), or a window whose full state
     /// (`window x |DB|` scores) is more than any allocation can hold
     /// ([`Error::InvalidParameter`] naming the window).
     pub fn new(calibration: Arc<Calibration>, params: OnlineParams) -> Result<Online> {
         params.validate()?;
-        let gates = calibration.gates(params.gate, params.precision)?;
+        let gates = calibration.gates(params.gate, &params.sequence_gate, params.precision)?;
         // The confidence map is found here, once, not by the first push.
         let wanted = Wanted::of(&gates, &calibration);
         let n_db = calibration.db_size();
@@ -128,9 +144,13 @@ impl Online {
                 ),
             ));
         }
+        let length = calibration.sequence();
+        let stream = (length > 1).then(|| CausalStream::new(length, n_db));
         Ok(Online {
             n_db: calibration.db_size(),
             calibration,
+            recent: VecDeque::new(),
+            stream,
             params,
             sorted: Vec::new(),
             q: Vec::new(),
@@ -167,7 +187,11 @@ impl Online {
 
     /// [`Online::push`] with its buffers.
     fn push_with<T: Score>(&mut self, column: ArrayView1<'_, T>, scratch: &mut Scratch<T>) -> Result<Decision> {
-        let Scratch { column: copy, ranked } = scratch;
+        let Scratch {
+            column: copy,
+            matched,
+            ranked,
+        } = scratch;
         // A strided column (a column of a C-order matrix) is read once, into a
         // contiguous copy that the sort and the decision then share: each strided read
         // costs about a cache miss a score.
@@ -180,15 +204,37 @@ impl Online {
             ArrayViewMut1::from(&mut copy[..]).assign(&column);
             ArrayView1::from(&copy[..])
         };
+        // The column decided: the pushed one, or its sequence-matched column.
+        let decided = match &self.stream {
+            None => column,
+            Some(stream) => {
+                // The raw scores are checked first, so that an error names them.
+                validate_scores(Input::DeploymentSimilarity, column.insert_axis(Axis(1)))
+                    .map_err(|e| e.shifted(self.pushed))?;
+                matched.resize(self.n_db, T::default());
+                stream.matched(column, matched);
+                ArrayView1::from(&matched[..])
+            }
+        };
         self.calibration
-            .rank(ranked, column.insert_axis(Axis(1)), self.pushed)?;
+            .rank(ranked, decided.insert_axis(Axis(1)), self.pushed)?;
         self.profile.resize(self.n_db, 0.0);
         let p = &self.params;
         let r = self
             .calibration
             .query(ranked, 0, p.k, p.precision, self.wanted, &mut self.profile);
         self.reserve()?;
-        Ok(self.commit(ranked.column(0), column, r))
+        let decision = self.commit(ranked.column(0), decided, r);
+        self.keep_raw(column);
+        Ok(decision)
+    }
+
+    /// Keep a decided query's raw column for the sequence matching of the next ones
+    /// ([`Online::reserve`] has made room for it).
+    fn keep_raw<T: Score>(&mut self, column: ArrayView1<'_, T>) {
+        if let Some(stream) = &mut self.stream {
+            stream.keep(column);
+        }
     }
 
     /// Decide several queries, the columns of `s` (|DB| x n) in arrival order. Their
@@ -208,20 +254,39 @@ impl Online {
             let chunk = (CHUNK_SCORES / self.n_db).clamp(1, 1024);
             let mut decisions = Vec::with_capacity(n);
             let mut ranked = Ranked::default();
+            let mut matched: Vec<T> = Vec::new();
             for start in (0..n).step_by(chunk) {
                 let end = (start + chunk).min(n);
                 let block = s.slice(s![.., start..end]);
-                if self.calibration.rank(&mut ranked, block, self.pushed).is_err() {
+                // The columns decided: the block's, or their sequence-matched columns
+                // (formed ahead by a copy of the stream, which the pushes then advance).
+                let decided = match &self.stream {
+                    None => Ok(block),
+                    Some(stream) => validate_scores(Input::DeploymentSimilarity, block).and_then(|()| {
+                        let mut ahead = stream.clone();
+                        matched.resize(self.n_db * block.ncols(), T::default());
+                        for (column, out) in block.columns().into_iter().zip(matched.chunks_exact_mut(self.n_db)) {
+                            ahead.matched(column, out);
+                            ahead.reserve()?;
+                            ahead.keep(column);
+                        }
+                        Ok(ArrayView2::from_shape((self.n_db, block.ncols()).f(), &matched[..])
+                            .expect("the block's shape"))
+                    }),
+                };
+                let ranked_ok = decided.and_then(|d| self.calibration.rank(&mut ranked, d, self.pushed).map(|()| d));
+                let Ok(decided) = ranked_ok else {
                     // A bad score in the block: push its columns one by one, which keeps
                     // those before the bad one and reports it.
                     for j in start..end {
                         decisions.push(self.push(s.column(j))?);
                     }
                     continue;
-                }
+                };
                 for (j, r) in self.per_query(&ranked).into_iter().enumerate() {
                     self.reserve()?;
-                    decisions.push(self.commit(ranked.column(j), s.column(start + j), r));
+                    decisions.push(self.commit(ranked.column(j), decided.column(j), r));
+                    self.keep_raw(block.column(j));
                 }
             }
             Ok(decisions)
@@ -230,10 +295,11 @@ impl Online {
 
     /// Continue a stream at query `first_query` on a fresh state, as if queries
     /// `0..first_query` had been pushed: `before` holds the scores of those of them
-    /// that a window reaches, the last `min(first_query, window - 1)` (|DB| x that
-    /// many). The next push is then query `first_query`, decided as in the whole
-    /// stream (its window, its warm-up and the numbering of queries and of errors are
-    /// the stream's), so that blocks of a stream can be decided independently.
+    /// that a decision looks back at, the last [`Online::lookback`]`(first_query)`
+    /// (|DB| x that many). The next push is then query `first_query`, decided as in the
+    /// whole stream (its window, its warm-up, its consistency, its sequence-matched
+    /// column and the numbering of queries and of errors are the stream's), so that
+    /// blocks of a stream can be decided independently.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] (`resume`) for a state that has decided queries, or
@@ -246,27 +312,73 @@ impl Online {
                 format!("needs a fresh state, but {} queries were pushed", self.pushed),
             ));
         }
-        let needed = first_query.min(self.params.window - 1);
+        let needed = self.lookback(first_query);
         if before.ncols() != needed {
+            // What the decisions look back at (Online::lookback).
+            let mut what = format!("a window of {}", self.params.window);
+            if self.params.gate.sequence() {
+                what += &format!(", a sequence window of {}", self.params.sequence_gate.window);
+            }
+            if self.calibration.sequence() > 1 {
+                what += &format!(", a sequence length of {}", self.calibration.sequence());
+            }
             return Err(Error::param(
                 "resume",
                 format!(
-                    "at query {first_query} with a window of {} takes the {needed} queries before it, got {}",
-                    self.params.window,
+                    "at query {first_query} with {what} takes the {needed} queries before it, got {}",
                     before.ncols()
                 ),
             ));
         }
+        // The queries decided again (for the window and the consistency), after those
+        // whose raw columns only match the first of them.
+        let decided = needed.min(self.decided_lookback());
         self.pushed = first_query - needed;
-        if let Err(err) = self.push_many(before) {
+        let resumed = (|| {
+            for column in before.columns().into_iter().take(needed - decided) {
+                self.check_length(column.len())?;
+                validate_scores(Input::DeploymentSimilarity, column.insert_axis(Axis(1)))
+                    .map_err(|e| e.shifted(self.pushed))?;
+                if let Some(stream) = &mut self.stream {
+                    stream.reserve()?;
+                    stream.keep(column);
+                }
+                self.pushed += 1;
+            }
+            self.push_many(before.slice(s![.., needed - decided..]))
+        })();
+        if let Err(err) = resumed {
             self.sorted.clear();
             self.q.clear();
             self.w.clear();
             (self.next, self.pushed, self.threshold) = (0, 0, None);
             self.accepted.clear();
+            self.recent.clear();
+            self.stream = self.stream.as_ref().map(|s| CausalStream::new(s.length(), self.n_db));
             return Err(err);
         }
         Ok(())
+    }
+
+    /// How many queries before query `first_query` a decision of a resumed state looks
+    /// back at ([`Online::resume`]'s `before`): the queries its window and its
+    /// consistency read (`max(window - 1, W)`, `W` with the sequence gate only), and the
+    /// `L - 1` raw columns before each of them with a calibration of sequence length
+    /// `L` (semantics §11, §15); fewer at the start of the stream.
+    pub fn lookback(&self, first_query: usize) -> usize {
+        let matching = self.calibration.sequence() - 1;
+        first_query.min(self.decided_lookback().saturating_add(matching))
+    }
+
+    /// The queries before a query whose decisions its own reads: its window's others
+    /// and, with the sequence gate, the `W` its consistency reads.
+    fn decided_lookback(&self) -> usize {
+        let consistency = if self.params.gate.sequence() {
+            self.params.sequence_gate.window
+        } else {
+            0
+        };
+        (self.params.window - 1).max(consistency)
     }
 
     /// Database indices accepted for the last pushed query, ascending (multi: every
@@ -315,6 +427,9 @@ impl Online {
     /// window and no further, and fallibly, so that memory running out is an error
     /// (naming the window) rather than an abort.
     fn reserve(&mut self) -> Result<()> {
+        if let Some(stream) = &mut self.stream {
+            stream.reserve()?;
+        }
         let (n_db, m, len) = (self.n_db, self.params.window, self.q.len());
         if len >= m {
             return Ok(());
@@ -380,9 +495,21 @@ impl Online {
         // The first maximum, whose value the sorted column ends with.
         let best = first_at(column, sorted[sorted.len() - 1].to_f64());
         let score = column[best].to_f64();
+        // Semantics §15: the consistency with the best matches of the queries before.
+        let consistency = self
+            .gates
+            .sequence
+            .map(|g| g.params.consistency(best, self.recent.iter().rev().copied()));
+        if let Some(g) = self.gates.sequence {
+            self.recent.push_back(best);
+            if self.recent.len() > g.params.window {
+                self.recent.pop_front();
+            }
+        }
+        let signals = GateSignals { consistency, ..r.gates };
         match self.calibration.matching() {
             Matching::Single => {
-                let kept = self.gates.keeps(score, threshold, &r.gates);
+                let kept = self.gates.keeps(score, threshold, &signals);
                 self.accepted.extend(kept.then_some(best));
             }
             Matching::Multi => {
@@ -407,6 +534,8 @@ impl Online {
             accepted: self.accepted.len(),
             margin: self.gates.margin.and(r.gates.margin),
             gate: self.gates.margin_level(),
+            consistency,
+            consistency_level: self.gates.consistency_level(),
             confidence,
             confidence_lower95,
         }
@@ -445,6 +574,7 @@ mod tests {
             window,
             min_window,
             gate: Gate::None,
+            sequence_gate: Default::default(),
         }
     }
 
@@ -485,6 +615,7 @@ mod tests {
             window: 4,
             min_window: 1,
             gate: Gate::None,
+            sequence_gate: Default::default(),
         };
         let (mut mixed, mut wide) = (Online::new(Arc::clone(&cal), p).unwrap(), Online::new(cal, p).unwrap());
         for (j, c) in s_val.columns().into_iter().enumerate() {
@@ -609,6 +740,7 @@ mod tests {
             window: 1,
             min_window: 1,
             gate: Gate::None,
+            sequence_gate: Default::default(),
         };
         // u0 = [5, 5, 1]: best is the first maximum, row 0; ascending [1, 5, 5],
         //   h = 2 * 0.8 = 1.6 -> 5 + 0.6 * 0 = 5: 5 >= 5 is accepted (inclusive).
@@ -667,6 +799,7 @@ mod tests {
                     window,
                     min_window,
                     gate: Gate::None,
+                    sequence_gate: Default::default(),
                 };
                 let (one, _) = run(&cal, p, &s_val);
                 let mut online = Online::new(Arc::clone(&cal), p).unwrap();
@@ -680,6 +813,7 @@ mod tests {
                             precision,
                             segment_size: None,
                             gate: Gate::None,
+                            sequence_gate: Default::default(),
                         },
                     )
                     .unwrap();
@@ -699,6 +833,7 @@ mod tests {
                                 precision,
                                 segment_size: None,
                                 gate: Gate::None,
+                                sequence_gate: Default::default(),
                             },
                         )
                         .unwrap();
@@ -829,36 +964,39 @@ mod tests {
             precision: 0.9,
             window: Some(28),
             gate: Gate::None,
+            sequence_gate: Default::default(),
         };
         assert_eq!(
-            OnlineParams::resolve(&d, None, None, None, None, None).unwrap(),
+            OnlineParams::resolve(&d, None, None, None, None, None, Default::default()).unwrap(),
             OnlineParams {
                 k: 4,
                 precision: 0.9,
                 window: 28,
                 min_window: 1,
                 gate: Gate::None,
+                sequence_gate: Default::default(),
             }
         );
         assert_eq!(
-            OnlineParams::resolve(&d, Some(2), Some(1.0), Some(5), Some(5), None).unwrap(),
+            OnlineParams::resolve(&d, Some(2), Some(1.0), Some(5), Some(5), None, Default::default()).unwrap(),
             OnlineParams {
                 k: 2,
                 precision: 1.0,
                 window: 5,
                 min_window: 5,
                 gate: Gate::None,
+                sequence_gate: Default::default(),
             }
         );
         let none = Defaults::default();
         assert_eq!(
-            OnlineParams::resolve(&none, None, None, None, None, None)
+            OnlineParams::resolve(&none, None, None, None, None, None, Default::default())
                 .unwrap_err()
                 .to_string(),
             "window is not given and the calibration sets none"
         );
         assert_eq!(
-            OnlineParams::resolve(&none, None, None, Some(3), Some(4), None)
+            OnlineParams::resolve(&none, None, None, Some(3), Some(4), None, Default::default())
                 .unwrap_err()
                 .to_string(),
             "min window must be between 1 and the window (3), got 4"

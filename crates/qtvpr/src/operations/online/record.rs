@@ -2,8 +2,8 @@
 //! front end lays it out from.
 //!
 //! [`Decision::RECORD`] names each field once, in the record's order, with its kind, the
-//! gate that brings it (the margin gate's `margin` and `gate`, semantics §13) and how
-//! to read it. The JSON of a record ([`serde::Serialize`]), the CSV of `qtvpr-cli
+//! gate that brings it (the margin gate's `margin` and `gate`, semantics §13; the
+//! sequence gate's `consistency` and `consistency_level`, §15) and how to read it. The JSON of a record ([`serde::Serialize`]), the CSV of `qtvpr-cli
 //! stream` ([`Decision::fields`], [`Decision::values`]), Python's `OnlineDecision` and
 //! `OnlineDecisions` (their attributes, and `qtvpr.dask`'s columns), the C struct and
 //! the ROS message are all held to this list, each by a test of its front end. So a
@@ -42,6 +42,11 @@ pub struct Decision {
     pub margin: Option<f64>,
     /// With the margin gate: `m*`, the margin the best match needs.
     pub gate: Option<f64>,
+    /// With the sequence gate (semantics §15): the query's consistency, the share of the
+    /// previous queries of its stream whose best matches agree with its own.
+    pub consistency: Option<f64>,
+    /// With the sequence gate: its level, the consistency the best match needs.
+    pub consistency_level: Option<f64>,
     /// semantics §14: the probability that the best match is right, the calibration's
     /// hit rate at the column's PA-score, whatever the gate; NaN in multi matching, with
     /// fewer than 2 database images, or when the calibration has no decision.
@@ -120,16 +125,18 @@ pub struct Field {
     pub column: &'static str,
     /// What it holds.
     pub kind: Kind,
-    /// The gate that brings it: [`Gate::None`] for a field of every record.
+    /// The gate that brings it: [`Gate::None`] for a field of every record, else one
+    /// gate ([`Gate::Margin`] or [`Gate::Sequence`]).
     pub gate: Gate,
     /// Its value in a record: `None` in a record decided without its gate.
     get: fn(&Decision) -> Option<Value>,
 }
 
 impl Field {
-    /// Whether a record decided with `gate` has this field.
+    /// Whether a record decided with the gates `gate` has this field: its gate is one
+    /// of them (or it is a field of every record).
     pub fn in_record(&self, gate: Gate) -> bool {
-        self.gate == Gate::None || self.gate == gate
+        gate.includes(self.gate)
     }
 
     /// Its value in `decision`: `None` when the record was decided without its gate.
@@ -167,9 +174,10 @@ const fn names<const N: usize>(gate: Gate) -> [&'static str; N] {
 }
 
 impl Decision {
-    /// The record's fields, in order (semantics §11, §13 and §14): what it serialises to,
-    /// the columns of a table of decisions, and what every front end lays out.
-    pub const RECORD: [Field; 13] = [
+    /// The record's fields, in order (semantics §11, §13, §14 and §15): what it
+    /// serialises to, the columns of a table of decisions, and what every front end lays
+    /// out.
+    pub const RECORD: [Field; 15] = [
         always("query", "queries", Kind::Count, |d| Some(Value::Count(d.query))),
         always("query_quantile", "query_quantiles", Kind::Real, |d| {
             Some(Value::Real(d.query_quantile))
@@ -203,6 +211,20 @@ impl Decision {
             gate: Gate::Margin,
             get: |d| d.gate.map(Value::Real),
         },
+        Field {
+            name: "consistency",
+            column: "consistencies",
+            kind: Kind::Real,
+            gate: Gate::Sequence,
+            get: |d| d.consistency.map(Value::Real),
+        },
+        Field {
+            name: "consistency_level",
+            column: "consistency_levels",
+            kind: Kind::Real,
+            gate: Gate::Sequence,
+            get: |d| d.consistency_level.map(Value::Real),
+        },
     ];
 
     /// The names of the fields every record has, in order.
@@ -212,8 +234,12 @@ impl Decision {
     /// [`Decision::FIELDS`] (semantics §13).
     pub const GATE_FIELDS: [&'static str; 2] = names(Gate::Margin);
 
-    /// Every field of a record decided with `gate`, in order: the columns of a table of
-    /// such records.
+    /// The fields a record decided with the sequence gate has besides
+    /// [`Decision::FIELDS`] (semantics §15), after the margin gate's when both are on.
+    pub const SEQUENCE_FIELDS: [&'static str; 2] = names(Gate::Sequence);
+
+    /// Every field of a record decided with the gates `gate`, in order: the columns of a
+    /// table of such records.
     pub fn fields(gate: Gate) -> Vec<&'static str> {
         Self::RECORD
             .iter()
@@ -271,6 +297,23 @@ mod tests {
 
     fn decision(gated: bool) -> Decision {
         Decision {
+            consistency: None,
+            consistency_level: None,
+            ..margin_gated(gated)
+        }
+    }
+
+    /// A record with both gates.
+    fn both() -> Decision {
+        Decision {
+            consistency: Some(0.6),
+            consistency_level: Some(0.8),
+            ..margin_gated(true)
+        }
+    }
+
+    fn margin_gated(gated: bool) -> Decision {
+        Decision {
             query: 3,
             query_quantile: 0.25,
             weight: 0.5,
@@ -281,6 +324,8 @@ mod tests {
             accepted: 1,
             margin: gated.then_some(2.5),
             gate: gated.then_some(1.5),
+            consistency: None,
+            consistency_level: None,
             confidence: f64::NAN,
             confidence_lower95: 0.125,
         }
@@ -305,23 +350,50 @@ mod tests {
             ]
         );
         assert_eq!(Decision::GATE_FIELDS, ["margin", "gate"]);
+        assert_eq!(Decision::SEQUENCE_FIELDS, ["consistency", "consistency_level"]);
         assert_eq!(Decision::fields(Gate::None), Decision::FIELDS);
         assert_eq!(
             Decision::fields(Gate::Margin),
             [&Decision::FIELDS[..], &Decision::GATE_FIELDS[..]].concat()
         );
+        assert_eq!(
+            Decision::fields(Gate::Sequence),
+            [&Decision::FIELDS[..], &Decision::SEQUENCE_FIELDS[..]].concat()
+        );
+        assert_eq!(
+            Decision::fields(Gate::MarginSequence),
+            [
+                &Decision::FIELDS[..],
+                &Decision::GATE_FIELDS[..],
+                &Decision::SEQUENCE_FIELDS[..]
+            ]
+            .concat()
+        );
+        let sequence_only = Decision {
+            margin: None,
+            gate: None,
+            ..both()
+        };
         let names = |d: &Decision| d.values().map(|(f, _)| f.name).collect::<Vec<_>>();
         assert_eq!(names(&decision(false)), Decision::fields(Gate::None));
         assert_eq!(names(&decision(true)), Decision::fields(Gate::Margin));
+        assert_eq!(names(&sequence_only), Decision::fields(Gate::Sequence));
+        assert_eq!(names(&both()), Decision::fields(Gate::MarginSequence));
         // CSV cells: the numbers, NaN, true.
         let cells: Vec<String> = decision(true).values().map(|(_, v)| v.to_string()).collect();
         assert_eq!(cells.join(","), "3,0.25,0.5,0.75,0.5,2,0.625,1,true,NaN,0.125,2.5,1.5");
+        let cells: Vec<String> = both().values().map(|(_, v)| v.to_string()).collect();
+        assert_eq!(
+            cells.join(","),
+            "3,0.25,0.5,0.75,0.5,2,0.625,1,true,NaN,0.125,2.5,1.5,0.6,0.8"
+        );
     }
 
     #[test]
     fn records_compare_as_values() {
         assert_eq!(decision(true), decision(true));
         assert_ne!(decision(true), decision(false));
+        assert_ne!(both(), decision(true));
         assert_ne!(
             decision(false),
             Decision {
@@ -337,6 +409,11 @@ mod tests {
         assert_eq!(
             serde_json::to_string(&decision(true)).unwrap(),
             r#"{"query":3,"query_quantile":0.25,"weight":0.5,"quantile":0.75,"threshold":0.5,"best":2,"score":0.625,"accepted":1,"accept":true,"confidence":null,"confidence_lower95":0.125,"margin":2.5,"gate":1.5}"#
+        );
+        assert!(
+            serde_json::to_string(&both())
+                .unwrap()
+                .ends_with(r#""margin":2.5,"gate":1.5,"consistency":0.6,"consistency_level":0.8}"#)
         );
     }
 }
