@@ -100,11 +100,90 @@ impl SplitArgs {
     }
 }
 
-/// The values of `--gate` (semantics §13), named and parsed by the core.
-pub fn gate_parser() -> impl clap::builder::TypedValueParser<Value = qtvpr::Gate> {
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(qtvpr::Gate::ALL.map(|g| g.as_str()))
-        .map(|s| s.parse::<qtvpr::Gate>().expect("a possible value is a gate"))
+/// The values of `--gate` (semantics §13, §15): a set of gates, named and parsed by
+/// the core (`margin,sequence` or `sequence,margin`), its sets listed in `--help`.
+pub fn gate_parser() -> GateParser {
+    GateParser
+}
+
+/// `--gate`'s parser: clap's `PossibleValuesParser` would refuse `sequence,margin`, the
+/// same set in another order, so the core parses and clap only lists the sets.
+#[derive(Debug, Clone, Copy)]
+pub struct GateParser;
+
+impl clap::builder::TypedValueParser for GateParser {
+    type Value = qtvpr::Gate;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> std::result::Result<qtvpr::Gate, clap::Error> {
+        let text = clap::builder::StringValueParser::new().parse_ref(cmd, arg, value)?;
+        text.parse::<qtvpr::Gate>().map_err(|e| {
+            let name = arg.map_or_else(|| "--gate".to_owned(), ToString::to_string);
+            clap::Error::raw(
+                clap::error::ErrorKind::InvalidValue,
+                format!("invalid value '{text}' for '{name}': {e}\n"),
+            )
+            .with_cmd(cmd)
+        })
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
+        Some(Box::new(
+            qtvpr::Gate::ALL
+                .into_iter()
+                .map(|g| clap::builder::PossibleValue::new(g.as_str())),
+        ))
+    }
+}
+
+/// The sequence gate's parameters (semantics §15), each left out taking the
+/// calibration file's value, else the core's default.
+#[derive(Debug, Args)]
+pub struct SequenceGateArgs {
+    /// Sequence gate: how many previous queries each query's best match is compared
+    /// with (semantics §15) [default: the calibration file's, else 5].
+    #[arg(long, value_name = "W")]
+    sequence_window: Option<usize>,
+    /// Sequence gate: the share of those previous queries whose best matches must agree,
+    /// in (0, 1] [default: the calibration file's, else 0.8].
+    #[arg(long, value_name = "LEVEL", allow_negative_numbers = true)]
+    sequence_level: Option<f64>,
+    /// Sequence gate: database rows per query, the speed ratio of the two traverses (-1:
+    /// the route driven backwards) [default: the calibration file's, else 1].
+    #[arg(long, value_name = "V", allow_negative_numbers = true)]
+    sequence_speed: Option<f64>,
+    /// Sequence gate: how far, in database rows, a neighbour one step away may lie from
+    /// where the line predicts [default: the calibration file's, else 2].
+    #[arg(long, value_name = "A", allow_negative_numbers = true)]
+    sequence_tolerance: Option<f64>,
+    /// Sequence gate: how much that tolerance widens per step away, in rows per step
+    /// [default: the calibration file's, else 0.2].
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    sequence_drift: Option<f64>,
+}
+
+// The defaults the help texts above state are the core's.
+const _: () = assert!(qtvpr::DEFAULT_SEQUENCE_WINDOW == 5);
+const _: () = assert!(qtvpr::DEFAULT_SEQUENCE_LEVEL == 0.8);
+const _: () = assert!(qtvpr::DEFAULT_SPEED == 1.0);
+const _: () = assert!(qtvpr::DEFAULT_TOLERANCE == 2.0);
+const _: () = assert!(qtvpr::DEFAULT_DRIFT == 0.2);
+
+impl SequenceGateArgs {
+    /// The parameters given, for the core to resolve.
+    pub fn overrides(&self) -> qtvpr::SequenceOverrides {
+        qtvpr::SequenceOverrides {
+            window: self.sequence_window,
+            level: self.sequence_level,
+            speed: self.sequence_speed,
+            tolerance: self.sequence_tolerance,
+            drift: self.sequence_drift,
+        }
+    }
 }
 
 /// `--db-descriptors` and `--query-descriptors`, read (memory-mapped where possible) and

@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::{Calibration, Defaults, Matching, Orientation, QuerySplit, ScoreSource, Split};
 
-use crate::args::{DescriptorFiles, MatchingArg, SplitArgs, gate_parser};
+use crate::args::{DescriptorFiles, MatchingArg, SequenceGateArgs, SplitArgs, gate_parser};
 use crate::gt_source::{CalGtSource, GtSource};
 use qtvpr::npy::read_scores;
 
@@ -55,10 +55,20 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "M")]
     window: Option<usize>,
     /// Default gate stored in the file: `margin` also requires each best match to stand
-    /// out of its column by the margin the calibration calibrates (single matching
-    /// only; see docs/semantics.md section 13) [default: none].
+    /// out of its column by the margin the calibration calibrates (semantics §13);
+    /// `sequence` requires the best matches of the previous queries to agree with it
+    /// (semantics §15); `margin,sequence` both. Single matching only [default: none].
     #[arg(long, value_parser = gate_parser())]
     gate: Option<qtvpr::Gate>,
+    /// Default sequence gate parameters stored in the file.
+    #[command(flatten)]
+    sequence_gate: SequenceGateArgs,
+    /// Sequence length L (odd, >= 1; semantics §15): the calibration traverse is
+    /// sequence-matched causally over L queries (`similarity --sequence L --causal`), and
+    /// the file records L, so that `stream`, `threshold` and every front end match
+    /// deployment columns the same way before deciding [default: 1, no matching].
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
+    sequence: Option<i64>,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention); the file
     /// holds |DB| x |Qcal| whatever the input's orientation.
     #[arg(long)]
@@ -70,8 +80,15 @@ pub struct CalibrateArgs {
 
 /// Run `calibrate`.
 pub fn run(args: &CalibrateArgs) -> Result<()> {
-    let defaults = Defaults::default().resolve(Some(args.k), Some(args.precision), args.window, args.gate)?;
+    let defaults = Defaults::default().resolve(
+        Some(args.k),
+        Some(args.precision),
+        args.window,
+        args.gate,
+        args.sequence_gate.overrides(),
+    )?;
     let split = args.split.split()?;
+    let length = crate::args::sequence(args.sequence, true)?.map_or(1, |s| s.length);
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
     let matching = Matching::from(args.matching);
     let (cal, orientation) = match (
@@ -79,10 +96,10 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref()),
     ) {
         (Some(path), _) => {
-            let (cal, orientation) = from_matrix(path, gt_source, matching, args.query_major)?;
+            let (cal, orientation) = from_matrix(path, gt_source, matching, args.query_major, length)?;
             (cal, Some(orientation))
         }
-        (None, Some((db, q))) => (from_descriptors(db, q, split, gt_source, matching)?, None),
+        (None, Some((db, q))) => (from_descriptors(db, q, split, gt_source, matching, length)?, None),
         (None, None) => bail!("give --cal, or --db-descriptors and --query-descriptors"),
     };
     // The gate is checked against the calibration (its matching) before the file is
@@ -97,42 +114,46 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
 }
 
 /// The calibration of the first queries (`split`, or all of them) of descriptor files
-/// `db` and `q`, with ground truth for every query from `gt_source`.
+/// `db` and `q`, with ground truth for every query from `gt_source`, sequence-matched
+/// over `length`.
 fn from_descriptors(
     db: &Path,
     q: &Path,
     split: Option<(Split, &str)>,
     gt_source: GtSource<'_>,
     matching: Matching,
+    length: usize,
 ) -> Result<Calibration> {
     let files = DescriptorFiles::read(db, q)?;
     let d = files.descriptors()?;
     let Some((split, flag)) = split else {
         // Every query calibrates.
         let gt = gt_source.load(d.shape(), false)?;
-        return Calibration::new(&d, &gt, matching)
+        return Calibration::new_sequence(&d, &gt, matching, length)
             .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()));
     };
     let split = QuerySplit::new(split, d.shape()).with_context(|| format!("{flag} of {}", files.describe()))?;
     let gt = gt_source.load_split(&split, false, &files.describe())?;
-    Calibration::new(ScoreSource::Descriptors(&d, split.calibration()), &gt, matching)
+    Calibration::new_sequence(ScoreSource::Descriptors(&d, split.calibration()), &gt, matching, length)
         .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()))
 }
 
 /// The calibration of similarity matrix `--cal PATH` with its ground truth from
 /// `gt_source`, and the matrix's orientation with what ground truth read from a file
 /// says of it; errors name the files, with positions in their own orientation. The
-/// matrix is unmapped once the calibration is built.
+/// matrix is unmapped once the calibration is built. A `length` above 1 matches it
+/// causally first (semantics §15).
 pub fn from_matrix(
     path: &Path,
     gt_source: GtSource<'_>,
     matching: Matching,
     query_major: bool,
+    length: usize,
 ) -> Result<(Calibration, Orientation)> {
     let s_cal = read_scores(path).context("--cal")?;
     let s_cal = s_cal.view().oriented(query_major);
     let gt = gt_source.load(s_cal.dim(), query_major)?;
-    let cal = Calibration::new(s_cal, &gt, matching)
+    let cal = Calibration::new_sequence(s_cal, &gt, matching, length)
         .map_err(|e| crate::args::oriented(e, query_major))
         .with_context(|| format!("--cal {} / {}", path.display(), gt_source.describe()))?;
     let orientation = Orientation::of(s_cal.dim(), gt_source.is_file().then_some(&gt), query_major);

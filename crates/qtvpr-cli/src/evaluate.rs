@@ -16,7 +16,7 @@ use qtvpr::Report;
 use qtvpr::{Ablation, MethodResult};
 use qtvpr::{Matching, Method, Options, Protocol, ScoresView, Split};
 
-use crate::args::{DescriptorFiles, MatchingArg};
+use crate::args::{DescriptorFiles, MatchingArg, SequenceGateArgs};
 use crate::embedded;
 use crate::gt_source::EvalGtSource;
 use crate::output::emit;
@@ -62,10 +62,17 @@ pub struct EvaluateArgs {
     /// Methods to evaluate, comma-separated, or `all` (every method that applies to
     /// --matching): quantile-transfer, quantile-transfer-online (each query at the
     /// threshold of its last segment-size queries), quantile-transfer-margin and margin
-    /// (quantile transfer with the margin gate, and the gate alone; single matching
-    /// only), schubert, schubert-calibrated, calibration-threshold, oracle.
+    /// (quantile transfer with the margin gate, and the gate alone; semantics §13),
+    /// quantile-transfer-sequence, quantile-transfer-margin-sequence and sequence
+    /// (quantile transfer with the sequence gate, with both gates, and the sequence gate
+    /// alone; semantics §15; the gated methods are single matching's only), schubert,
+    /// schubert-calibrated, calibration-threshold, oracle.
     #[arg(long, value_delimiter = ',', default_value = "all", value_name = "M1,M2,...")]
     method: Vec<String>,
+    /// The sequence gate's parameters, of the sequence methods and of the consistency
+    /// reported as a signal (the queries are one traverse, in column order).
+    #[command(flatten)]
+    sequence_gate: SequenceGateArgs,
     /// Calibration queries sampled per deployment query by quantile transfer. A list
     /// (e.g. 1,3,5,10,20,40) runs one evaluation per value (an ablation).
     #[arg(long, value_delimiter = ',', default_values_t = [qtvpr::DEFAULT_K], value_name = "K1,K2,...")]
@@ -134,12 +141,15 @@ pub enum EvalFormat {
     Csv,
 }
 
-fn methods_of(names: &[String], matching: qtvpr::Matching) -> Result<Vec<Method>> {
+/// The methods `names` asks for, `all` being `all` (the core's list of the methods
+/// that apply: [`Method::all_for`] before the input is read, then
+/// [`Method::all_applying`] to it).
+fn methods_of(names: &[String], all: impl Fn() -> Vec<Method>) -> Result<Vec<Method>> {
     let mut out = Vec::new();
     for name in names {
         let name = name.trim();
         if name == "all" {
-            out.extend(Method::all_for(matching));
+            out.extend(all());
         } else {
             out.push(name.parse::<Method>()?);
         }
@@ -152,7 +162,8 @@ fn methods_of(names: &[String], matching: qtvpr::Matching) -> Result<Vec<Method>
 
 /// Run `evaluate`.
 pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
-    let methods = methods_of(&args.method, args.matching.into()).context("--method")?;
+    // Checked before any file is read; `all` is resolved again on the input below.
+    methods_of(&args.method, || Method::all_for(args.matching.into())).context("--method")?;
     let calibrations: Vec<Split> = if args.cal_queries.is_empty() {
         args.cal_fraction.iter().map(|&f| Split::Fraction(f)).collect()
     } else {
@@ -171,6 +182,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         Some(calibrations[0]),
         Some(segment),
         args.deploy_fraction,
+        args.sequence_gate.overrides(),
     )?;
     // Every setting first, so that a typo fails before any file is read (an ablation's
     // deployment set is the last half unless --deploy-fraction says otherwise).
@@ -228,6 +240,8 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         _ => "embedded data".to_string(),
     };
 
+    let all = || Method::all_applying(matching, scores.dim().0, &base.sequence_gate);
+    let methods = methods_of(&args.method, all).context("--method")?;
     let bar = crate::progress::bar(global.quiet, methods.len(), "method evaluations");
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
@@ -379,6 +393,7 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
             writeln!(t, "| score | {} | | |", recall(c.score_auroc)).unwrap();
             writeln!(t, "| margin | {} | | |", recall(c.margin_auroc)).unwrap();
             writeln!(t, "| pa_score | {} | | |", recall(c.pa_score_auroc)).unwrap();
+            writeln!(t, "| consistency | {} | | |", recall(c.consistency_auroc)).unwrap();
             writeln!(
                 t,
                 "| confidence | {} | {} | {} |",

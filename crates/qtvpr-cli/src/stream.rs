@@ -1,6 +1,7 @@
 //! `qtvpr-cli stream`: replay a deployment matrix query by query through
 //! [`qtvpr::Online`], as a robot would see it, and write one line per query: its
-//! threshold and decision.
+//! threshold and decision. A calibration file of sequence length `L > 1` (semantics
+//! §15) decides each query on its causal sequence-matched column.
 
 use std::io::{self, BufWriter, Write};
 use std::path::PathBuf;
@@ -11,7 +12,7 @@ use clap::Args;
 use ndarray::ArrayView2;
 use qtvpr::{Calibration, Decision, Input, Online, OnlineParams, Score};
 
-use crate::args::gate_parser;
+use crate::args::{SequenceGateArgs, gate_parser};
 use crate::output::{self, emit};
 use crate::{Global, progress};
 use qtvpr::npy::{MatrixFile, read_scores};
@@ -42,9 +43,20 @@ pub struct StreamArgs {
     min_window: usize,
     /// `margin`: accept a best match only if its margin (how far it stands out of its
     /// column) is at least the calibration's m* too; each line then also carries
-    /// `margin` and `gate` (single matching only) [default: the file's, else none].
+    /// `margin` and `gate` (semantics §13). `sequence`: only if the best matches of the
+    /// previous queries agree with it (semantics §15); each line then also carries
+    /// `consistency` and `consistency_level`. `margin,sequence`: both. Single matching
+    /// only [default: the file's, else none].
     #[arg(long, value_parser = gate_parser())]
     gate: Option<qtvpr::Gate>,
+    #[command(flatten)]
+    sequence_gate: SequenceGateArgs,
+    /// The sequence length L of the calibration file (semantics §15): each query is
+    /// decided on its causal sequence-matched column, as `similarity --sequence L
+    /// --causal` would match --val. It is the file's (`calibrate --sequence L`); another
+    /// one is an error [default: the file's].
+    #[arg(long, value_name = "L")]
+    sequence: Option<usize>,
     /// --val is stored query-major, |Qval| x |DB| (the VPR-Bench convention).
     #[arg(long)]
     query_major: bool,
@@ -88,6 +100,8 @@ const STEP: usize = 256;
 /// Run `stream`.
 pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let cal = Calibration::load(&args.calibration).context("--calibration")?;
+    cal.check_sequence(args.sequence)
+        .with_context(|| format!("--sequence: --calibration {}", args.calibration.display()))?;
     let params = OnlineParams::resolve(
         cal.defaults(),
         args.k,
@@ -95,6 +109,7 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         args.window,
         Some(args.min_window),
         args.gate,
+        args.sequence_gate.overrides(),
     )?;
     let mut online = Online::new(Arc::new(cal), params)?;
     let file = read_scores(&args.val).context("--val")?;

@@ -24,7 +24,7 @@ use qtvpr::{
     SplitError, ThresholdReport, Transfer,
 };
 
-use crate::args::{DescriptorFiles, MatchingArg, SplitArgs};
+use crate::args::{DescriptorFiles, MatchingArg, SequenceGateArgs, SplitArgs};
 use crate::gt_source::{GtSource, OptionalCalGtSource};
 use crate::output::{Format, emit};
 use crate::{Global, calibrate, progress};
@@ -68,9 +68,10 @@ pub struct ThresholdArgs {
     /// In place of --cal: how many of the first queries calibrate.
     #[command(flatten)]
     split: SplitArgs,
-    /// Not available in `threshold`, which never holds a whole similarity matrix:
-    /// write the sequence-matched matrix with `similarity --sequence L` and pass it as
-    /// --similarity (or --cal and --val), or use `evaluate --sequence L`.
+    /// Not available in `threshold`: a calibration file of `calibrate --sequence L`
+    /// matches --val causally itself; otherwise write the sequence-matched matrix with
+    /// `similarity --sequence L` and pass it as --similarity (or --cal and --val), or use
+    /// `evaluate --sequence L`.
     #[arg(long, value_name = "L", allow_negative_numbers = true, hide = true)]
     sequence: Option<i64>,
     /// Calibration queries sampled per deployment query (clipped to |Qcal|). The paper
@@ -89,12 +90,18 @@ pub struct ThresholdArgs {
     /// Default: all deployment queries form one segment.
     #[arg(long, value_name = "M")]
     segment_size: Option<usize>,
-    /// `margin`: also calibrate the margin gate m* (single matching only; see
-    /// docs/semantics.md section 13): a deployed best match is then accepted only if its
-    /// score is at or above its segment's threshold and its margin at or above m*
-    /// [default: a calibration file's, else none].
+    /// `margin`: also calibrate the margin gate m* (semantics §13): a deployed best
+    /// match is then accepted only if its score is at or above its segment's threshold
+    /// and its margin at or above m*. `sequence`: the sequence gate (semantics §15), each
+    /// query's consistency with the previous queries (in column order; with
+    /// --cal-queries from the first query of the matrix) and its level are reported; a
+    /// best match is accepted only if its consistency reaches the level too.
+    /// `margin,sequence`: both. Single matching only [default: a calibration file's,
+    /// else none].
     #[arg(long, value_parser = crate::args::gate_parser())]
     gate: Option<qtvpr::Gate>,
+    #[command(flatten)]
+    sequence_gate: SequenceGateArgs,
     /// Matrices are stored query-major, |Q| x |DB| (the VPR-Bench convention).
     /// VPR-Bench files are query-major; a square matrix cannot be detected, so pass
     /// this flag for them. A calibration file is |DB| x |Qcal| whatever this says.
@@ -149,9 +156,10 @@ impl<'a> Request<'a> {
     fn new(args: &'a ThresholdArgs) -> Result<Self> {
         if args.sequence.is_some() {
             bail!(
-                "--sequence: `threshold` does not sequence-match, as it never holds the whole similarity \
-                 matrix; write the sequence-matched matrix with `qtvpr-cli similarity --sequence L` and pass it \
-                 as --similarity (or --cal/--val), or evaluate it with `evaluate --sequence L`"
+                "--sequence: `threshold` takes the sequence length of its calibration file (`calibrate --sequence \
+                 L`), which matches --val causally; otherwise write the sequence-matched matrix with `qtvpr-cli \
+                 similarity --sequence L` and pass it as --similarity (or --cal/--val), or evaluate it with \
+                 `evaluate --sequence L`"
             );
         }
         let split = args.split.split()?;
@@ -212,7 +220,14 @@ impl<'a> Request<'a> {
     /// The parameters given, each left out taking `defaults`' value (a calibration's).
     fn params(&self, defaults: &Defaults) -> Result<Params> {
         let a = self.args;
-        Ok(Params::resolve(defaults, a.k, a.precision, a.segment_size, a.gate)?)
+        Ok(Params::resolve(
+            defaults,
+            a.k,
+            a.precision,
+            a.segment_size,
+            a.gate,
+            a.sequence_gate.overrides(),
+        )?)
     }
 
     /// The matching asked for (single when none is).
@@ -253,7 +268,7 @@ impl<'a> Request<'a> {
                 evidence = gt.as_ref().map(qtvpr::Evidence::of);
                 // Nothing here saves it: a calibration of the split's own defaults.
                 let params = self.params(&Defaults::default())?;
-                qtvpr::check_gate(params.gate, self.matching(), n_db).context("--gate")?;
+                qtvpr::check_gate(params.gate, &params.sequence_gate, self.matching(), n_db).context("--gate")?;
                 let bar = progress::bar(global.quiet, split.deployment().len(), "deployment queries");
                 let progress = |done: usize, _| bar.set_position(done as u64);
                 let options = Options::new(params).progress(&progress);
@@ -284,7 +299,8 @@ impl<'a> Request<'a> {
                 self.transfer(cal, source, global, &input, explain)?
             }
             CalibrationInput::Matrix(path, gt_source) => {
-                let (cal, orientation) = calibrate::from_matrix(path, *gt_source, self.matching(), args.query_major)?;
+                let (cal, orientation) =
+                    calibrate::from_matrix(path, *gt_source, self.matching(), args.query_major, 1)?;
                 evidence = orientation.evidence;
                 self.transfer(cal, source, global, &input, explain)?
             }
@@ -317,7 +333,7 @@ impl<'a> Request<'a> {
         explain: impl Fn(qtvpr::Error) -> anyhow::Error,
     ) -> Result<(Calibration, Params, Transfer)> {
         let params = self.params(cal.defaults())?;
-        cal.check_gate(params.gate).context("--gate")?;
+        cal.check_gate(params.gate, &params.sequence_gate).context("--gate")?;
         let bar = progress::bar(global.quiet, source.dim().1, "deployment queries");
         let progress = |done: usize, _| bar.set_position(done as u64);
         let transfer = cal
@@ -357,11 +373,18 @@ fn text(report: &ThresholdReport<'_>, format: Format) -> Result<String> {
     Ok(match format {
         Format::Json => serde_json::to_string_pretty(report)? + "\n",
         Format::Csv => {
-            let gate = report.gate.map(|m| format!(",{m}")).unwrap_or_default();
-            let mut t = String::from("start,end,quantile,threshold");
-            t += if gate.is_empty() { "\n" } else { ",gate\n" };
+            // A gate's level, the same on every segment's row.
+            let levels = [("gate", report.gate), ("consistency_level", report.consistency_level)];
+            let (mut header, mut cells) = (String::from("start,end,quantile,threshold"), String::new());
+            for (name, level) in levels {
+                if let Some(level) = level {
+                    write!(header, ",{name}")?;
+                    write!(cells, ",{level}")?;
+                }
+            }
+            let mut t = header + "\n";
             for s in report.segments {
-                writeln!(t, "{},{},{},{}{gate}", s.start, s.end, s.quantile, s.threshold)?;
+                writeln!(t, "{},{},{},{}{cells}", s.start, s.end, s.quantile, s.threshold)?;
             }
             t
         }

@@ -128,7 +128,8 @@ fn hand_computed_json() {
         json!({"k": 10, "precision": 0.5, "matching": "single", "queries": 7, "database_size": 3,
                "calibration_queries": 2, "deployment_start": 2, "deployment_queries": 5,
                "segment_size": 2, "segments": 2, "calibration": {"count": 2}, "segment": {"count": 2},
-               "deploy_fraction": null})
+               "deploy_fraction": null,
+               "sequence_gate": {"window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}})
     );
     // Full segments d0..d3: best matches d0 (db0, hard), d1 (db1, wrong), d2 and d3 (no
     // match); d0 and d1 have a hard match -> R@1 = 1/2.
@@ -294,8 +295,11 @@ fn table_and_csv() {
     assert_eq!(lines[9], "| score | 0.667 | | |");
     assert_eq!(lines[10], "| margin | 0.667 | | |");
     assert_eq!(lines[11], "| pa_score | 0.667 | | |");
-    assert_eq!(lines[12], "| confidence | 0.667 | 0.196 | 0.351 |");
-    assert_eq!(lines.len(), 13);
+    // The consistency (semantics §15) has no AUROC on |DB| = 3, too small for the
+    // sequence gate's +-3 rows.
+    assert_eq!(lines[12], "| consistency | n/a | | |");
+    assert_eq!(lines[13], "| confidence | 0.667 | 0.196 | 0.351 |");
+    assert_eq!(lines.len(), 14);
 
     let csv = case.ok(&["--format", "csv", "--method", "oracle", "--k", "1,2"]);
     let rows: Vec<&str> = csv.lines().collect();
@@ -311,7 +315,7 @@ fn table_and_csv() {
     // 0.48559, so Brier (0.08736^2 + 0.48559^2) / 2 = 0.12171 and ECE (0.08736 +
     // 0.48559) / 2 = 0.28648; no R@1 (nothing has a hard match).
     assert!(
-        rows[0].ends_with(",auroc_score,auroc_margin,auroc_pa_score,auroc_confidence,brier,ece"),
+        rows[0].ends_with(",auroc_score,auroc_margin,auroc_pa_score,auroc_consistency,auroc_confidence,brier,ece"),
         "{csv}"
     );
     let cells: Vec<&str> = rows[1].rsplitn(8, ',').collect();
@@ -446,16 +450,18 @@ fn embedded_demo_data_prints_a_table() {
         .lines()
         .filter(|l| l.starts_with("| ") && !l.starts_with("| method") && !l.starts_with("| signal"))
         .collect();
-    // Every method, the margin gate's two included (single matching); then the four
-    // signals of semantics §14. The 11 calibration queries' best matches are all right:
+    // Every method, the gates' five included (single matching); then the five signals
+    // of semantics §14 and §15. The 11 calibration queries' best matches are all right:
     // one block, and yet the map ranks as the PA-score does (tests/test_confidence.py
     // checks these figures against the NumPy reference).
-    assert_eq!(rows.len(), 12, "{text}");
-    assert_eq!(rows[10], "| pa_score | 0.729 | | |", "{text}");
-    assert_eq!(rows[11], "| confidence | 0.729 | 0.133 | 0.041 |", "{text}");
+    assert_eq!(rows.len(), 16, "{text}");
+    assert_eq!(rows[13], "| pa_score | 0.729 | | |", "{text}");
+    assert!(rows[14].starts_with("| consistency | "), "{text}");
+    assert_eq!(rows[15], "| confidence | 0.729 | 0.133 | 0.041 |", "{text}");
     assert!(rows[1].starts_with("| quantile-transfer-online | "), "{text}");
     assert!(rows[3].starts_with("| margin | "), "{text}");
-    assert!(rows[7].starts_with("| oracle | 100.0 |"), "{text}");
+    assert!(rows[6].starts_with("| sequence | "), "{text}");
+    assert!(rows[10].starts_with("| oracle | 100.0 |"), "{text}");
 }
 
 #[test]

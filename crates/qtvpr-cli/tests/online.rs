@@ -180,6 +180,7 @@ fn single_matching_stream_equals_online() {
         window: 5,
         min_window: 1,
         gate: qtvpr::Gate::None,
+        sequence_gate: Default::default(),
     };
     let expected = case.expected(Matching::Single, None, p);
     // The window comes from the file.
@@ -229,6 +230,7 @@ fn single_matching_stream_equals_online() {
         window: 8,
         min_window: 4,
         gate: qtvpr::Gate::None,
+        sequence_gate: Default::default(),
     };
     let csv = case.ok(&[
         "stream",
@@ -290,6 +292,7 @@ fn multi_matching_query_major_soft_ground_truth() {
         window: 6,
         min_window: 3,
         gate: qtvpr::Gate::None,
+        sequence_gate: Default::default(),
     };
     let expected = case.expected(Matching::Multi, Some(&soft), p);
     let csv = case.ok(&[
@@ -728,6 +731,7 @@ fn evaluate_reports_the_online_method() {
         window: 5,
         min_window: 1,
         gate: qtvpr::Gate::None,
+        sequence_gate: Default::default(),
     };
     let expected = case.expected(Matching::Single, None, p);
     let segments = online["segments"].as_array().unwrap();
@@ -840,6 +844,7 @@ fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
         window: 5,
         min_window: 1,
         gate: qtvpr::Gate::Margin,
+        sequence_gate: Default::default(),
     };
     let expected = case.expected(Matching::Single, None, p);
     let plain = case.expected(
@@ -976,7 +981,7 @@ fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2));
     assert!(
-        stderr.contains("'ratio'") && stderr.contains("[possible values: none, margin]"),
+        stderr.contains("'ratio'") && stderr.contains("none, or one or more of margin, sequence"),
         "{stderr}"
     );
     // `all` in multi matching is every method that applies.
@@ -1014,4 +1019,150 @@ fn stream_lines_are_the_core_record() {
             assert_eq!(keys, names, "{line}");
         }
     }
+}
+
+/// The sequence gate and online sequence matching (semantics §15) through `calibrate`,
+/// `stream` and `threshold`: a file of `calibrate --gate sequence --sequence 3` gives
+/// the decisions of `qtvpr::Online` on a calibration matched the same way, bit for bit
+/// (the consistency and its level among them), and `threshold` on that file gives the
+/// same thresholds and consistencies as the stream, as the batch path of the causally
+/// matched matrix.
+#[test]
+#[ignore = "needs ../shared/data vprbench-corridor: the sequence gate and L = 3 through calibrate and stream"]
+fn the_sequence_gate_and_length_in_calibrate_stream_and_threshold() {
+    let Some(case) = Case::new("AlexNet_VPR") else {
+        return;
+    };
+    let length = 3;
+    case.ok(&[
+        "calibrate",
+        "--cal",
+        "cal.npy",
+        "--cal-gt",
+        "cal_gt.npy",
+        "--window",
+        "5",
+        "--gate",
+        "sequence",
+        "--sequence",
+        "3",
+        "-o",
+        "seq.npz",
+    ]);
+    let p = OnlineParams {
+        k: 10,
+        precision: 1.0,
+        window: 5,
+        min_window: 1,
+        gate: qtvpr::Gate::Sequence,
+        sequence_gate: Default::default(),
+    };
+    // What the core decides on a calibration matched over 3 queries in this process.
+    let gt = GroundTruth::new(case.gt.slice(s![.., ..N_CAL])).unwrap();
+    let (cal, val) = (case.s.slice(s![.., ..N_CAL]), case.s.slice(s![.., N_CAL..]));
+    let expected = if case.f32 {
+        let (c, v) = (cal.mapv(|x| x as f32), val.mapv(|x| x as f32));
+        let cal = Arc::new(Calibration::new_sequence(c.view(), &gt, Matching::Single, length).unwrap());
+        Online::new(cal, p).unwrap().push_many(v.view()).unwrap()
+    } else {
+        let cal = Arc::new(Calibration::new_sequence(cal, &gt, Matching::Single, length).unwrap());
+        Online::new(cal, p).unwrap().push_many(val).unwrap()
+    };
+    // The first 4 queries of the stream cannot pass (ceil(0.8 * 5) = 4), whatever their
+    // scores; Corridor is one traverse, so some later ones do.
+    assert!(expected[..4].iter().all(|d| !d.accept()));
+    assert!(expected.iter().any(|d| d.consistency == Some(1.0)));
+    let csv = case.ok(&[
+        "stream",
+        "--calibration",
+        "seq.npz",
+        "--val",
+        "val.npy",
+        "--format",
+        "csv",
+    ]);
+    let mut rows = csv.lines();
+    assert_eq!(rows.next(), Some(&*Decision::fields(qtvpr::Gate::Sequence).join(",")));
+    let rows: Vec<&str> = rows.collect();
+    assert_eq!(rows.len(), expected.len());
+    let f = |x: &str| x.parse::<f64>().unwrap().to_bits();
+    for (row, d) in rows.iter().zip(&expected) {
+        let v: Vec<&str> = row.split(',').collect();
+        // query, ..., threshold (4), best (5), accept (8), consistency (11), its level (12).
+        assert_eq!(f(v[4]), d.threshold.to_bits(), "{row}");
+        assert_eq!(v[5].parse::<usize>().unwrap(), d.best, "{row}");
+        assert_eq!(v[8], d.accept().to_string(), "{row}");
+        assert_eq!(
+            (f(v[11]), f(v[12])),
+            (d.consistency.unwrap().to_bits(), 0.8f64.to_bits()),
+            "{row}"
+        );
+    }
+    // threshold on the file: one segment per query, so each query's threshold is the
+    // stream's of a window of 1; the consistencies are the stream's.
+    let json: serde_json::Value = serde_json::from_str(&case.ok(&[
+        "threshold",
+        "--cal",
+        "seq.npz",
+        "--val",
+        "val.npy",
+        "--segment-size",
+        "1",
+    ]))
+    .unwrap();
+    assert_eq!(json["params"]["gate"], "sequence");
+    assert_eq!(json["consistency_level"], 0.8);
+    let consistencies: Vec<f64> = json["query_consistencies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect();
+    let streamed: Vec<f64> = expected.iter().map(|d| d.consistency.unwrap()).collect();
+    assert_eq!(consistencies, streamed);
+    let one = Online::new(
+        Arc::new(Calibration::new_sequence(cal, &gt, Matching::Single, length).unwrap()),
+        OnlineParams { window: 1, ..p },
+    )
+    .unwrap()
+    .push_many(val)
+    .unwrap();
+    let segments = json["segments"].as_array().unwrap();
+    assert_eq!(segments.len(), one.len());
+    for (seg, d) in segments.iter().zip(&one) {
+        let t = seg["threshold"].as_f64().unwrap();
+        assert!((t - d.threshold).abs() <= 1e-15 * d.threshold.abs().max(1.0), "{seg}");
+    }
+    // Another length than the file's: exit 2, naming both.
+    case.fails(
+        &[
+            "stream",
+            "--calibration",
+            "seq.npz",
+            "--val",
+            "val.npy",
+            "--sequence",
+            "5",
+        ],
+        &[],
+        &["--sequence", "5 is not the calibration's sequence length 3"],
+    );
+    // The sequence gate on multi matching: exit 2 naming --gate, and no file.
+    case.fails(
+        &[
+            "calibrate",
+            "--cal",
+            "cal.npy",
+            "--cal-gt",
+            "cal_gt.npy",
+            "--matching",
+            "multi",
+            "--gate",
+            "margin,sequence",
+            "-o",
+            "multi.npz",
+        ],
+        &["multi.npz"],
+        &["--gate", "needs single matching"],
+    );
 }

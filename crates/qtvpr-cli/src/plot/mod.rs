@@ -53,8 +53,18 @@ const FN_COLOUR: RGBColor = RGBColor(170, 170, 170);
 const NOTE_COLOUR: RGBColor = RGBColor(90, 90, 90);
 /// Dash and gap of the oracle's threshold line, in pixels (and of its legend swatch).
 const ORACLE_DASH: (u32, u32) = (7, 4);
-/// Dash and gap of a gated method's threshold line, which lies on quantile transfer's.
-const GATED_DASH: (u32, u32) = (3, 5);
+/// Dash and gap of a gated method's threshold line, which lies on quantile transfer's:
+/// one for each set of gates, of different periods, so that lines on one another show
+/// each colour in turn.
+fn gated_dash(m: Method) -> Option<(u32, u32)> {
+    let g = m.gate();
+    match (g.margin(), g.sequence()) {
+        (false, false) => None,
+        (true, false) => Some((3, 5)),
+        (false, true) => Some((7, 7)),
+        (true, true) => Some((2, 10)),
+    }
+}
 /// Dash and gap of the target-precision line of the precision-recall figure.
 const TARGET_DASH: (u32, u32) = (6, 5);
 
@@ -65,6 +75,9 @@ fn colour(m: Method) -> RGBColor {
         Method::QuantileTransferOnline => RGBColor(23, 190, 207),
         Method::QuantileTransferMargin => RGBColor(44, 160, 44),
         Method::Margin => RGBColor(188, 189, 34),
+        Method::QuantileTransferSequence => RGBColor(214, 39, 40),
+        Method::QuantileTransferMarginSequence => RGBColor(227, 119, 194),
+        Method::Sequence => RGBColor(127, 127, 127),
         Method::Schubert => RGBColor(255, 127, 14),
         Method::SchubertCalibrated => RGBColor(148, 103, 189),
         Method::CalibrationThreshold => RGBColor(140, 86, 75),
@@ -84,10 +97,13 @@ enum Shape {
     InvertedTriangle,
     Plus,
     Hexagon,
+    Ring,
+    Pentagon,
+    Star,
 }
 
 /// Shapes in the order series get them.
-const SHAPES: [Shape; 8] = [
+const SHAPES: [Shape; 11] = [
     Shape::Circle,
     Shape::Triangle,
     Shape::Square,
@@ -96,6 +112,9 @@ const SHAPES: [Shape; 8] = [
     Shape::InvertedTriangle,
     Shape::Plus,
     Shape::Hexagon,
+    Shape::Ring,
+    Shape::Pentagon,
+    Shape::Star,
 ];
 
 /// The marker of a method, the same in every figure.
@@ -109,6 +128,9 @@ fn shape(m: Method) -> Shape {
         Method::QuantileTransferOnline => Shape::InvertedTriangle,
         Method::QuantileTransferMargin => Shape::Hexagon,
         Method::Margin => Shape::Plus,
+        Method::QuantileTransferSequence => Shape::Pentagon,
+        Method::QuantileTransferMarginSequence => Shape::Star,
+        Method::Sequence => Shape::Ring,
     }
 }
 
@@ -143,8 +165,26 @@ where
             let q = r / 2;
             area.draw(&(at + Polygon::new(vec![(-r, 0), (-q, -h), (q, -h), (r, 0), (q, h), (-q, h)], c.filled())))
         }
+        Shape::Ring => area.draw(&(at + Circle::new((0, 0), r, c.stroke_width(2)))),
+        Shape::Pentagon => area.draw(&(at + Polygon::new(polygon(5, r, r), c.filled()))),
+        Shape::Star => area.draw(&(at + Polygon::new(polygon(10, r, r / 2), c.filled()))),
     }
     .map_err(err)
+}
+
+/// The `n` corners of a polygon about (0, 0), pointing up, at radii `outer` and
+/// `inner` in turn (equal for a regular polygon, a star otherwise), in pixels.
+fn polygon(n: usize, outer: i32, inner: i32) -> Vec<(i32, i32)> {
+    (0..n)
+        .map(|i| {
+            let radius = f64::from(if i % 2 == 0 { outer } else { inner });
+            let angle = std::f64::consts::TAU * i as f64 / n as f64;
+            (
+                (radius * angle.sin()).round() as i32,
+                (-radius * angle.cos()).round() as i32,
+            )
+        })
+        .collect()
 }
 
 /// What a legend entry shows: the series as it is drawn.

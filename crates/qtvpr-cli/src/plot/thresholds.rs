@@ -129,14 +129,15 @@ pub(super) fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result
     let mut entries: Vec<(Swatch, String)> = vec![];
     for m in &methods {
         let c = colour(m.method);
-        // A gated method's thresholds are quantile transfer's (the gate acts on the
-        // margin, not the score): dashed, so that the line beneath stays visible.
-        let gated = m.method.is_gated();
+        // A gated method's thresholds are quantile transfer's (the gates act on the
+        // margin and the consistency, not the score): dashed, each set of gates its own
+        // dash, so that the lines beneath stay visible.
+        let dash = gated_dash(m.method);
         for pts in finite_runs(m.segments.iter().map(|g| (g.start as f64, g.end as f64, g.threshold))) {
-            if gated {
+            if let Some((on, off)) = dash {
                 let style = ShapeStyle::from(&c).stroke_width(2);
                 chart
-                    .draw_series(DashedLineSeries::new(pts, GATED_DASH.0, GATED_DASH.1, style))
+                    .draw_series(DashedLineSeries::new(pts, on, off, style))
                     .map_err(err)?;
             } else {
                 chart
@@ -144,10 +145,9 @@ pub(super) fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result
                     .map_err(err)?;
             }
         }
-        let swatch = if gated {
-            Swatch::Dashed(c, 2, GATED_DASH)
-        } else {
-            Swatch::Line(c, 2)
+        let swatch = match dash {
+            Some(dash) => Swatch::Dashed(c, 2, dash),
+            None => Swatch::Line(c, 2),
         };
         entries.push((swatch, m.method.as_str().to_string()));
     }
