@@ -28,10 +28,23 @@
  * float64 scores rounded to float changes the scores, and so the weights, quantiles and
  * thresholds (the last digits, and sometimes a decision).
  *
- * Ownership: the caller owns what qtvpr_calibration_load and qtvpr_online_new return and
- * frees it with qtvpr_calibration_free and qtvpr_online_free; nothing else is the
- * caller's to free (qtvpr_last_error's message and qtvpr_version's string are the
- * library's).
+ * Gates and sequence matching (docs/semantics.md §13, §15): choose every parameter with
+ * an options struct, each member "the file's" until set:
+ *
+ *     qtvpr_online_options opts;
+ *     qtvpr_online_options_init(&opts);
+ *     opts.gate = "margin,sequence";   // the margin and the sequence gate
+ *     opts.sequence_window = 5;        // the others stay the file's
+ *     qtvpr_online *o = qtvpr_online_new_with(cal, &opts);
+ *
+ * A calibration file of `qtvpr-cli calibrate --sequence L` decides each query on its
+ * causal sequence-matched column (qtvpr_calibration_sequence tells L): push raw scores.
+ *
+ * Ownership: the caller owns what qtvpr_calibration_load and the qtvpr_online_new
+ * functions return and frees it with qtvpr_calibration_free and qtvpr_online_free;
+ * nothing else is the caller's to free (qtvpr_last_error's message and qtvpr_version's
+ * string are the library's; an options struct is the caller's own memory, read during
+ * the call only).
  *
  * Errors: the push functions return QTVPR_OK (0) or a qtvpr_status code; functions that
  * return a pointer return NULL on error, and those that return a count return 0. Every
@@ -54,8 +67,10 @@
  * library in the child: the child builds a pool of its own, of the same size, on its
  * first call.
  *
- * ABI: qtvpr_decision gained confidence and confidence_lower95 (at its end) after
- * 0.1.0, so it is larger; a program compiled against an older header must be rebuilt.
+ * ABI: qtvpr_decision gained confidence and confidence_lower95, then consistency and
+ * consistency_level (at its end) after 0.1.0, so it is larger; a program compiled
+ * against an older header must be rebuilt. qtvpr_online_options carries its own size,
+ * so that members added to it later leave older programs working.
  *
  * Link with -lqtvpr (shared), or libqtvpr.a -lpthread -ldl -lm (static).
  */
@@ -97,9 +112,11 @@ typedef enum {
      */
     QTVPR_ERR_INPUT = 3,
     /**
-     * k, precision, window or min_window is out of range (a window too large to be
-     * allocated included), no window is given and the calibration file sets none, or
-     * qtvpr_set_threads got 0 threads or more than 1024.
+     * k, precision, window, min_window or a sequence gate parameter is out of range (a
+     * window too large to be allocated included), no window is given and the
+     * calibration file sets none, a gate is unknown or cannot apply to the calibration,
+     * a sequence length is not the calibration's, options were not initialised by
+     * qtvpr_online_options_init, or qtvpr_set_threads got 0 threads or more than 1024.
      */
     QTVPR_ERR_PARAM = 4,
     /**
@@ -156,6 +173,77 @@ typedef struct qtvpr_calibration qtvpr_calibration;
 typedef struct qtvpr_online qtvpr_online;
 
 /**
+ * The parameters of a new online state (qtvpr_online_new_with), each either given or
+ * "the calibration file's" (its params; else the library's default).
+ *
+ * Fill one with qtvpr_online_options_init, which sets every member to "the file's",
+ * then set those to give: a struct that is not initialised so is refused. Members may
+ * be added at the end in later versions (size tells the library which it has), so
+ * code written against this header keeps working, recompiled or not.
+ */
+typedef struct {
+    /**
+     * sizeof(qtvpr_online_options) of the caller's header: set by
+     * qtvpr_online_options_init, not by hand.
+     */
+    size_t size;
+    /**
+     * Calibration queries sampled per deployment query, >= 1 (SIZE_MAX: all); 0: the
+     * file's.
+     */
+    size_t k;
+    /**
+     * The precision target, in (0, 1]; 0: the file's (as in qtvpr_online_new).
+     */
+    double precision;
+    /**
+     * Each query is thresholded on its last window queries, >= 1; 0: the file's (an
+     * error if it sets none). See qtvpr_online_new for its memory.
+     */
+    size_t window;
+    /**
+     * Queries before the min_window-th are rejected, in 1..=window; 0: 1.
+     */
+    size_t min_window;
+    /**
+     * The gates, a NUL-terminated name: "none", "margin" (semantics §13), "sequence"
+     * (semantics §15) or "margin,sequence" (either order); NULL: the file's. The
+     * string is read during the call only.
+     */
+    const char *gate;
+    /**
+     * The sequence gate: how many previous queries a query's best match is compared
+     * with, >= 1; 0: the file's (else 5).
+     */
+    size_t sequence_window;
+    /**
+     * The sequence gate: the share of them whose best matches must agree, in (0, 1];
+     * NaN: the file's (else 0.8).
+     */
+    double sequence_level;
+    /**
+     * The sequence gate: database rows per query (-1: the route driven backwards),
+     * finite; NaN: the file's (else 1).
+     */
+    double sequence_speed;
+    /**
+     * The sequence gate: how far in rows a neighbour one step away may lie from the
+     * line, >= 0; NaN: the file's (else 2).
+     */
+    double sequence_tolerance;
+    /**
+     * The sequence gate: how much that widens per step away, >= 0; NaN: the file's
+     * (else 0.2).
+     */
+    double sequence_drift;
+    /**
+     * The sequence length L the caller expects of the calibration (its
+     * qtvpr_calibration_sequence): another one is an error; 0: whatever it is.
+     */
+    size_t sequence;
+} qtvpr_online_options;
+
+/**
  * The decision of one deployment query: the decision record, with the values of a
  * `qtvpr-cli stream` line and of Python's decisions, in both matching modes (a test
  * holds its members to the core's list of fields, `qtvpr::Decision::RECORD`).
@@ -165,7 +253,8 @@ typedef struct qtvpr_online qtvpr_online;
  * single matching 1 if the best match is accepted (score >= threshold), else 0; in
  * multi matching every entry with a score >= threshold (qtvpr_online_accepted lists
  * them). accept == (accepted > 0). confidence and confidence_lower95 (semantics §14)
- * were added after 0.1.0: the struct is larger, an ABI change.
+ * were added after 0.1.0, consistency and consistency_level (semantics §15) after
+ * them: the struct is larger, an ABI change (recompile against this header).
  */
 typedef struct {
     /**
@@ -227,6 +316,18 @@ typedef struct {
      * The one-sided 95% Clopper-Pearson lower bound on confidence. NaN where it is.
      */
     double confidence_lower95;
+    /**
+     * With the sequence gate: the query's consistency, the share of the previous
+     * sequence_window queries of the stream whose best matches agree with its own
+     * (semantics §15). NaN without it.
+     */
+    double consistency;
+    /**
+     * With the sequence gate: the consistency a best match needs besides a score >=
+     * threshold (accepted is 1 only with both, and with the margin gate's too). NaN
+     * without it.
+     */
+    double consistency_level;
 } qtvpr_decision;
 
 #ifdef __cplusplus
@@ -304,6 +405,49 @@ size_t qtvpr_calibration_db_size(const qtvpr_calibration *cal);
 int qtvpr_calibration_matching(const qtvpr_calibration *cal);
 
 /**
+ * The calibration's sequence length L (semantics §15): 1, or the length its calibration
+ * traverse was causally sequence-matched over (`qtvpr-cli calibrate --sequence L`).
+ * A state over it decides each query on its causal sequence-matched column, formed from
+ * the last L - 1 columns pushed (8 x (L - 1) x n_db bytes more), as `qtvpr-cli stream`
+ * does.
+ *
+ * Returns 0 on error (QTVPR_ERR_NULL: cal is NULL). Thread-safe.
+ *
+ * # Safety
+ * cal is NULL or a live calibration.
+ */
+size_t qtvpr_calibration_sequence(const qtvpr_calibration *cal);
+
+/**
+ * Set every member of *opts to "the calibration file's" (0, NaN or NULL as each member
+ * says), and its size to this library's. Does nothing when opts is NULL. Thread-safe.
+ *
+ * # Safety
+ * opts is NULL or points to a writable qtvpr_online_options.
+ */
+void qtvpr_online_options_init(qtvpr_online_options *opts);
+
+/**
+ * A new online state over cal with the parameters of *opts (initialised by
+ * qtvpr_online_options_init; NULL: every parameter the file's).
+ *
+ * Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
+ * QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (opts not initialised by
+ * qtvpr_online_options_init; a parameter out of range, the message names it; a gate
+ * that is not "none" or a set of "margin" and "sequence", or one the calibration cannot
+ * have: multi matching, the margin gate with one database image, the sequence gate on
+ * a database its tolerance covers; a sequence other than the calibration's), the
+ * message saying why. The state holds its own reference to the calibration: cal may be
+ * freed afterwards, and opts and its gate string are not kept. Thread-safe (cal and
+ * opts are only read).
+ *
+ * # Safety
+ * cal is NULL or a live calibration; opts is NULL or points to a qtvpr_online_options
+ * whose gate is NULL or a NUL-terminated string.
+ */
+qtvpr_online *qtvpr_online_new_with(const qtvpr_calibration *cal, const qtvpr_online_options *opts);
+
+/**
  * A new online state over cal: an empty window.
  *
  * Each parameter takes the calibration file's value when 0 (min_window: 1):
@@ -317,7 +461,9 @@ int qtvpr_calibration_matching(const qtvpr_calibration *cal);
  *   the application can hold (e.g. 1000 queries x 10000 images = 80 MB);
  * - min_window, queries before the min_window-th are rejected: in 1..=window.
  *
- * The gate is the file's (see qtvpr_online_new_gate to choose it).
+ * The gate and the sequence gate's parameters are the file's (see
+ * qtvpr_online_new_with to choose them; this is qtvpr_online_new_with with these four
+ * members set, 0 taken as "the file's").
  *
  * Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
  * QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, e.g. window
@@ -335,12 +481,15 @@ qtvpr_online *qtvpr_online_new(const qtvpr_calibration *cal,
                                size_t min_window);
 
 /**
- * qtvpr_online_new with a gate: gate is NULL (the file's), "none", or "margin": a
- * best match is then accepted only if its margin is also at least the calibration's
- * m* (single matching only), and each qtvpr_decision carries margin and gate.
+ * qtvpr_online_new with a gate: gate is NULL (the file's), "none", "margin" (a best
+ * match is then accepted only if its margin is also at least the calibration's m*, and
+ * each qtvpr_decision carries margin and gate), "sequence" (only if the best matches of
+ * the previous queries agree with it, semantics §15, with the file's parameters; each
+ * qtvpr_decision carries consistency and consistency_level) or "margin,sequence".
+ * Single matching only. qtvpr_online_new_with chooses the sequence gate's parameters.
  *
- * Returns as qtvpr_online_new; QTVPR_ERR_PARAM also for another gate name, or
- * "margin" on a multi-matching calibration (the message says why).
+ * Returns as qtvpr_online_new; QTVPR_ERR_PARAM also for another gate name, or a gate
+ * the calibration cannot have (the message says why).
  *
  * # Safety
  * cal is NULL or a live calibration; gate is NULL or a NUL-terminated string.

@@ -62,10 +62,15 @@ cc -std=c89 -pedantic -Wall -Wextra -Werror -Iinclude "$work/c89.c" "${shared[@]
 # check that every example prints what `qtvpr-cli stream` prints.
 check_stream() {
     local name=$1 cal_s=$2 gt=$3 deploy=$4 window=$5 matching
-    # single, multi, and single with the margin gate (its decisions carry margin and gate).
-    for matching in single multi margin; do
+    # single, multi, single with the margin gate (its decisions carry margin and gate),
+    # with the sequence gate (consistency and consistency_level), and with both gates on
+    # a calibration of sequence length 11 (each query decided on its causal
+    # sequence-matched column).
+    for matching in single multi margin sequence sequence11; do
         local cal="$work/$name-$matching.npz" want="$work/$name-$matching.jsonl" mode=(--matching "$matching")
         [ "$matching" = margin ] && mode=(--matching single --gate margin)
+        [ "$matching" = sequence ] && mode=(--matching single --gate sequence)
+        [ "$matching" = sequence11 ] && mode=(--matching single --gate margin,sequence --sequence 11)
         # shellcheck disable=SC2086 # gt is the ground-truth arguments
         "$cli" calibrate --cal "$cal_s" $gt "${mode[@]}" --window "$window" --output "$cal"
         "$cli" --quiet stream --calibration "$cal" --val "$deploy" --min-window 2 > "$want"
@@ -75,6 +80,10 @@ check_stream() {
         done
         if [ "$matching" = margin ] && ! grep -q '"margin":.*"gate":' "$want"; then
             echo "$want: gated decisions without margin and gate" >&2
+            exit 1
+        fi
+        if [[ "$matching" = sequence* ]] && ! grep -q '"consistency":.*"consistency_level":0.8}' "$want"; then
+            echo "$want: decisions with the sequence gate without consistency and its level" >&2
             exit 1
         fi
     done

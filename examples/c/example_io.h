@@ -120,9 +120,10 @@ static void print_number(double x) {
 /* Print d as `qtvpr-cli stream --format jsonl` does: the eleven fields of the decision
  * record, the same keys in the same order in both matching modes (confidence and
  * confidence_lower95 null in multi matching, where they are NaN), then the margin
- * gate's margin and gate when it is on (they are NaN when it is off); %.17g gives
- * every double exactly (the CLI writes the shortest form of the same value, and null
- * for an infinite one: a reject-all gate). */
+ * gate's margin and gate when it is on, then the sequence gate's consistency and
+ * consistency_level when it is on (each NaN when its gate is off); %.17g gives every
+ * double exactly (the CLI writes the shortest form of the same value, and null for an
+ * infinite one: a reject-all gate). */
 static void print_decision(const qtvpr_decision *d) {
     printf("{\"query\":%zu,\"query_quantile\":%.17g,\"weight\":%.17g,\"quantile\":%.17g,"
            "\"threshold\":%.17g,\"best\":%zu,\"score\":%.17g,\"accepted\":%zu,\"accept\":%s",
@@ -139,6 +140,8 @@ static void print_decision(const qtvpr_decision *d) {
         else
             printf("%.17g", d->gate);
     }
+    if (d->consistency_level == d->consistency_level)
+        printf(",\"consistency\":%.17g,\"consistency_level\":%.17g", d->consistency, d->consistency_level);
     printf("}\n");
 }
 

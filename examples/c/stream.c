@@ -4,9 +4,12 @@
  * from a camera, one push at a time, printing one JSON line per decision (the lines of
  * `qtvpr-cli stream --format jsonl`).
  *
- *     stream CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW]
+ *     stream CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW [GATE]]
  *
- * Each parameter left out or 0 takes the calibration file's value.
+ * Each parameter left out or 0 takes the calibration file's value; GATE is "none",
+ * "margin", "sequence" or "margin,sequence" (the file's when left out). A calibration
+ * file of `qtvpr-cli calibrate --sequence L` decides each query on its causal
+ * sequence-matched column: nothing here changes for it.
  * Build: cc -Iinclude examples/c/stream.c -Ltarget/release -lqtvpr -o stream
  */
 #include <stdio.h>
@@ -23,16 +26,22 @@ int main(int argc, char **argv) {
     int status = 1;
     size_t j;
 
-    if (argc != 3 && argc != 7) {
-        fprintf(stderr, "usage: %s CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW]\n", argv[0]);
+    qtvpr_online_options opts;
+
+    if (argc != 3 && argc != 7 && argc != 8) {
+        fprintf(stderr, "usage: %s CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW [GATE]]\n", argv[0]);
         return 2;
     }
     if (!(cal = qtvpr_calibration_load(argv[1]))) goto error;
-    online = qtvpr_online_new(cal, argc == 7 ? strtoul(argv[3], NULL, 10) : 0,
-                              argc == 7 ? strtod(argv[4], NULL) : 0.0,
-                              argc == 7 ? strtoul(argv[5], NULL, 10) : 0,
-                              argc == 7 ? strtoul(argv[6], NULL, 10) : 0);
-    if (!online) goto error;
+    qtvpr_online_options_init(&opts); /* every parameter the file's */
+    if (argc >= 7) {
+        opts.k = strtoul(argv[3], NULL, 10);
+        opts.precision = strtod(argv[4], NULL);
+        opts.window = strtoul(argv[5], NULL, 10);
+        opts.min_window = strtoul(argv[6], NULL, 10);
+    }
+    if (argc == 8) opts.gate = argv[7];
+    if (!(online = qtvpr_online_new_with(cal, &opts))) goto error;
     if (npy_read(argv[2], &s) != 0) goto done;
     if (!(column = malloc(s.rows * s.itemsize))) goto done;
 

@@ -1,7 +1,7 @@
 // Online thresholds from C++17: stream.c with the handles in RAII wrappers, so that
 // every path (an exception included) frees them, and errors as exceptions.
 //
-//     stream_cpp CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW]
+//     stream_cpp CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW [GATE]]
 //
 // Build: c++ -std=c++17 -Iinclude examples/c/stream.cpp -Ltarget/release -lqtvpr -o stream_cpp
 #include <cstdio>
@@ -37,8 +37,10 @@ Calibration load(const std::string &path) {
     return cal;
 }
 
-Online online(const Calibration &cal, size_t k, double precision, size_t window, size_t min_window) {
-    Online o(qtvpr_online_new(cal.get(), k, precision, window, min_window));
+// Every parameter of opts "the calibration file's" (qtvpr_online_options_init) but
+// those the caller sets.
+Online online(const Calibration &cal, const qtvpr_online_options &opts) {
+    Online o(qtvpr_online_new_with(cal.get(), &opts));
     if (!o) fail();
     return o;
 }
@@ -70,15 +72,22 @@ template <typename T> void stream(const qtvpr::Online &o, const npy_matrix &s) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 3 && argc != 7) {
-        std::fprintf(stderr, "usage: %s CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW]\n", argv[0]);
+    if (argc != 3 && argc != 7 && argc != 8) {
+        std::fprintf(stderr, "usage: %s CAL.npz DEPLOY.npy [K PRECISION WINDOW MIN_WINDOW [GATE]]\n", argv[0]);
         return 2;
     }
     try {
         qtvpr::Calibration cal = qtvpr::load(argv[1]);
-        bool given = argc == 7;
-        qtvpr::Online o = qtvpr::online(cal, given ? std::stoul(argv[3]) : 0, given ? std::stod(argv[4]) : 0.0,
-                                        given ? std::stoul(argv[5]) : 0, given ? std::stoul(argv[6]) : 0);
+        qtvpr_online_options opts;
+        qtvpr_online_options_init(&opts);
+        if (argc >= 7) {
+            opts.k = std::stoul(argv[3]);
+            opts.precision = std::stod(argv[4]);
+            opts.window = std::stoul(argv[5]);
+            opts.min_window = std::stoul(argv[6]);
+        }
+        if (argc == 8) opts.gate = argv[7];
+        qtvpr::Online o = qtvpr::online(cal, opts);
         cal.reset(); // the online state keeps what it needs of the calibration
         npy_matrix s;
         if (npy_read(argv[2], &s) != 0) return 1;

@@ -9,9 +9,13 @@ Parameters (``--ros-args -p name:=value``):
 
 - ``calibration`` (string, required): the calibration file (``qtvpr-cli calibrate``,
   :meth:`qtvpr.Calibration.save`).
-- ``k``, ``precision``, ``window``, ``min_window``, ``gate``: as :class:`qtvpr.Online`
-  (docs/semantics.md §11-§13); left unset, each takes the file's value (the core's
-  resolution, as ``stream``). Invalid values are refused at start-up.
+- ``k``, ``precision``, ``window``, ``min_window``, ``gate`` and the sequence gate's
+  ``sequence_window``, ``sequence_level``, ``sequence_speed``, ``sequence_tolerance``,
+  ``sequence_drift``: as :class:`qtvpr.Online` (docs/semantics.md §11-§13, §15); left
+  unset, each takes the file's value (the core's resolution, as ``stream``). Invalid
+  values are refused at start-up. The sequence length ``L`` is the calibration file's
+  (``qtvpr-cli calibrate --sequence L``): each query is then decided on its causal
+  sequence-matched column, from the raw scores the node is sent.
 - ``qos_depth`` (integer, default :data:`QOS_DEPTH`): the keep-last depth of every topic
   (all reliable), the backlog of messages the node holds while it decides.
 
@@ -36,7 +40,8 @@ Topics (relative to the node: ``/qtvpr/...`` by default; remap them as any ROS t
 
 A decision as float64: ``query``, ``best`` and ``accepted`` are integers below 2**53,
 exact as float64; ``accept`` is 1.0 or 0.0; ``margin`` and ``gate`` are NaN when the
-stream has no margin gate (in both messages). The layout has one dimension, labelled
+stream has no margin gate, ``consistency`` and ``consistency_level`` when it has no
+sequence gate (in both messages). The layout has one dimension, labelled
 with the field names joined by commas (``layout.dim[0].label``), of size
 ``len(DECISION_FIELDS)``.
 
@@ -86,8 +91,9 @@ __all__ = ["DECISION_FIELDS", "DECISION_MSG_FIELDS", "NODE_NAME", "ONLINE_PARAME
 
 #: The fields of a ``~/decision`` message's ``data``, in order: the core's record
 #: (:attr:`qtvpr.OnlineDecision.FIELDS`), then its margin-gate fields
-#: (:attr:`qtvpr.OnlineDecision.GATE_FIELDS`), NaN without the gate.
-DECISION_FIELDS: tuple[str, ...] = OnlineDecision.FIELDS + OnlineDecision.GATE_FIELDS
+#: (:attr:`qtvpr.OnlineDecision.GATE_FIELDS`) and its sequence-gate fields
+#: (:attr:`qtvpr.OnlineDecision.SEQUENCE_FIELDS`), NaN without their gate.
+DECISION_FIELDS: tuple[str, ...] = OnlineDecision.FIELDS + OnlineDecision.GATE_FIELDS + OnlineDecision.SEQUENCE_FIELDS
 
 #: The fields of a ``qtvpr_msgs/Decision`` (``~/decision_msg``), in order: its header,
 #: :data:`DECISION_FIELDS`, and the record's ``accepted_indices``.
@@ -97,7 +103,18 @@ DECISION_MSG_FIELDS: tuple[str, ...] = ("header", *DECISION_FIELDS, "accepted_in
 NODE_NAME = "qtvpr"
 
 #: The ROS parameters passed to :class:`qtvpr.Online` when set (unset: the file's).
-ONLINE_PARAMETERS: tuple[str, ...] = ("k", "precision", "window", "min_window", "gate")
+ONLINE_PARAMETERS: tuple[str, ...] = (
+    "k",
+    "precision",
+    "window",
+    "min_window",
+    "gate",
+    "sequence_window",
+    "sequence_level",
+    "sequence_speed",
+    "sequence_tolerance",
+    "sequence_drift",
+)
 
 #: The default keep-last depth of the node's topics (parameter ``qos_depth``): at 30
 #: queries a second, about three seconds of backlog.
@@ -105,7 +122,8 @@ QOS_DEPTH = 100
 
 #: The numeric parameters and what each must be: a bool is none of them.
 _NUMBERS = {"k": "an integer", "precision": "a number", "window": "an integer", "min_window": "an integer",
-            "qos_depth": "an integer"}
+            "sequence_window": "an integer", "sequence_level": "a number", "sequence_speed": "a number",
+            "sequence_tolerance": "a number", "sequence_drift": "a number", "qos_depth": "an integer"}
 
 
 class StartupError(Exception):
@@ -117,14 +135,14 @@ class StartupError(Exception):
 
 def decision_array(decision: OnlineDecision) -> list[float]:
     """The values of ``decision`` in the order of :data:`DECISION_FIELDS`, as float64
-    (``None``, a field of the margin gate without it, is NaN)."""
+    (``None``, a field of a gate the stream has not, is NaN)."""
     values = (getattr(decision, name) for name in DECISION_FIELDS)
     return [math.nan if v is None else float(v) for v in values]
 
 
 def decision_msg(decision: OnlineDecision, header: Header) -> Decision:
-    """``decision`` as a ``qtvpr_msgs/Decision`` with ``header`` (``None``, a field of the
-    margin gate without it, is NaN)."""
+    """``decision`` as a ``qtvpr_msgs/Decision`` with ``header`` (``None``, a field of a
+    gate the stream has not, is NaN)."""
     msg = Decision(header=header)
     for name in DECISION_FIELDS:
         value = getattr(decision, name)

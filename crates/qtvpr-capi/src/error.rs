@@ -32,9 +32,11 @@ pub enum qtvpr_status {
     /// The scores are unusable: a NaN or infinite score (the message gives its index),
     /// or a pointer not aligned for its type.
     QTVPR_ERR_INPUT = 3,
-    /// k, precision, window or min_window is out of range (a window too large to be
-    /// allocated included), no window is given and the calibration file sets none, or
-    /// qtvpr_set_threads got 0 threads or more than 1024.
+    /// k, precision, window, min_window or a sequence gate parameter is out of range (a
+    /// window too large to be allocated included), no window is given and the
+    /// calibration file sets none, a gate is unknown or cannot apply to the calibration,
+    /// a sequence length is not the calibration's, options were not initialised by
+    /// qtvpr_online_options_init, or qtvpr_set_threads got 0 threads or more than 1024.
     QTVPR_ERR_PARAM = 4,
     /// A file cannot be read: missing, a directory, no permission.
     QTVPR_ERR_IO = 5,

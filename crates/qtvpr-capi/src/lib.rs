@@ -58,7 +58,8 @@ pub struct qtvpr_online {
 /// single matching 1 if the best match is accepted (score >= threshold), else 0; in
 /// multi matching every entry with a score >= threshold (qtvpr_online_accepted lists
 /// them). accept == (accepted > 0). confidence and confidence_lower95 (semantics §14)
-/// were added after 0.1.0: the struct is larger, an ABI change.
+/// were added after 0.1.0, consistency and consistency_level (semantics §15) after
+/// them: the struct is larger, an ABI change (recompile against this header).
 #[repr(C)]
 #[allow(non_camel_case_types)]
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -98,6 +99,62 @@ pub struct qtvpr_decision {
     pub confidence: f64,
     /// The one-sided 95% Clopper-Pearson lower bound on confidence. NaN where it is.
     pub confidence_lower95: f64,
+    /// With the sequence gate: the query's consistency, the share of the previous
+    /// sequence_window queries of the stream whose best matches agree with its own
+    /// (semantics §15). NaN without it.
+    pub consistency: f64,
+    /// With the sequence gate: the consistency a best match needs besides a score >=
+    /// threshold (accepted is 1 only with both, and with the margin gate's too). NaN
+    /// without it.
+    pub consistency_level: f64,
+}
+
+/// The parameters of a new online state (qtvpr_online_new_with), each either given or
+/// "the calibration file's" (its params; else the library's default).
+///
+/// Fill one with qtvpr_online_options_init, which sets every member to "the file's",
+/// then set those to give: a struct that is not initialised so is refused. Members may
+/// be added at the end in later versions (size tells the library which it has), so
+/// code written against this header keeps working, recompiled or not.
+#[repr(C)]
+#[allow(non_camel_case_types)]
+#[derive(Debug, Clone, Copy)]
+pub struct qtvpr_online_options {
+    /// sizeof(qtvpr_online_options) of the caller's header: set by
+    /// qtvpr_online_options_init, not by hand.
+    pub size: usize,
+    /// Calibration queries sampled per deployment query, >= 1 (SIZE_MAX: all); 0: the
+    /// file's.
+    pub k: usize,
+    /// The precision target, in (0, 1]; 0: the file's (as in qtvpr_online_new).
+    pub precision: f64,
+    /// Each query is thresholded on its last window queries, >= 1; 0: the file's (an
+    /// error if it sets none). See qtvpr_online_new for its memory.
+    pub window: usize,
+    /// Queries before the min_window-th are rejected, in 1..=window; 0: 1.
+    pub min_window: usize,
+    /// The gates, a NUL-terminated name: "none", "margin" (semantics §13), "sequence"
+    /// (semantics §15) or "margin,sequence" (either order); NULL: the file's. The
+    /// string is read during the call only.
+    pub gate: *const c_char,
+    /// The sequence gate: how many previous queries a query's best match is compared
+    /// with, >= 1; 0: the file's (else 5).
+    pub sequence_window: usize,
+    /// The sequence gate: the share of them whose best matches must agree, in (0, 1];
+    /// NaN: the file's (else 0.8).
+    pub sequence_level: f64,
+    /// The sequence gate: database rows per query (-1: the route driven backwards),
+    /// finite; NaN: the file's (else 1).
+    pub sequence_speed: f64,
+    /// The sequence gate: how far in rows a neighbour one step away may lie from the
+    /// line, >= 0; NaN: the file's (else 2).
+    pub sequence_tolerance: f64,
+    /// The sequence gate: how much that widens per step away, >= 0; NaN: the file's
+    /// (else 0.2).
+    pub sequence_drift: f64,
+    /// The sequence length L the caller expects of the calibration (its
+    /// qtvpr_calibration_sequence): another one is an error; 0: whatever it is.
+    pub sequence: usize,
 }
 
 /// How a calibration matches queries, as qtvpr_calibration_matching returns it.
@@ -239,6 +296,104 @@ pub unsafe extern "C" fn qtvpr_calibration_matching(cal: *const qtvpr_calibratio
     .unwrap_or(0)
 }
 
+/// The calibration's sequence length L (semantics §15): 1, or the length its calibration
+/// traverse was causally sequence-matched over (`qtvpr-cli calibrate --sequence L`).
+/// A state over it decides each query on its causal sequence-matched column, formed from
+/// the last L - 1 columns pushed (8 x (L - 1) x n_db bytes more), as `qtvpr-cli stream`
+/// does.
+///
+/// Returns 0 on error (QTVPR_ERR_NULL: cal is NULL). Thread-safe.
+///
+/// # Safety
+/// cal is NULL or a live calibration.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_calibration_sequence(cal: *const qtvpr_calibration) -> usize {
+    guard("qtvpr_calibration_sequence", || {
+        // SAFETY: the caller passes NULL or a live calibration.
+        Ok(unsafe { arg(cal, "cal") }?.inner.sequence())
+    })
+    .unwrap_or(0)
+}
+
+/// Set every member of *opts to "the calibration file's" (0, NaN or NULL as each member
+/// says), and its size to this library's. Does nothing when opts is NULL. Thread-safe.
+///
+/// # Safety
+/// opts is NULL or points to a writable qtvpr_online_options.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_options_init(opts: *mut qtvpr_online_options) {
+    let _ = guard("qtvpr_online_options_init", || {
+        // SAFETY: the caller passes NULL or a writable struct.
+        if let Some(opts) = unsafe { opts.as_mut() } {
+            *opts = DEFAULT_OPTIONS;
+        }
+        Ok(())
+    });
+}
+
+/// A new online state over cal with the parameters of *opts (initialised by
+/// qtvpr_online_options_init; NULL: every parameter the file's).
+///
+/// Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
+/// QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (opts not initialised by
+/// qtvpr_online_options_init; a parameter out of range, the message names it; a gate
+/// that is not "none" or a set of "margin" and "sequence", or one the calibration cannot
+/// have: multi matching, the margin gate with one database image, the sequence gate on
+/// a database its tolerance covers; a sequence other than the calibration's), the
+/// message saying why. The state holds its own reference to the calibration: cal may be
+/// freed afterwards, and opts and its gate string are not kept. Thread-safe (cal and
+/// opts are only read).
+///
+/// # Safety
+/// cal is NULL or a live calibration; opts is NULL or points to a qtvpr_online_options
+/// whose gate is NULL or a NUL-terminated string.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn qtvpr_online_new_with(
+    cal: *const qtvpr_calibration,
+    opts: *const qtvpr_online_options,
+) -> *mut qtvpr_online {
+    guard("qtvpr_online_new_with", || {
+        // SAFETY: the caller passes NULL or a live calibration.
+        let cal = unsafe { arg(cal, "cal") }?;
+        let mut options = DEFAULT_OPTIONS;
+        // SAFETY: the caller passes NULL or a readable struct; its size member is read
+        // first, and no more than that size.
+        if let Some(given) = unsafe { opts.as_ref() } {
+            if given.size != size_of::<qtvpr_online_options>() {
+                return Err(Failure::new(
+                    error::qtvpr_status::QTVPR_ERR_PARAM,
+                    format!(
+                        "opts was not initialised by qtvpr_online_options_init: its size is {}, this library's \
+                         qtvpr_online_options is {} bytes",
+                        given.size,
+                        size_of::<qtvpr_online_options>()
+                    ),
+                ));
+            }
+            options = *given;
+        }
+        // SAFETY: the caller's gate is NULL or a NUL-terminated string.
+        unsafe { online_new(cal, &options) }
+    })
+    .unwrap_or(ptr::null_mut())
+}
+
+/// Every member "the file's" (what qtvpr_online_options_init writes).
+const DEFAULT_OPTIONS: qtvpr_online_options = qtvpr_online_options {
+    size: size_of::<qtvpr_online_options>(),
+    k: 0,
+    precision: 0.0,
+    window: 0,
+    min_window: 0,
+    gate: ptr::null(),
+    sequence_window: 0,
+    sequence_level: f64::NAN,
+    sequence_speed: f64::NAN,
+    sequence_tolerance: f64::NAN,
+    sequence_drift: f64::NAN,
+    sequence: 0,
+};
+
 /// A new online state over cal: an empty window.
 ///
 /// Each parameter takes the calibration file's value when 0 (min_window: 1):
@@ -252,7 +407,9 @@ pub unsafe extern "C" fn qtvpr_calibration_matching(cal: *const qtvpr_calibratio
 ///   the application can hold (e.g. 1000 queries x 10000 images = 80 MB);
 /// - min_window, queries before the min_window-th are rejected: in 1..=window.
 ///
-/// The gate is the file's (see qtvpr_online_new_gate to choose it).
+/// The gate and the sequence gate's parameters are the file's (see
+/// qtvpr_online_new_with to choose them; this is qtvpr_online_new_with with these four
+/// members set, 0 taken as "the file's").
 ///
 /// Returns a new state, which the caller frees with qtvpr_online_free, or NULL on error:
 /// QTVPR_ERR_NULL (cal is NULL), QTVPR_ERR_PARAM (a parameter out of range, e.g. window
@@ -273,17 +430,33 @@ pub unsafe extern "C" fn qtvpr_online_new(
     guard("qtvpr_online_new", || {
         // SAFETY: the caller passes NULL or a live calibration.
         let cal = unsafe { arg(cal, "cal") }?;
-        online_new(cal, k, precision, window, min_window, None)
+        // SAFETY: the options' gate is NULL.
+        unsafe { online_new(cal, &legacy(k, precision, window, min_window, ptr::null())) }
     })
     .unwrap_or(ptr::null_mut())
 }
 
-/// qtvpr_online_new with a gate: gate is NULL (the file's), "none", or "margin": a
-/// best match is then accepted only if its margin is also at least the calibration's
-/// m* (single matching only), and each qtvpr_decision carries margin and gate.
+/// The options of qtvpr_online_new's arguments, each 0 "the file's".
+fn legacy(k: usize, precision: f64, window: usize, min_window: usize, gate: *const c_char) -> qtvpr_online_options {
+    qtvpr_online_options {
+        k,
+        precision,
+        window,
+        min_window,
+        gate,
+        ..DEFAULT_OPTIONS
+    }
+}
+
+/// qtvpr_online_new with a gate: gate is NULL (the file's), "none", "margin" (a best
+/// match is then accepted only if its margin is also at least the calibration's m*, and
+/// each qtvpr_decision carries margin and gate), "sequence" (only if the best matches of
+/// the previous queries agree with it, semantics §15, with the file's parameters; each
+/// qtvpr_decision carries consistency and consistency_level) or "margin,sequence".
+/// Single matching only. qtvpr_online_new_with chooses the sequence gate's parameters.
 ///
-/// Returns as qtvpr_online_new; QTVPR_ERR_PARAM also for another gate name, or
-/// "margin" on a multi-matching calibration (the message says why).
+/// Returns as qtvpr_online_new; QTVPR_ERR_PARAM also for another gate name, or a gate
+/// the calibration cannot have (the message says why).
 ///
 /// # Safety
 /// cal is NULL or a live calibration; gate is NULL or a NUL-terminated string.
@@ -299,35 +472,43 @@ pub unsafe extern "C" fn qtvpr_online_new_gate(
     guard("qtvpr_online_new_gate", || {
         // SAFETY: the caller passes NULL or a live calibration.
         let cal = unsafe { arg(cal, "cal") }?;
-        let gate = if gate.is_null() {
-            None
-        } else {
-            // SAFETY: the caller passes a NUL-terminated string.
-            let name = unsafe { CStr::from_ptr(gate) }.to_string_lossy();
-            Some(name.parse::<qtvpr::Gate>()?)
-        };
-        online_new(cal, k, precision, window, min_window, gate)
+        // SAFETY: the caller passes NULL or a NUL-terminated string.
+        unsafe { online_new(cal, &legacy(k, precision, window, min_window, gate)) }
     })
     .unwrap_or(ptr::null_mut())
 }
 
-/// The state of qtvpr_online_new, each parameter 0 (or None) taking the file's value.
-fn online_new(
-    cal: &qtvpr_calibration,
-    k: usize,
-    precision: f64,
-    window: usize,
-    min_window: usize,
-    gate: Option<qtvpr::Gate>,
-) -> Result<*mut qtvpr_online, Failure> {
-    let given = |v: usize| (v != 0).then_some(v);
+/// The state of `options` over `cal`, each member "not given" (0, NaN, NULL) taking the
+/// file's value: the core resolves them.
+///
+/// # Safety
+/// `options.gate` is NULL or a NUL-terminated string.
+unsafe fn online_new(cal: &qtvpr_calibration, options: &qtvpr_online_options) -> Result<*mut qtvpr_online, Failure> {
+    let count = |v: usize| (v != 0).then_some(v);
+    let real = |v: f64| (!v.is_nan()).then_some(v);
+    let gate = if options.gate.is_null() {
+        None
+    } else {
+        // SAFETY: the caller passes a NUL-terminated string.
+        let name = unsafe { CStr::from_ptr(options.gate) }.to_string_lossy();
+        Some(name.parse::<qtvpr::Gate>()?)
+    };
+    cal.inner.check_sequence(count(options.sequence))?;
+    let sequence_gate = qtvpr::SequenceOverrides {
+        window: count(options.sequence_window),
+        level: real(options.sequence_level),
+        speed: real(options.sequence_speed),
+        tolerance: real(options.sequence_tolerance),
+        drift: real(options.sequence_drift),
+    };
     let params = OnlineParams::resolve(
         cal.inner.defaults(),
-        given(k),
-        (precision != 0.0).then_some(precision),
-        given(window),
-        given(min_window),
+        count(options.k),
+        (options.precision != 0.0).then_some(options.precision),
+        count(options.window),
+        count(options.min_window),
         gate,
+        sequence_gate,
     )?;
     let inner = Online::new(Arc::clone(&cal.inner), params)?;
     Ok(Box::into_raw(Box::new(qtvpr_online { inner })))
@@ -436,6 +617,8 @@ fn decision(d: &qtvpr::Decision) -> qtvpr_decision {
         gate: d.gate.unwrap_or(f64::NAN),
         confidence: d.confidence,
         confidence_lower95: d.confidence_lower95,
+        consistency: d.consistency.unwrap_or(f64::NAN),
+        consistency_level: d.consistency_level.unwrap_or(f64::NAN),
     }
 }
 

@@ -15,6 +15,18 @@ fn code(status: qtvpr_status) -> c_int {
     status as c_int
 }
 
+/// A sequence gate that |DB| = 4 can have: 2 previous queries, within half a row
+/// (+-0 rows, 1 row of 4).
+const SMALL_GATE: qtvpr::SequenceParams = qtvpr::SequenceParams {
+    window: 2,
+    level: 0.5,
+    line: qtvpr::Line {
+        speed: 1.0,
+        tolerance: 0.5,
+        drift: 0.0,
+    },
+};
+
 /// 4 database images x 3 calibration queries; query j matches database image j.
 fn calibration(matching: Matching, window: Option<usize>) -> Calibration {
     let s = array![[0.9, 0.2, 0.3], [0.1, 0.8, 0.2], [0.3, 0.4, 0.7], [0.2, 0.1, 0.1]];
@@ -25,6 +37,7 @@ fn calibration(matching: Matching, window: Option<usize>) -> Calibration {
         precision: 1.0,
         window,
         gate: Gate::None,
+        sequence_gate: SMALL_GATE,
     };
     Calibration::new(s.view(), &gt, matching)
         .unwrap()
@@ -61,6 +74,8 @@ fn no_decision() -> qtvpr_decision {
         gate: -1.0,
         confidence: -1.0,
         confidence_lower95: -1.0,
+        consistency: -1.0,
+        consistency_level: -1.0,
     }
 }
 
@@ -164,6 +179,7 @@ fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
             window: 2,
             min_window: 1,
             gate: Gate::None,
+            sequence_gate: SMALL_GATE,
         };
         assert_eq!(*(*o).inner.params(), params);
         qtvpr_online_free(o);
@@ -174,6 +190,7 @@ fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
             window: 3,
             min_window: 2,
             gate: Gate::None,
+            sequence_gate: SMALL_GATE,
         };
         assert_eq!(*(*o).inner.params(), params);
         qtvpr_online_free(o);
@@ -211,6 +228,138 @@ fn zero_takes_the_files_value_and_a_bad_parameter_is_an_error() {
     }
 }
 
+/// `qtvpr_online_new_with` and its options: initialised, every parameter the file's;
+/// each member given overrides the file's; a struct not initialised, a gate or a
+/// sequence length that does not fit, are errors naming what is wrong.
+#[test]
+fn options_take_the_files_values_and_each_member_given() {
+    unsafe {
+        // The file's sequence gate, on: SMALL_GATE (the defaults' +-3 rows would cover
+        // |DB| = 4).
+        let cal = calibration(Matching::Single, Some(3));
+        let file_gate = SMALL_GATE;
+        let defaults = Defaults {
+            gate: Gate::Sequence,
+            sequence_gate: file_gate,
+            ..*cal.defaults()
+        };
+        let cal = cal.with_defaults(defaults).unwrap();
+        let cal = handle(cal);
+        assert_eq!(qtvpr_calibration_sequence(cal), 1);
+        let mut opts = std::mem::MaybeUninit::<qtvpr_online_options>::uninit();
+        qtvpr_online_options_init(opts.as_mut_ptr());
+        let mut opts = opts.assume_init();
+        assert_eq!(opts.size, std::mem::size_of::<qtvpr_online_options>());
+        assert!(opts.gate.is_null() && opts.sequence_level.is_nan() && opts.precision == 0.0);
+        // Initialised: the file's, as NULL options are.
+        for o in [
+            qtvpr_online_new_with(cal, &opts),
+            qtvpr_online_new_with(cal, ptr::null()),
+        ] {
+            let p = *(*o).inner.params();
+            assert_eq!(
+                (p.k, p.window, p.gate, p.sequence_gate),
+                (2, 3, Gate::Sequence, file_gate)
+            );
+            qtvpr_online_free(o);
+        }
+        // Each member given overrides the file's; the others stay the file's.
+        let both = CString::new("sequence,margin").unwrap();
+        opts.gate = both.as_ptr();
+        opts.sequence_level = 1.0;
+        opts.sequence_speed = -1.0;
+        opts.min_window = 2;
+        opts.sequence = 1;
+        let o = qtvpr_online_new_with(cal, &opts);
+        let p = *(*o).inner.params();
+        assert_eq!((p.gate, p.min_window), (Gate::MarginSequence, 2));
+        assert_eq!(
+            p.sequence_gate,
+            qtvpr::SequenceParams {
+                level: 1.0,
+                line: qtvpr::Line {
+                    speed: -1.0,
+                    ..file_gate.line
+                },
+                ..file_gate
+            }
+        );
+        // A push carries the consistency (the first query of a stream: 0 of 2) and its
+        // level.
+        let mut d = no_decision();
+        assert_eq!(qtvpr_online_push_f64(o, QUERIES[0].as_ptr(), 4, &mut d), 0);
+        assert_eq!((d.consistency, d.consistency_level, d.accept), (0.0, 1.0, false));
+        qtvpr_online_free(o);
+        // Errors, each named.
+        let mut bad = opts;
+        bad.size = 8;
+        assert!(qtvpr_online_new_with(cal, &bad).is_null());
+        let (code, message) = last();
+        assert_eq!(code, 4);
+        assert!(message.unwrap().starts_with(
+            "qtvpr_online_new_with: opts was not initialised by qtvpr_online_options_init: its size is 8"
+        ));
+        let mut bad = opts;
+        bad.sequence = 11;
+        assert!(qtvpr_online_new_with(cal, &bad).is_null());
+        assert_eq!(
+            last(),
+            (
+                4,
+                Some(
+                    "qtvpr_online_new_with: sequence 11 is not the calibration's sequence length 1: the length \
+                     belongs to the calibration, whose scores were matched over it (calibrate with that length \
+                     instead)"
+                        .into()
+                )
+            )
+        );
+        // A tolerance of 2 rows covers 5 rows: |DB| = 4 cannot tell.
+        let mut bad = opts;
+        bad.sequence_tolerance = 2.0;
+        assert!(qtvpr_online_new_with(cal, &bad).is_null());
+        assert_eq!(
+            last(),
+            (
+                4,
+                Some(
+                    "qtvpr_online_new_with: gate sequence cannot tell a line from chance with |DB| = 4: its \
+                     widest tolerance, +-2 rows 2 steps away (sequence tolerance 2 and drift 0), covers 5 rows; it \
+                     needs |DB| >= 6"
+                        .into()
+                )
+            )
+        );
+        let twice = CString::new("margin,margin").unwrap();
+        let mut bad = opts;
+        bad.gate = twice.as_ptr();
+        assert!(qtvpr_online_new_with(cal, &bad).is_null());
+        assert_eq!(
+            last(),
+            (
+                4,
+                Some("qtvpr_online_new_with: gate names margin twice in \"margin,margin\"".into())
+            )
+        );
+        let mut bad = opts;
+        bad.sequence_tolerance = -1.0;
+        assert!(qtvpr_online_new_with(cal, &bad).is_null());
+        assert_eq!(
+            last(),
+            (
+                4,
+                Some("qtvpr_online_new_with: sequence tolerance must be finite and >= 0, got -1".into())
+            )
+        );
+        assert!(qtvpr_online_new_with(ptr::null(), &opts).is_null());
+        assert_eq!(last(), (1, Some("qtvpr_online_new_with: cal is NULL".into())));
+        // A NULL opts to init is a no-op.
+        qtvpr_online_options_init(ptr::null_mut());
+        assert_eq!(qtvpr_calibration_sequence(ptr::null()), 0);
+        qtvpr_calibration_free(cal);
+    }
+}
+
 /// The C pushes, f32 and f64 mixed, give what `qtvpr::Online` gives, in both matchings;
 /// the calibration is freed first (the state keeps its own reference).
 #[test]
@@ -219,6 +368,7 @@ fn pushes_are_the_rust_online_decisions() {
         (Matching::Single, Gate::None),
         (Matching::Multi, Gate::None),
         (Matching::Single, Gate::Margin),
+        (Matching::Single, Gate::MarginSequence),
     ] {
         let mut rust = Online::new(
             Arc::new(calibration(matching, Some(3))),
@@ -228,6 +378,7 @@ fn pushes_are_the_rust_online_decisions() {
                 window: 3,
                 min_window: 2,
                 gate,
+                sequence_gate: SMALL_GATE,
             },
         )
         .unwrap();
@@ -272,7 +423,12 @@ fn pushes_are_the_rust_online_decisions() {
                     (d.margin.to_bits(), d.gate.to_bits()),
                     (bits(want.margin), bits(want.gate))
                 );
-                assert_eq!(d.margin.is_nan(), gate == Gate::None);
+                assert_eq!(d.margin.is_nan(), !gate.margin());
+                assert_eq!(
+                    (d.consistency.to_bits(), d.consistency_level.to_bits()),
+                    (bits(want.consistency), bits(want.consistency_level))
+                );
+                assert_eq!(d.consistency_level.is_nan(), !gate.sequence());
                 // The confidence, whatever the gate (NaN in multi matching).
                 assert_eq!(
                     (d.confidence.to_bits(), d.confidence_lower95.to_bits()),
