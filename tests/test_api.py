@@ -49,7 +49,9 @@ def test_docstrings_and_signatures_for_help():
     assert "k=None, precision=None" in qtvpr.Calibration.transfer.__text_signature__  # the file's, else 10 and 1.0
     assert qtvpr.Calibration.__doc__
     params = inspect.signature(qtvpr.Calibration).parameters
-    assert list(params) == ["s_cal", "gt_cal", "gt_soft", "matching", "query_major", "cal_queries", "cal_fraction"]
+    assert list(params) == [
+        "s_cal", "gt_cal", "gt_soft", "matching", "query_major", "cal_queries", "cal_fraction", "sequence",
+    ]
 
 
 def test_transfer_result():

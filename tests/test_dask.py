@@ -359,10 +359,11 @@ def test_parts_of_different_lengths_are_refused():
         qtvpr.TransferResult._from_parts(f, f, [(0, 1), (1, 3)], np.zeros(3), np.zeros(3), np.zeros(2), i)
     q, b = i[:, 0], np.zeros(3, bool)
     c = np.zeros(3)
-    lengths = r"differ in length: queries 3, the others \[3, 3, 3, 3, 3, 2, 3, 3, 3, 3, 3, 3\]"
+    # The others: every column after `queries`, the gates' four included.
+    lengths = r"differ in length: queries 3, the others \[3, 3, 3, 3, 3, 2, 3, 3, 3, 3, 3, 3, 3, 3\]"
     with pytest.raises(ValueError, match=lengths):
         qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(2), q, b, c, c)
-    with pytest.raises(ValueError, match=r"the others \[3, 3, 3, 3, 3, 3, 3, 3, 3, 2, 3, 3\]"):
+    with pytest.raises(ValueError, match=r"the others \[3, 3, 3, 3, 3, 3, 3, 3, 3, 2, 3, 3, 3, 3\]"):
         qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(3), q, b, c, np.zeros(2))
     with pytest.raises(TypeError):  # every field in both matching modes
         qtvpr.OnlineDecisions._from_parts(q, *(np.zeros(3),) * 4, q, np.zeros(3), None, b, c, c)
@@ -469,7 +470,8 @@ def test_the_files_params_are_every_front_ends_defaults(client, cli, tmp_path, m
     from_cli = np.array([np.inf if g["threshold"] is None else g["threshold"] for g in report["segments"]])
 
     cal = qtvpr.Calibration.load(cal_file)
-    assert cal.defaults == {"k": 3, "precision": 0.9, "window": 10, "gate": "none"}
+    assert cal.defaults == {"k": 3, "precision": 0.9, "window": 10, "gate": "none",
+                            "sequence_gate": {"window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}}
     explicit = cal.transfer(s_val, k=3, precision=0.9, segment_size=10)
     library = cal.transfer(s_val, k=10, precision=1.0, segment_size=10)
     assert not np.array_equal(explicit.thresholds, library.thresholds)  # the case tells them apart

@@ -31,8 +31,11 @@ METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped",
                "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
                "pooled_precision_lower95", "segments"]
 RUN_KEYS = ["params", "recall_at_1", "methods"]
+#: The methods of a gate alone, whose threshold is -inf (null in JSON, as reject-all's
+#: inf is).
+GATE_ALONE = {("margin", "threshold"), ("sequence", "threshold")}
 #: Semantics §14's signals: a run's last key, in single matching only.
-SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "pa_score": ["auroc"],
+SIGNALS = {"score": ["auroc"], "margin": ["auroc"], "pa_score": ["auroc"], "consistency": ["auroc"],
            "confidence": ["auroc", "brier", "ece", "bins"]}
 
 
@@ -102,8 +105,10 @@ def assert_same_run(got: dict, want: dict) -> None:
             assert same_figure(g[key], w[key]), (name, key, g[key], w[key])
         assert len(g["segments"]) == len(w["segments"]), name
         for gs, ws in zip(g["segments"], w["segments"], strict=True):
-            # The gated methods' segments also have their gate (semantics §13).
-            keys = SEGMENT_KEYS[:4] + ["gate"] + SEGMENT_KEYS[4:] if name in ref.GATED else SEGMENT_KEYS
+            # The gated methods' segments also have their gates' levels (semantics §13, §15).
+            levels = (["gate"] if name in ref.MARGIN_GATED else []) + (
+                ["consistency_level"] if name in ref.SEQUENCE_GATED else [])
+            keys = SEGMENT_KEYS[:4] + levels + SEGMENT_KEYS[4:]
             assert list(gs) == keys, name
             for key in ("start", "end", "tp", "fp", "positives", "meets"):
                 assert gs[key] == ws[key], (name, key, gs, ws)
@@ -230,7 +235,7 @@ def from_json(out: dict) -> dict:
             seg = dict(seg)
             for key in ("threshold", "oracle_threshold", "gate"):
                 if key in seg and seg[key] is None:
-                    seg[key] = -math.inf if (name, key) == ("margin", "threshold") else math.inf
+                    seg[key] = -math.inf if (name, key) in GATE_ALONE else math.inf
             segments.append(seg)
         methods[name] = {**m, "segments": segments}
     return {**out, "methods": methods}
@@ -432,14 +437,24 @@ def evaluate_cases(draw):
 def test_random_matrices_equal_reference(case):
     s, gt, kwargs = case
     single = kwargs["matching"] == "single"
-    gated = set(ref.GATED) & set(kwargs["methods"] or (ref.GATED if single else []))
+    methods = kwargs["methods"]
+    # All methods leave out the gated ones in multi matching, the sequence gate's on a
+    # database too small for its +-3 rows (semantics §15).
+    margin = set(ref.MARGIN_GATED) & set(methods or (ref.MARGIN_GATED if single else []))
+    sequence = set(ref.SEQUENCE_GATED) & set(methods or [])
     n_db = s.shape[1] if kwargs.get("query_major") else s.shape[0]
-    if gated and (not single or n_db < 2):
-        # The margin gate needs single matching and a second-best score: both refuse it,
-        # with one message (all methods in multi matching leave the gate out).
-        why = "needs single matching" if not single else "needs at least 2 database images"
+    whys = []
+    if (margin or sequence) and not single:
+        whys.append("needs single matching")
+    if margin and single and n_db < 2:
+        # The margin gate needs a second-best score.
+        whys.append("needs at least 2 database images")
+    if sequence and single and n_db < 8:
+        whys.append("cannot tell a line from chance")
+    if whys:
+        # Both refuse it, with one message (the first gate checked's).
         for evaluate in (ref.evaluate, qtvpr.evaluate):
-            with pytest.raises(ValueError, match=why):
+            with pytest.raises(ValueError, match="|".join(whys)):
                 evaluate(s, gt, **kwargs)
         return
     want = ref.evaluate(s, gt, **kwargs)

@@ -155,7 +155,8 @@ def test_one_gated_file_in_python_the_cli_and_dask(shared_data, cli, tmp_path):
     qtvpr.Calibration(s_cal, gt_cal).save(path, k=5, window=9, gate="margin")
     np.save(tmp_path / "val.npy", s_val)
     cal = qtvpr.Calibration.load(path)
-    assert cal.defaults == {"k": 5, "precision": 1.0, "window": 9, "gate": "margin"}
+    assert cal.defaults == {"k": 5, "precision": 1.0, "window": 9, "gate": "margin",
+                            "sequence_gate": ref.SEQUENCE_DEFAULTS}
     assert ref.Calibration.load(path).defaults == cal.defaults
     online = qtvpr.Online(cal)
     assert online.gate == "margin"
@@ -216,7 +217,7 @@ def test_multi_matching_and_bad_names_are_errors(tmp_path):
     assert not (tmp_path / "m.npz").exists()
     single = qtvpr.Calibration(s, gt)
     for call in (lambda: single.transfer(s, gate="ratio"), lambda: qtvpr.Online(single, window=2, gate="ratio")):
-        with pytest.raises(ValueError, match='gate must be one of none, margin, got "ratio"'):
+        with pytest.raises(ValueError, match='gate must be none, or one or more of margin, sequence joined by commas, got "ratio"'):
             call()
     with pytest.raises(ValueError, match="at least 2 database images"):
         qtvpr.margins(np.array([[0.5, 0.2]]))

@@ -39,12 +39,18 @@ __all__ = [
 __version__: str
 
 _Matching = Literal["single", "multi"]
-_Gate = Literal["none", "margin"]
+# A set of gates; "sequence,margin" is accepted too, and read back as "margin,sequence".
+_Gate = Literal["none", "margin", "sequence", "margin,sequence", "sequence,margin"]
+# A set of gates as the library writes it.
+_GateSet = Literal["none", "margin", "sequence", "margin,sequence"]
 _Method = Literal[
     "quantile-transfer",
     "quantile-transfer-online",
     "quantile-transfer-margin",
     "margin",
+    "quantile-transfer-sequence",
+    "quantile-transfer-margin-sequence",
+    "sequence",
     "schubert",
     "schubert-calibrated",
     "calibration-threshold",
@@ -69,6 +75,7 @@ class _Segment(TypedDict):
     threshold: float
     oracle_threshold: float
     gate: NotRequired[float]
+    consistency_level: NotRequired[float]
     tp: int
     fp: int
     positives: int
@@ -108,6 +115,14 @@ class _Params(TypedDict):
     deployment_queries: int
     segment_size: int
     segments: int
+    sequence_gate: _SequenceGate
+
+class _SequenceGate(TypedDict):
+    window: int
+    level: float
+    speed: float
+    tolerance: float
+    drift: float
 
 class _Auroc(TypedDict):
     auroc: float | None
@@ -131,6 +146,8 @@ class _SignalSet(TypedDict):
     margin: _Auroc
     # The PA-score's AUROC ranks a lower PA-score higher.
     pa_score: _Auroc
+    # Semantics §15 (None on a database too small for the sequence gate's parameters).
+    consistency: _Auroc
     confidence: _Calibrated
 
 class _Signals(TypedDict):
@@ -174,6 +191,10 @@ class TransferResult:
     def query_confidences(self) -> NDArray[np.float64] | None: ...
     @property
     def query_confidences_lower95(self) -> NDArray[np.float64] | None: ...
+    @property
+    def consistency_level(self) -> float | None: ...
+    @property
+    def query_consistencies(self) -> NDArray[np.float64] | None: ...
     @staticmethod
     def _from_parts(
         thresholds: NDArray[np.float64],
@@ -187,6 +208,8 @@ class TransferResult:
         query_margins: NDArray[np.float64] | None = None,
         query_confidences: NDArray[np.float64] | None = None,
         query_confidences_lower95: NDArray[np.float64] | None = None,
+        consistency_level: float | None = None,
+        query_consistencies: NDArray[np.float64] | None = None,
     ) -> TransferResult: ...
 
 @final
@@ -219,6 +242,7 @@ class Calibration:
         query_major: bool = False,
         cal_queries: int | None = None,
         cal_fraction: float | None = None,
+        sequence: int | None = None,
     ) -> Calibration: ...
     def transfer(
         self,
@@ -229,7 +253,13 @@ class Calibration:
         segment_size: int | None = None,
         gate: _Gate | None = None,
         query_major: bool = False,
+        sequence_window: int | None = None,
+        sequence_level: float | None = None,
+        sequence_speed: float | None = None,
+        sequence_tolerance: float | None = None,
+        sequence_drift: float | None = None,
     ) -> TransferResult: ...
+    # Returns how many queries before a block its decisions look back at.
     def _check_transfer(
         self,
         shape: tuple[int, int],
@@ -239,17 +269,28 @@ class Calibration:
         segment_size: int | None = None,
         gate: _Gate | None = None,
         query_major: bool = False,
-    ) -> None: ...
+        sequence_window: int | None = None,
+        sequence_level: float | None = None,
+        sequence_speed: float | None = None,
+        sequence_tolerance: float | None = None,
+        sequence_drift: float | None = None,
+    ) -> int: ...
     def _transfer_at(
         self,
         s_val: _Matrix,
         first_query: int,
         *,
+        before: int = 0,
         k: int | None = None,
         precision: float | None = None,
         segment_size: int | None = None,
         gate: _Gate | None = None,
         query_major: bool = False,
+        sequence_window: int | None = None,
+        sequence_level: float | None = None,
+        sequence_speed: float | None = None,
+        sequence_tolerance: float | None = None,
+        sequence_drift: float | None = None,
     ) -> TransferResult: ...
     def threshold(self, precision: float | None = None) -> float: ...
     def gate(self, precision: float | None = None) -> float: ...
@@ -263,6 +304,11 @@ class Calibration:
         precision: float | None = None,
         window: int | None = None,
         gate: _Gate | None = None,
+        sequence_window: int | None = None,
+        sequence_level: float | None = None,
+        sequence_speed: float | None = None,
+        sequence_tolerance: float | None = None,
+        sequence_drift: float | None = None,
     ) -> None: ...
     @staticmethod
     def load(path: str | os.PathLike[str]) -> Calibration: ...
@@ -276,12 +322,15 @@ class Calibration:
     def defaults(self) -> _Defaults: ...
     @property
     def db_size(self) -> int: ...
+    @property
+    def sequence(self) -> int: ...
 
 class _Defaults(TypedDict):
     k: int
     precision: float
     window: int | None
-    gate: _Gate
+    gate: _GateSet
+    sequence_gate: _SequenceGate
 
 # A deployment query's scores: a 1-D array of |DB| scores, or a |DB| x 1 matrix.
 _Column = ArrayLike
@@ -290,8 +339,9 @@ _Column = ArrayLike
 class OnlineDecision:
     FIELDS: ClassVar[tuple[str, ...]]
     GATE_FIELDS: ClassVar[tuple[str, ...]]
+    SEQUENCE_FIELDS: ClassVar[tuple[str, ...]]
     # (name, column, kind, gate) of every field: the core's record.
-    RECORD: ClassVar[tuple[tuple[str, str, Literal["count", "real", "flag"], _Gate], ...]]
+    RECORD: ClassVar[tuple[tuple[str, str, Literal["count", "real", "flag"], _GateSet], ...]]
     @property
     def query(self) -> int: ...
     @property
@@ -314,6 +364,10 @@ class OnlineDecision:
     def margin(self) -> float | None: ...
     @property
     def gate(self) -> float | None: ...
+    @property
+    def consistency(self) -> float | None: ...
+    @property
+    def consistency_level(self) -> float | None: ...
     @property
     def confidence(self) -> float: ...
     @property
@@ -347,6 +401,10 @@ class OnlineDecisions:
     @property
     def gates(self) -> NDArray[np.float64] | None: ...
     @property
+    def consistencies(self) -> NDArray[np.float64] | None: ...
+    @property
+    def consistency_levels(self) -> NDArray[np.float64] | None: ...
+    @property
     def confidences(self) -> NDArray[np.float64]: ...
     @property
     def confidences_lower95(self) -> NDArray[np.float64]: ...
@@ -365,10 +423,17 @@ class Online:
         window: int | None = None,
         min_window: int = 1,
         gate: _Gate | None = None,
+        sequence_window: int | None = None,
+        sequence_level: float | None = None,
+        sequence_speed: float | None = None,
+        sequence_tolerance: float | None = None,
+        sequence_drift: float | None = None,
+        sequence: int | None = None,
     ) -> Online: ...
     def push(self, column: _Column) -> OnlineDecision: ...
     def push_many(self, s_val: _Matrix, *, query_major: bool = False) -> OnlineDecisions: ...
     def _resume(self, first_query: int, s_before: _Matrix, *, query_major: bool = False) -> None: ...
+    def _lookback(self, first_query: int) -> int: ...
     def _push_stream(self, s_val: _Matrix, *, query_major: bool = False) -> OnlineDecisions: ...
     @property
     def threshold(self) -> float | None: ...
@@ -383,7 +448,11 @@ class Online:
     @property
     def min_window(self) -> int: ...
     @property
-    def gate(self) -> _Gate: ...
+    def gate(self) -> _GateSet: ...
+    @property
+    def sequence_gate(self) -> _SequenceGate: ...
+    @property
+    def sequence(self) -> int: ...
     @property
     def calibration(self) -> Calibration: ...
 
@@ -401,6 +470,11 @@ def quantile_transfer(
     query_major: bool = False,
     cal_queries: int | None = None,
     cal_fraction: float | None = None,
+    sequence_window: int | None = None,
+    sequence_level: float | None = None,
+    sequence_speed: float | None = None,
+    sequence_tolerance: float | None = None,
+    sequence_drift: float | None = None,
 ) -> TransferResult: ...
 def margins(s: _Matrix, *, query_major: bool = False) -> NDArray[np.float64]: ...
 def best_threshold(
@@ -471,6 +545,11 @@ def evaluate(
     segment_size: int | None = None,
     deploy_fraction: float | None = None,
     query_major: bool = False,
+    sequence_window: int | None = None,
+    sequence_level: float | None = None,
+    sequence_speed: float | None = None,
+    sequence_tolerance: float | None = None,
+    sequence_drift: float | None = None,
 ) -> _Evaluation: ...
 def ablation(
     s: _Matrix | Descriptors,
@@ -487,4 +566,9 @@ def ablation(
     segment_size: int | None = None,
     deploy_fraction: float | None = None,
     query_major: bool = False,
+    sequence_window: int | None = None,
+    sequence_level: float | None = None,
+    sequence_speed: float | None = None,
+    sequence_tolerance: float | None = None,
+    sequence_drift: float | None = None,
 ) -> _Ablation: ...

@@ -6,10 +6,13 @@ storage (zarr) or computed lazily (``db_desc @ q_desc.T`` of two Dask descriptor
 arrays, so that it is never stored), is thresholded by a Dask cluster:
 
 - :func:`transfer` is :meth:`qtvpr.Calibration.transfer`: each block holds whole
-  segments (a segment's threshold depends only on its own columns), and
+  segments (a segment's threshold depends only on its own columns), preceded by the
+  queries its decisions look back at (the sequence gate's window, the ``L - 1`` raw
+  columns of a calibration of sequence length ``L``), and
 - :func:`online` is :meth:`qtvpr.Online.push_many` on a fresh state: each block is
-  preceded by the ``window - 1`` queries before it (a query's threshold depends only on
-  its last ``window`` queries).
+  preceded by the queries before it that a decision looks back at (the core's
+  ``Online::lookback``: the ``window - 1`` queries of its threshold, the sequence gate's
+  window, the raw columns of the sequence matching).
 
 Both return the one-machine object (:class:`qtvpr.TransferResult`,
 :class:`qtvpr.OnlineDecisions`), equal to it bit for bit, and raise its errors with its
@@ -62,6 +65,11 @@ def transfer(
     segment_size: int | None = None,
     gate: str | None = None,
     query_major: bool = False,
+    sequence_window: int | None = None,
+    sequence_level: float | None = None,
+    sequence_speed: float | None = None,
+    sequence_tolerance: float | None = None,
+    sequence_drift: float | None = None,
 ) -> TransferResult:
     """:meth:`qtvpr.Calibration.transfer` of a Dask array, block-parallel.
 
@@ -72,9 +80,12 @@ def transfer(
     one task that runs the compiled transfer on it, and the results are assembled into
     the :class:`qtvpr.TransferResult` of ``calibration.transfer(s_val.compute(), ...)``,
     identical to it. Without a segment size the whole deployment set is one segment,
-    hence one task. ``k``, ``precision`` and ``gate`` left as ``None`` are the
-    calibration's (:attr:`qtvpr.Calibration.defaults`), as in
-    :meth:`qtvpr.Calibration.transfer`.
+    hence one task. ``k``, ``precision``, ``gate`` and the sequence gate's parameters
+    left as ``None`` are the calibration's (:attr:`qtvpr.Calibration.defaults`), as in
+    :meth:`qtvpr.Calibration.transfer`. With the sequence gate, or a calibration of
+    sequence length ``L > 1``, each block is preceded by the queries its decisions look
+    back at, so that its consistencies and matched columns are those of the whole
+    matrix.
 
     Raises what :meth:`qtvpr.Calibration.transfer` raises on the whole matrix, with the
     same messages (positions in the whole matrix), and ``TypeError`` when ``s_val`` is
@@ -82,9 +93,20 @@ def transfer(
     """
     s_val = _check_array(s_val)
     _check_calibration(calibration)
-    args: dict[str, Any] = {"k": k, "precision": precision, "gate": gate, "query_major": query_major}
-    # What the compiled transfer refuses before reading a score, refused by it here.
-    calibration._check_transfer(s_val.shape, segment_size=segment_size, **args)
+    args: dict[str, Any] = {
+        "k": k,
+        "precision": precision,
+        "gate": gate,
+        "query_major": query_major,
+        "sequence_window": sequence_window,
+        "sequence_level": sequence_level,
+        "sequence_speed": sequence_speed,
+        "sequence_tolerance": sequence_tolerance,
+        "sequence_drift": sequence_drift,
+    }
+    # What the compiled transfer refuses before reading a score, refused by it here; and
+    # how many queries before a block its decisions look back at.
+    lookback = calibration._check_transfer(s_val.shape, segment_size=segment_size, **args)
     _, n = _oriented_shape(s_val, query_major)
     if segment_size is None:
         starts = [0]
@@ -97,8 +119,9 @@ def transfer(
     for start, end in bounds:
         # A shorter last block is the last segment, kept whole.
         size = segment_size if segment_size is not None and end - start >= segment_size else None
-        block = _block(s_val, start, end, query_major)
-        tasks.append(dask.delayed(_transfer_block)(cal, block, start, size, args))
+        before = min(start, lookback)
+        block = _block(s_val, start - before, end, query_major)
+        tasks.append(dask.delayed(_transfer_block)(cal, block, start, before, size, args))
     parts = _computed(tasks)
     return TransferResult._from_parts(
         np.concatenate([p["thresholds"] for p in parts]),
@@ -116,6 +139,12 @@ def transfer(
             None if parts[0][name] is None else np.concatenate([p[name] for p in parts])
             for name in ("query_confidences", "query_confidences_lower95")
         ),
+        # Every block has the sequence gate's level (or none), and its queries'
+        # consistencies.
+        parts[0]["consistency_level"],
+        None
+        if parts[0]["consistency_level"] is None
+        else np.concatenate([p["query_consistencies"] for p in parts]),
     )
 
 
@@ -129,18 +158,27 @@ def online(
     min_window: int | None = None,
     gate: str | None = None,
     query_major: bool = False,
+    sequence_window: int | None = None,
+    sequence_level: float | None = None,
+    sequence_speed: float | None = None,
+    sequence_tolerance: float | None = None,
+    sequence_drift: float | None = None,
+    sequence: int | None = None,
 ) -> OnlineDecisions:
     """:meth:`qtvpr.Online.push_many` of a Dask array on a fresh state, block-parallel.
 
     ``s_val`` is as in :func:`transfer`. ``k``, ``precision``, ``window``,
-    ``min_window`` and ``gate`` are those of :class:`qtvpr.Online` (``None``: the calibration's
-    :attr:`qtvpr.Calibration.defaults`, and no warm-up). Each chunk of the query axis is one task: a
-    fresh :class:`qtvpr.Online` is pushed the ``window - 1`` queries before the chunk
-    (fewer at the start of the stream; none for the first chunk, so that the warm-up of
-    ``min_window`` applies to the stream's first queries only), then the chunk. As a
-    query's window holds only its last ``window`` queries, the decisions are those of
-    ``Online(calibration, ...).push_many(s_val.compute())``, identical to them, with
-    ``queries`` numbered over the whole stream.
+    ``min_window``, ``gate``, the sequence gate's parameters and ``sequence`` are those
+    of :class:`qtvpr.Online` (``None``: the calibration's
+    :attr:`qtvpr.Calibration.defaults`, and no warm-up). Each chunk of the query axis is
+    one task: a fresh :class:`qtvpr.Online` is resumed from the queries before the chunk
+    that a decision looks back at (the state's own count of them: its window's, the
+    sequence gate's, the raw columns of a sequence length ``L``; fewer at the start of
+    the stream, none for the first chunk, so that the warm-up of ``min_window`` and the
+    start of the stream apply to its first queries only), then pushed the chunk. As a
+    decision reads nothing older, the decisions are those of ``Online(calibration,
+    ...).push_many(s_val.compute())``, identical to them, with ``queries`` numbered over
+    the whole stream.
 
     Raises what :class:`qtvpr.Online` and :meth:`qtvpr.Online.push_many` raise on the
     whole matrix, with the same messages (positions in the whole matrix), and
@@ -149,17 +187,32 @@ def online(
     s_val = _check_array(s_val)
     # Built here for its errors and resolved parameters (the window may come from the
     # calibration's defaults); each block builds its own.
-    state = Online(calibration, k=k, precision=precision, window=window, min_window=min_window, gate=gate)
+    state = Online(
+        calibration,
+        k=k,
+        precision=precision,
+        window=window,
+        min_window=min_window,
+        gate=gate,
+        sequence_window=sequence_window,
+        sequence_level=sequence_level,
+        sequence_speed=sequence_speed,
+        sequence_tolerance=sequence_tolerance,
+        sequence_drift=sequence_drift,
+        sequence=sequence,
+    )
     n_db, n = _oriented_shape(s_val, query_major)
     if n_db == 0 or n == 0:
         # No block to schedule: the (empty) matrix itself.
         return state.push_many(s_val.compute(), query_major=query_major)
+    line = state.sequence_gate
     params: dict[str, Any] = {
         "k": state.k,
         "precision": state.precision,
         "window": state.window,
         "min_window": state.min_window,
         "gate": state.gate,
+        **{f"sequence_{name}": value for name, value in line.items()},
     }
     chunks = s_val.chunks[0 if query_major else 1]
     starts = np.cumsum([0, *chunks[:-1]]).tolist()
@@ -167,7 +220,7 @@ def online(
     cal = _send(calibration)
     tasks = []
     for start, end in bounds:
-        first = max(0, start - (state.window - 1))
+        first = start - state._lookback(start)
         block = _block(s_val, first, end, query_major)
         tasks.append(dask.delayed(_online_block)(cal, block, first, start, params, query_major))
     parts = _computed(tasks)
@@ -246,12 +299,18 @@ def _caught(run: Callable[[], _Part]) -> _Part:
 
 
 def _transfer_block(
-    calibration: Calibration, block: np.ndarray, start: int, segment_size: int | None, args: dict[str, Any]
+    calibration: Calibration,
+    block: np.ndarray,
+    start: int,
+    before: int,
+    segment_size: int | None,
+    args: dict[str, Any],
 ) -> _Part:
-    """The transfer of one block of whole segments whose first query is ``start``."""
+    """The transfer of one block of whole segments whose first query is ``start``,
+    preceded in ``block`` by the ``before`` queries its decisions look back at."""
 
     def run() -> _Part:
-        r = calibration._transfer_at(block, start, segment_size=segment_size, **args)
+        r = calibration._transfer_at(block, start, before=before, segment_size=segment_size, **args)
         return {
             "thresholds": r.thresholds,
             "quantiles": r.quantiles,
@@ -264,6 +323,8 @@ def _transfer_block(
             "query_margins": r.query_margins,
             "query_confidences": r.query_confidences,
             "query_confidences_lower95": r.query_confidences_lower95,
+            "consistency_level": r.consistency_level,
+            "query_consistencies": r.query_consistencies,
         }
 
     return _caught(run)

@@ -52,6 +52,7 @@ __all__ = [
     "precision_lower95",
     "quantile_transfer",
     "schubert_threshold",
+    "sequence_consistency",
     "vprbench_recall_at_100p",
 ]
 
@@ -64,18 +65,30 @@ SCHUBERT_Z = 4.753424308817087
 #: Grid on which correlations are compared when choosing neighbours (refinement of 4.3).
 CORRELATION_GRID = 2.0**40
 
-#: The methods that gate decisions on their margin (semantics §13): single matching only.
-GATED = ("quantile-transfer-margin", "margin")
+#: The methods that gate decisions on their margin (semantics §13).
+MARGIN_GATED = ("quantile-transfer-margin", "margin", "quantile-transfer-margin-sequence")
 
-#: The gates a decision can have (semantics §13).
-GATES = ("none", "margin")
+#: The methods that gate decisions on their consistency (semantics §15).
+SEQUENCE_GATED = ("quantile-transfer-sequence", "quantile-transfer-margin-sequence", "sequence")
 
-#: Every method of the evaluation protocol, in report order (semantics §7, §8 and §13).
+#: The gated methods: single matching only.
+GATED = tuple(dict.fromkeys(MARGIN_GATED + SEQUENCE_GATED))
+
+#: The gates a decision can have (semantics §13, §15), each set as the library writes it.
+GATES = ("none", "margin", "sequence", "margin,sequence")
+
+#: The sequence gate's parameters when none is given (semantics §15).
+SEQUENCE_DEFAULTS = {"window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}
+
+#: Every method of the evaluation protocol, in report order (semantics §7, §8, §13, §15).
 METHODS = (
     "quantile-transfer",
     "quantile-transfer-online",
     "quantile-transfer-margin",
     "margin",
+    "quantile-transfer-sequence",
+    "quantile-transfer-margin-sequence",
+    "sequence",
     "schubert",
     "schubert-calibrated",
     "calibration-threshold",
@@ -503,7 +516,9 @@ class TransferResult:
     ``query_weights`` (w_j) and ``neighbours`` (the chosen calibration columns, by
     decreasing correlation). With the margin gate (semantics §13): ``gate`` (m*) and
     ``query_margins``; None without it. In single matching with |DB| >= 2 (semantics
-    §14): ``query_confidences`` and ``query_confidences_lower95``; None otherwise.
+    §14): ``query_confidences`` and ``query_confidences_lower95``; None otherwise. With
+    the sequence gate (semantics §15): ``consistency_level`` and
+    ``query_consistencies``; None without it.
     """
 
     thresholds: np.ndarray
@@ -517,6 +532,8 @@ class TransferResult:
     query_margins: np.ndarray | None = None
     query_confidences: np.ndarray | None = None
     query_confidences_lower95: np.ndarray | None = None
+    consistency_level: float | None = None
+    query_consistencies: np.ndarray | None = None
 
 
 def quantile_transfer(
@@ -533,6 +550,11 @@ def quantile_transfer(
     query_major=False,
     cal_queries=None,
     cal_fraction=None,
+    sequence_window=None,
+    sequence_level=None,
+    sequence_speed=None,
+    sequence_tolerance=None,
+    sequence_drift=None,
 ) -> TransferResult:
     """Quantile transfer from calibration to deployment queries (semantics §4-§6).
 
@@ -544,20 +566,31 @@ def quantile_transfer(
 
     ``gt_soft`` is the calibration soft ground truth. ``segment_size=None`` means one
     batch of all deployment queries. ``gate="margin"`` (section 13) also gives m* and
-    every deployment query's margin.
+    every deployment query's margin; ``gate="sequence"`` (section 15) the sequence
+    gate's level and every deployment query's consistency, the columns of ``s_val`` a
+    stream in order; ``"margin,sequence"`` both. The sequence gate's parameters are
+    ``sequence_window`` and the others (None: :data:`SEQUENCE_DEFAULTS`).
 
     With ``cal_queries`` or ``cal_fraction`` and no ``s_val``, ``s_cal`` and its ground
     truth hold every query: the first ``cal_queries`` (or ``floor(cal_fraction * |Q|)``)
-    calibrate and the rest are thresholded (semantics §8.1's calibration rule).
+    calibrate and the rest are thresholded (semantics §8.1's calibration rule); they
+    are one stream, so the consistency of the first thresholded queries reads the
+    calibration queries' best matches.
     """
+    before = None  # the columns before the deployment queries in the stream
     if cal_queries is not None or cal_fraction is not None:
         s_cal, gt_cal, gt_soft, s_val = _split(s_cal, gt_cal, gt_soft, s_val, cal_queries, cal_fraction, query_major)
+        before = s_cal
     elif s_val is None:
         raise ValueError("no deployment queries: give s_val, or cal_queries or cal_fraction to split s_cal")
     k = _check_positive_int("k", k)
     tau = _check_precision(precision)
     matching = _check_matching(matching)
     gate = _check_gate(gate)
+    sequence = _sequence_params(
+        SEQUENCE_DEFAULTS,
+        sequence_window, sequence_level, sequence_speed, sequence_tolerance, sequence_drift,
+    )
     s_cal64, gt, ignored = _inputs("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, query_major)
     s_val64 = _scores("s_val", s_val, query_major)
     if s_val64.shape[0] != s_cal64.shape[0]:
@@ -585,9 +618,14 @@ def quantile_transfer(
             s_val64[:, start:end], q_query[start:end], weights[start:end]
         )
 
-    gated = gate == "margin"
+    gated = "margin" in gate
     if gated:
         _check_gated(matching, s_cal64.shape[0])
+    consistencies = None
+    if "sequence" in gate:
+        _check_sequence_gate(matching, s_cal64.shape[0], sequence)
+        stream = s_val64 if before is None else np.hstack([_scores("s_cal", before, query_major), s_val64])
+        consistencies = _consistencies(np.argmax(stream, axis=0), sequence)[stream.shape[1] - n_val :]
     confident = matching == "single" and s_cal64.shape[0] >= 2
     query_confidences = query_lower = None
     if confident:
@@ -607,6 +645,8 @@ def quantile_transfer(
         query_margins=_margins(s_val64) if gated else None,
         query_confidences=query_confidences,
         query_confidences_lower95=query_lower,
+        consistency_level=sequence["level"] if consistencies is not None else None,
+        query_consistencies=consistencies,
     )
 
 
@@ -616,9 +656,23 @@ def quantile_transfer(
 
 
 def _check_gate(gate) -> str:
-    if gate not in GATES:
-        raise ValueError(f"gate must be one of {', '.join(GATES)}, got {gate!r}")
-    return gate
+    """A set of gates: "none", or gate names joined by commas, each once, in any order;
+    returned as the library writes it ("margin,sequence")."""
+    if not isinstance(gate, str):
+        raise TypeError(f"gate must be a string, got {type(gate).__name__}")
+    if gate.strip() == "none":
+        return "none"
+    names = []
+    for name in (n.strip() for n in gate.split(",")):
+        if name not in ("margin", "sequence"):
+            raise ValueError(
+                f"gate must be none, or one or more of margin, sequence joined by commas, got {gate!r}: "
+                f"unknown gate {name!r}"
+            )
+        if name in names:
+            raise ValueError(f"gate names {name} twice in {gate!r}")
+        names.append(name)
+    return ",".join(n for n in ("margin", "sequence") if n in names)
 
 
 def _check_gated(matching: str, n_db: int) -> None:
@@ -662,6 +716,118 @@ def _gate(s: np.ndarray, gt: np.ndarray, ignored: np.ndarray, tau: float) -> flo
     kept = ~ignored[best, cols]
     positives = int(gt.any(axis=0).sum())
     return _sweep(_margins(s)[kept], gt[best, cols][kept], positives, tau)
+
+
+# ---------------------------------------------------------------------------------------
+# Section 15: sequence consistency and the sequence gate
+# ---------------------------------------------------------------------------------------
+
+
+def _sequence_params(base: dict, window=None, level=None, speed=None, tolerance=None, drift=None) -> dict:
+    """The sequence gate's parameters: ``base`` with each one given replacing its own,
+    checked (window >= 1, level in (0, 1], speed finite, tolerance and drift finite and
+    >= 0)."""
+    p = dict(base)
+    for key, value in zip(("window", "level", "speed", "tolerance", "drift"),
+                          (window, level, speed, tolerance, drift), strict=True):
+        if value is not None:
+            p[key] = value
+    if isinstance(p["window"], bool) or not isinstance(p["window"], numbers.Integral):
+        raise TypeError(f"sequence_window must be an integer, got {type(p['window']).__name__}")
+    if p["window"] < 1:
+        raise ValueError(f"sequence_window must be >= 1, got {p['window']}")
+    p["window"] = int(p["window"])
+    for key in ("level", "speed", "tolerance", "drift"):
+        if isinstance(p[key], bool) or not isinstance(p[key], numbers.Real):
+            raise TypeError(f"sequence_{key} must be a real number, got {type(p[key]).__name__}")
+        p[key] = float(p[key])
+    if not (0.0 < p["level"] <= 1.0):
+        raise ValueError(f"sequence_level must be in (0, 1], got {p['level']}")
+    if not math.isfinite(p["speed"]):
+        raise ValueError(f"sequence_speed must be finite, got {p['speed']}")
+    for key in ("tolerance", "drift"):
+        if not (math.isfinite(p[key]) and p[key] >= 0.0):
+            raise ValueError(f"sequence_{key} must be finite and >= 0, got {p[key]}")
+    return p
+
+
+def _check_sequence_gate(matching: str, n_db: int, p: dict) -> None:
+    """The gate keeps a best match (single matching), on a database its widest
+    tolerance, ``a + b W`` rows either side, does not cover."""
+    if matching != "single":
+        raise ValueError(
+            "gate sequence needs single matching: it gates each query's best match, and multi "
+            "matching accepts every database entry at or above the threshold"
+        )
+    widest = p["tolerance"] + p["drift"] * p["window"]
+    covered = 2 * math.floor(widest + 1e-9) + 1
+    if covered >= n_db:
+
+        def num(x: float) -> str:  # as the core prints a float: 3, 2.4
+            return str(int(x)) if x == int(x) else repr(x)
+
+        raise ValueError(
+            f"gate sequence cannot tell a line from chance with |DB| = {n_db}: its widest tolerance, "
+            f"+-{num(widest)} rows {p['window']} steps away (sequence tolerance {num(p['tolerance'])} and "
+            f"drift {num(p['drift'])}), covers {covered} rows; it needs |DB| >= {covered + 1}"
+        )
+
+
+def _agrees(best: int, other: int, d: int, p: dict) -> bool:
+    """Whether ``other``, the best match of the query ``d`` steps away, lies on the line
+    of the query whose best match is ``best``: |other - (best + v d)| <= a + b |d|."""
+    predicted = best + p["speed"] * d
+    return abs(other - predicted) <= p["tolerance"] + p["drift"] * abs(d) + 1e-9
+
+
+def _consistencies(best: np.ndarray, p: dict) -> np.ndarray:
+    """c_j = n_j / W for every query of a stream of best matches, in order: n_j counts
+    the queries j - 1, ..., j - W that are in the stream and agree with j."""
+    w = p["window"]
+    out = np.empty(len(best))
+    for j in range(len(best)):
+        n = sum(_agrees(int(best[j]), int(best[j - d]), -d, p) for d in range(1, w + 1) if j - d >= 0)
+        out[j] = n / w
+    return out
+
+
+def _passes(consistency: float, p: dict) -> bool:
+    """Whether a consistency reaches the level, inclusive (section 3's slack)."""
+    return consistency >= p["level"] - EPS
+
+
+def sequence_consistency(s, *, query_major=False, window=None, level=None, speed=None, tolerance=None,
+                         drift=None) -> np.ndarray:
+    """The consistency of every column of ``s`` (|DB| x |Q|), its columns a stream in
+    order (semantics §15)."""
+    p = _sequence_params(SEQUENCE_DEFAULTS, window, level, speed, tolerance, drift)
+    s64 = _scores("s", s, query_major)
+    _check_sequence_gate("single", s64.shape[0], p)
+    return _consistencies(np.argmax(s64, axis=0), p)
+
+
+def _check_sequence_length(length) -> int:
+    """A sequence length L: odd, >= 1."""
+    if isinstance(length, bool) or not isinstance(length, numbers.Integral):
+        raise TypeError(f"sequence must be an integer, got {type(length).__name__}")
+    if length < 1 or length % 2 == 0:
+        raise ValueError(f"sequence length must be odd and >= 1, got {length}")
+    return int(length)
+
+
+def _causal_match(s: np.ndarray, length: int) -> np.ndarray:
+    """The causal sequence matching of a |DB| x |Q| matrix, in its own dtype: entry
+    (i, j) the mean of S[i - d, j - d] for d = 0, ..., L - 1 inside the matrix, its terms
+    summed in float64 from 0.0, oldest first (d = L - 1 first), as the core sums them."""
+    n, m = s.shape
+    s64 = s.astype(np.float64)
+    acc = np.zeros((n, m))
+    count = np.zeros((n, m))
+    for d in reversed(range(length)):
+        if d < n and d < m:
+            acc[d:, d:] += s64[: n - d, : m - d]
+            count[d:, d:] += 1
+    return (acc / count).astype(s.dtype)
 
 
 # ---------------------------------------------------------------------------------------
@@ -828,10 +994,11 @@ def _reliability(p: np.ndarray, c: np.ndarray) -> list[dict]:
     return out
 
 
-def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
+def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep, consistency=None) -> dict:
     """Section 14's evaluation signals over the deployment columns given (soft-only best
-    matches left out): AUROC of s1, the margin, the PA-score (lower ranked higher) and
-    the confidence; the confidence's Brier, ECE and reliability bins."""
+    matches left out): AUROC of s1, the margin, the PA-score (lower ranked higher), the
+    consistency of section 15 (``consistency``, one per column given; None: no AUROC)
+    and the confidence; the confidence's Brier, ECE and reliability bins."""
     blocks = _confidence_blocks(s_cal, gt_cal, ign_cal)
     best = np.argmax(s_dep, axis=0)
     cols = np.arange(s_dep.shape[1])
@@ -847,6 +1014,7 @@ def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep) -> dict:
             "score": {"auroc": _auroc(s1, c)},
             "margin": {"auroc": _auroc(m, c)},
             "pa_score": {"auroc": _auroc(-r, c)},
+            "consistency": {"auroc": None if consistency is None else _auroc(consistency[kept], c)},
             "confidence": {
                 "auroc": _auroc(p, c) if calibrated else None,
                 "brier": float(np.mean((p - c) ** 2)) if calibrated else None,
@@ -1007,8 +1175,10 @@ def _counts_with_bound(c: dict, prefix: str = "") -> dict:
     return {prefix + key: value for key, value in c.items()}
 
 
-def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
-    """One run of the protocol on validated |DB| x |Q| input: params, R@1, methods."""
+def _run(s, gt, ignored, methods, k, tau, matching, layout, sequence=None) -> dict:
+    """One run of the protocol on validated |DB| x |Q| input: params, R@1, methods.
+    ``sequence``: the sequence gate's parameters (None: the defaults)."""
+    sequence = dict(SEQUENCE_DEFAULTS) if sequence is None else sequence
     n_cal, dep_start, size = layout["calibration_queries"], layout["deployment_start"], layout["segment_size"]
     segments = _segments(layout["segments"] * size, size)  # full segments only
 
@@ -1024,11 +1194,25 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
 
     thresholds = {}
     per_query = {}  # methods that decide each query at its own threshold: theta_j
-    gated = [name for name in methods if name in GATED]
-    if gated:
+    n_full = layout["segments"] * size
+    margin_gated = [name for name in methods if name in MARGIN_GATED]
+    sequence_gated = [name for name in methods if name in SEQUENCE_GATED]
+    if margin_gated:
         _check_gated(matching, s.shape[0])
+    if sequence_gated:
+        _check_sequence_gate(matching, s.shape[0], sequence)
+    m_star = None
+    if margin_gated:
         m_star = _gate(s_cal, gt_cal, ign_cal, tau)
-        passes = _margins(s_dep) >= m_star  # per deployment query: the gate's verdict
+        margin_passes = _margins(s_dep) >= m_star  # per deployment query: the gate's verdict
+    # Section 15: the whole traverse is one stream, in column order.
+    consistency = None
+    try:
+        if matching == "single":
+            _check_sequence_gate("single", s.shape[0], sequence)
+            consistency = _consistencies(np.argmax(s, axis=0), sequence)[dep_start : dep_start + n_full]
+    except ValueError:
+        pass  # a database too small for the gate: no consistency (nor sequence method)
     for name in methods:
         if name == "quantile-transfer-online":
             # Section 11: the window (m = segment size) runs over the deployment queries
@@ -1042,7 +1226,8 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
             theta = online.push_many(s_dep[:, : segments[-1][1]]).thresholds
             per_query[name] = theta
             thresholds[name] = [float(theta[b - 1]) for _, b in segments]  # its last query's
-        elif name in ("quantile-transfer", "quantile-transfer-margin"):
+        elif name in ("quantile-transfer", "quantile-transfer-margin", "quantile-transfer-sequence",
+                      "quantile-transfer-margin-sequence"):
             transfer = quantile_transfer(
                 s_cal,
                 gt_cal,
@@ -1054,7 +1239,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
                 segment_size=size,
             )
             thresholds[name] = [float(t) for t in transfer.thresholds]
-        elif name == "margin":
+        elif name in ("margin", "sequence"):  # a gate alone
             thresholds[name] = [-math.inf] * len(segments)
         elif name == "schubert":
             thresholds[name] = [_schubert(s_dep[:, a:b]) for a, b in segments]
@@ -1072,12 +1257,15 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
         for (a, b), cand, t, t_oracle in zip(segments, candidates, thresholds[name], oracle, strict=True):
             if name in per_query or name in GATED:
                 # The segment's counts are the sums of its queries' counts: each at its
-                # own threshold, or at the segment's when its margin passes the gate
-                # (a query that fails the gate accepts nothing).
+                # own threshold, or at the segment's when it passes every gate of the
+                # method (a query that fails a gate accepts nothing).
                 tp = fp = positives = 0
                 for j in range(a, b):
                     if name in GATED:
-                        t_j = t if passes[j] else math.inf
+                        passes = (name not in MARGIN_GATED or margin_passes[j]) and (
+                            name not in SEQUENCE_GATED or _passes(consistency[j], sequence)
+                        )
+                        t_j = t if passes else math.inf
                     else:
                         t_j = float(per_query[name][j])
                     cj = _count_at(
@@ -1089,8 +1277,10 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
             else:
                 c = _count_at(*cand, t)
             row = {"start": a, "end": b, "threshold": t, "oracle_threshold": t_oracle}
-            if name in GATED:
+            if name in MARGIN_GATED:
                 row["gate"] = m_star
+            if name in SEQUENCE_GATED:
+                row["consistency_level"] = sequence["level"]
             rows.append({**row, **_counts_with_bound(c), "meets": c["precision"] >= tau - EPS})
         counted = [r for r in rows if r["positives"] > 0]
         if counted:
@@ -1127,6 +1317,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
         "k": k,
         "precision": tau,
         "matching": matching,
+        "sequence_gate": sequence,
         **{key: value for key, value in layout.items() if key not in ("calibration", "deploy_fraction", "segment")},
     }
     out = {
@@ -1136,7 +1327,8 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
     }
     if matching == "single" and s.shape[0] >= 2:  # section 14's signals
         out["confidence"] = _confidence_signals(
-            s_cal, gt_cal, ign_cal, s[:, dep_start:end], gt[:, dep_start:end], ignored[:, dep_start:end]
+            s_cal, gt_cal, ign_cal, s[:, dep_start:end], gt[:, dep_start:end], ignored[:, dep_start:end],
+            consistency,
         )
     return out
 
@@ -1151,6 +1343,19 @@ def _check_methods(methods, matching: str) -> list:
         if name not in METHODS:
             raise ValueError(f"unknown method {name!r}; expected one of {', '.join(METHODS)}")
     return list(dict.fromkeys(methods))  # a repeated method once
+
+
+def _applying(methods: list, given, n_db: int, sequence: dict) -> list:
+    """``methods`` as :func:`_check_methods` gave them; when none was ``given`` (every
+    method that applies), less the sequence gate's on a database its widest tolerance
+    covers."""
+    if given is not None:
+        return methods
+    try:
+        _check_sequence_gate("single", n_db, sequence)
+    except ValueError:
+        return [m for m in methods if m not in SEQUENCE_GATED]
+    return methods
 
 
 #: The protocol's defaults (the paper's): k, precision, calibration and segment fractions.
@@ -1210,6 +1415,11 @@ def evaluate(
     segment_size=None,
     deploy_fraction=None,
     query_major=False,
+    sequence_window=None,
+    sequence_level=None,
+    sequence_speed=None,
+    sequence_tolerance=None,
+    sequence_drift=None,
 ) -> dict:
     """The evaluation protocol of the paper's Table I (semantics §7 and §8).
 
@@ -1237,16 +1447,24 @@ def evaluate(
     Segments without positives are skipped in the summary figures, which are None when
     no segment is counted; ``threshold_mse`` is None when no counted segment has both
     thresholds finite. The pooled counts are summed over every full segment.
+
+    The sequence methods (section 15) gate on each deployment query's consistency over
+    the whole matrix, one traverse in column order, with the sequence gate of
+    ``sequence_window`` and the others (None: :data:`SEQUENCE_DEFAULTS`); their segments
+    report its ``consistency_level``, and the consistency is a signal of section 14's.
     """
     k, precision, cal_fraction, segment_fraction = _protocol_defaults(k, precision, cal_fraction, segment_fraction)
     k = _check_positive_int("k", k)
     tau = _check_precision(precision)
     matching = _check_matching(matching)
-    methods = _check_methods(methods, matching)
+    sequence = _sequence_params(SEQUENCE_DEFAULTS, sequence_window, sequence_level, sequence_speed,
+                                sequence_tolerance, sequence_drift)
+    given, methods = methods, _check_methods(methods, matching)
     s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    methods = _applying(methods, given, s.shape[0], sequence)
     layout = _layout(*s.shape, cal_fraction, cal_queries, deploy_fraction, segment_fraction, segment_size)
     return {"dataset": None, "orientation": orientation(s.shape, gt, query_major),
-            **_run(s, gt, ignored, methods, k, tau, matching, layout)}
+            **_run(s, gt, ignored, methods, k, tau, matching, layout, sequence)}
 
 
 #: The deployment set of an ablation without ``deploy_fraction``: the last half.
@@ -1273,6 +1491,11 @@ def ablation(
     segment_size=None,
     deploy_fraction=None,
     query_major=False,
+    sequence_window=None,
+    sequence_level=None,
+    sequence_speed=None,
+    sequence_tolerance=None,
+    sequence_drift=None,
 ) -> dict:
     """The protocol once per setting of ``k`` and of the calibration size (Fig. 5).
 
@@ -1285,7 +1508,7 @@ def ablation(
     ``methods`` of :func:`evaluate`.
     """
     k, precision, cal_fraction, segment_fraction = _protocol_defaults(k, precision, cal_fraction, segment_fraction)
-    methods = _check_methods(methods, _check_matching(matching))
+    given, methods = methods, _check_methods(methods, _check_matching(matching))
     ks = [_check_positive_int("k", v) for v in _values(k)]
     if cal_queries is None:
         settings = [(f, None) for f in _values(cal_fraction)]
@@ -1297,13 +1520,16 @@ def ablation(
         raise ValueError(f"{'k' if not ks else name} must have at least one value")
     tau = _check_precision(precision)
     matching = _check_matching(matching)
+    sequence = _sequence_params(SEQUENCE_DEFAULTS, sequence_window, sequence_level, sequence_speed,
+                                sequence_tolerance, sequence_drift)
     s, gt, ignored = _inputs("s", s, "gt", gt, "gt_soft", gt_soft, query_major)
+    methods = _applying(methods, given, s.shape[0], sequence)
     if deploy_fraction is None:
         deploy_fraction = ABLATION_DEPLOY_FRACTION
     layouts = [
         _layout(*s.shape, f, n, deploy_fraction, segment_fraction, segment_size) for f, n in settings
     ]
-    runs = [_run(s, gt, ignored, methods, kk, tau, matching, layout) for layout in layouts for kk in ks]
+    runs = [_run(s, gt, ignored, methods, kk, tau, matching, layout, sequence) for layout in layouts for kk in ks]
     return {"dataset": None, "orientation": orientation(s.shape, gt, query_major), "ablation": runs}
 
 
@@ -1353,7 +1579,10 @@ class OnlineDecision:
     is ``accepted > 0``. ``accepted_indices`` are the accepted database indices,
     ascending. With the margin gate (section 13) ``margin`` is the column's margin and
     ``gate`` m*, and single matching accepts only when ``margin >= gate`` too; both are
-    None without it. ``confidence`` and ``confidence_lower95`` (section 14) are the
+    None without it. With the sequence gate (section 15) ``consistency`` is the query's
+    consistency with the previous queries of the stream and ``consistency_level`` the
+    gate's level, and single matching accepts only when the consistency reaches it too;
+    both None without it. ``confidence`` and ``confidence_lower95`` (section 14) are the
     calibration's hit rate at the column's PA-score and its lower bound, whatever the
     gate; NaN in multi matching.
     """
@@ -1370,6 +1599,8 @@ class OnlineDecision:
     accepted_indices: np.ndarray
     margin: float | None = None
     gate: float | None = None
+    consistency: float | None = None
+    consistency_level: float | None = None
     confidence: float = math.nan
     confidence_lower95: float = math.nan
 
@@ -1379,8 +1610,9 @@ class OnlineDecisions:
     """The decisions of :meth:`Online.push_many`, one entry per pushed query: the
     fields of :class:`OnlineDecision` as arrays (``queries``, ``query_quantiles``,
     ``weights``, ``quantiles``, ``thresholds``, ``best``, ``score``, ``accepted``,
-    ``accept``, ``confidences``, ``confidences_lower95``, and with the margin gate
-    ``margins`` and ``gates``), in both matching modes."""
+    ``accept``, ``confidences``, ``confidences_lower95``, with the margin gate
+    ``margins`` and ``gates``, with the sequence gate ``consistencies`` and
+    ``consistency_levels``), in both matching modes."""
 
     queries: np.ndarray
     query_quantiles: np.ndarray
@@ -1395,6 +1627,8 @@ class OnlineDecisions:
     confidences_lower95: np.ndarray
     margins: np.ndarray | None = None
     gates: np.ndarray | None = None
+    consistencies: np.ndarray | None = None
+    consistency_levels: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.queries)
@@ -1426,11 +1660,21 @@ class Online:
     that threshold (section 2). Queries with ``j + 1 < min_window`` are reject-all
     (warm-up).
 
+    ``gate`` is "none", "margin", "sequence" or "margin,sequence" (None: the
+    calibration's), with the sequence gate's ``sequence_window`` and others (None: the
+    calibration's). A calibration of sequence length L (``Calibration(...,
+    sequence=L)``) decides each query on its causal sequence-matched column: the mean of
+    the raw columns' diagonals over the last L pushed queries (section 15). ``sequence``
+    checks that length (None: whatever it is).
+
     Written the plain way: each query's q_j and w_j are computed from its own column and
-    the calibration; the window keeps its raw columns and their q, w.
+    the calibration; the window keeps its raw columns and their q, w; the stream keeps
+    its best matches and, for L > 1, its raw columns.
     """
 
-    def __init__(self, calibration, *, k=None, precision=None, window=None, min_window=1, gate=None):
+    def __init__(self, calibration, *, k=None, precision=None, window=None, min_window=1, gate=None,
+                 sequence_window=None, sequence_level=None, sequence_speed=None, sequence_tolerance=None,
+                 sequence_drift=None, sequence=None):
         if not isinstance(calibration, Calibration):
             raise TypeError(
                 f"calibration must be a qtvpr.reference.Calibration, got {type(calibration).__name__}"
@@ -1449,11 +1693,25 @@ class Online:
             raise ValueError(
                 f"min_window must be between 1 and the window ({self.window}), got {self.min_window}"
             )
+        if sequence is not None and _check_sequence_length(sequence) != calibration.sequence:
+            raise ValueError(
+                f"sequence {sequence} is not the calibration's sequence length {calibration.sequence}: the "
+                "length belongs to the calibration, whose scores were matched over it (calibrate with that "
+                "length instead)"
+            )
         self.gate = _check_gate(defaults["gate"] if gate is None else gate)
+        self.sequence_gate = _sequence_params(defaults["sequence_gate"], sequence_window, sequence_level,
+                                              sequence_speed, sequence_tolerance, sequence_drift)
         self._m_star = None
-        if self.gate == "margin":
+        if "margin" in self.gate:
             _check_gated(calibration.matching, calibration.db_size)
+        if "sequence" in self.gate:
+            _check_sequence_gate(calibration.matching, calibration.db_size, self.sequence_gate)
+        if "margin" in self.gate:
             self._m_star = _gate(calibration._s64, calibration._gt, calibration._ignored, self.precision)
+        self._level = self.sequence_gate["level"] if "sequence" in self.gate else None
+        self._best: list[int] = []  # the stream's best matches, in order
+        self._raw: list[np.ndarray] = []  # the stream's last L - 1 raw columns, in their dtype
         self._blocks = None  # the confidence map, in single matching with |DB| >= 2
         if calibration.matching == "single" and calibration.db_size >= 2:
             self._blocks = _confidence_blocks(calibration._s64, calibration._gt, calibration._ignored)
@@ -1463,9 +1721,17 @@ class Online:
         self.pushed = 0  # queries decided so far
         self.threshold: float | None = None  # theta of the last decision
 
-    def _decide(self, column: np.ndarray) -> OnlineDecision:
-        """Decide one validated float64 column of |DB| scores."""
+    def _decide(self, raw: np.ndarray) -> OnlineDecision:
+        """Decide one validated column of |DB| scores (its own dtype): on its causal
+        sequence-matched column with a sequence length L > 1."""
         cal = self.calibration
+        column = raw.astype(np.float64)
+        if cal.sequence > 1:
+            # Its last min(L, j + 1) raw columns, matched in float64, the result in the
+            # pushed column's own type (as a matrix of that type is).
+            stream = np.stack([*self._raw, raw], axis=1).astype(np.float64)
+            column = _causal_match(stream, cal.sequence)[:, -1].astype(raw.dtype).astype(np.float64)
+            self._raw = [*self._raw, raw][-(cal.sequence - 1) :]
         q_j, _, w_j, _ = _query_quantiles(
             cal._s64, cal._gt, cal._ignored, column[:, None], self.k, self.precision, cal.matching
         )
@@ -1485,11 +1751,17 @@ class Online:
         self.threshold = threshold
         b = int(np.argmax(column))  # first maximum on ties: the matcher's choice, both modes
         margin = None if self._m_star is None else float(_margins(column[:, None])[0])
+        consistency = None
+        if self._level is not None:
+            consistency = float(_consistencies(np.array([*self._best, b]), self.sequence_gate)[-1])
+        self._best.append(b)
         confidence = lower = math.nan
         if self._blocks is not None:
             confidence, lower = _confidence_of(self._blocks, float(_pa_scores(column[:, None])[0]))
         if cal.matching == "single":
-            passes = margin is None or margin >= self._m_star
+            passes = (margin is None or margin >= self._m_star) and (
+                consistency is None or _passes(consistency, self.sequence_gate)
+            )
             indices = np.array([b] if column[b] >= threshold and passes else [], dtype=np.int64)
         else:
             indices = np.flatnonzero(column >= threshold).astype(np.int64)
@@ -1497,6 +1769,7 @@ class Online:
             query=j, query_quantile=self._q[-1], weight=self._w[-1], quantile=quantile,
             threshold=threshold, best=b, score=float(column[b]), accepted=len(indices),
             accept=len(indices) > 0, accepted_indices=indices, margin=margin, gate=self._m_star,
+            consistency=consistency, consistency_level=self._level,
             confidence=confidence, confidence_lower95=lower,
         )
 
@@ -1514,7 +1787,7 @@ class Online:
                 f"{n_db} x 1 matrix), got shape {a.shape}"
             )
         _non_finite("column", a, lambda i: f"row {i}")
-        return self._decide(a.astype(np.float64))
+        return self._decide(a)
 
     def push_many(self, s_val, *, query_major=False) -> OnlineDecisions:
         """Decide every query of ``s_val`` (|DB| x n, columns in arrival order; n x |DB|
@@ -1533,7 +1806,7 @@ class Online:
             col = s[:, j]
             where = (lambda i, j=j: f"row {j}, column {i}") if query_major else (lambda i, j=j: f"row {i}, column {j}")
             _non_finite("s_val", col, where)
-            decisions.append(self._decide(col.astype(np.float64)))
+            decisions.append(self._decide(np.array(col)))
 
         def field(name, dtype):
             return np.array([getattr(d, name) for d in decisions], dtype=dtype)
@@ -1552,6 +1825,8 @@ class Online:
             confidences_lower95=field("confidence_lower95", np.float64),
             margins=field("margin", np.float64) if self._m_star is not None else None,
             gates=field("gate", np.float64) if self._m_star is not None else None,
+            consistencies=field("consistency", np.float64) if self._level is not None else None,
+            consistency_levels=field("consistency_level", np.float64) if self._level is not None else None,
         )
 
 
@@ -1575,17 +1850,27 @@ class Calibration:
     """A calibration traverse with ground truth: what :class:`Online` and a calibration
     file (semantics §12) hold.
 
-    ``Calibration(s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False)``
-    validates its input as :func:`quantile_transfer` does and keeps the raw scores in
-    their own dtype, |DB| x |Qcal|, with the hard and the optional soft ground truth.
-    ``defaults`` are the parameters a calibration file stores for its users
-    (``{"k": 10, "precision": 1.0, "window": None, "gate": "none"}`` for one built
-    here).
+    ``Calibration(s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False,
+    sequence=None)`` validates its input as :func:`quantile_transfer` does and keeps the
+    raw scores in their own dtype, |DB| x |Qcal|, with the hard and the optional soft
+    ground truth. ``defaults`` are the parameters a calibration file stores for its
+    users (``{"k": 10, "precision": 1.0, "window": None, "gate": "none",
+    "sequence_gate": SEQUENCE_DEFAULTS}`` for one built here). With ``sequence=L``
+    (section 15) the scores kept are the causal sequence matching of ``s_cal`` over L
+    queries, and every transfer and :class:`Online` matches its deployment columns so.
     """
 
-    def __init__(self, s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False):
+    def __init__(self, s_cal, gt_cal, *, gt_soft=None, matching="single", query_major=False, sequence=None):
+        length = 1 if sequence is None else _check_sequence_length(sequence)
+        if length > 1:
+            raw = _scores("s_cal", s_cal, query_major)  # checked first, as the core does
+            s_cal = _causal_match(np.asarray(s_cal).T if query_major else np.asarray(s_cal), length)
+            s_cal = s_cal.T if query_major else s_cal
+            del raw
         self._init("s_cal", s_cal, "gt_cal", gt_cal, "gt_soft", gt_soft, matching, query_major)
-        self.defaults = {"k": 10, "precision": 1.0, "window": None, "gate": "none"}
+        self.sequence = length
+        self.defaults = {"k": 10, "precision": 1.0, "window": None, "gate": "none",
+                         "sequence_gate": dict(SEQUENCE_DEFAULTS)}
 
     def _init(self, s_name, s, gt_name, gt, soft_name, gt_soft, matching, query_major):
         self.matching = _check_matching(matching)
@@ -1606,9 +1891,13 @@ class Calibration:
         """|DB| of the calibration."""
         return self._s.shape[0]
 
-    def transfer(self, s_val, *, k=None, precision=None, segment_size=None, gate=None, query_major=False):
-        """:func:`quantile_transfer` from this calibration; ``k``, ``precision`` and
-        ``gate`` left as ``None`` are the calibration's :attr:`defaults` (semantics §12)."""
+    def transfer(self, s_val, *, k=None, precision=None, segment_size=None, gate=None, query_major=False,
+                 sequence_window=None, sequence_level=None, sequence_speed=None, sequence_tolerance=None,
+                 sequence_drift=None):
+        """:func:`quantile_transfer` from this calibration; ``k``, ``precision``, ``gate``
+        and the sequence gate's parameters left as ``None`` are the calibration's
+        :attr:`defaults` (semantics §12). With a sequence length L > 1, ``s_val`` is
+        matched causally first (section 15)."""
         k = self.defaults["k"] if k is None else k
         precision = self.defaults["precision"] if precision is None else precision
         gate = self.defaults["gate"] if gate is None else gate
@@ -1616,10 +1905,17 @@ class Calibration:
         def oriented(a):
             return None if a is None else (a.T if query_major else a)
 
+        if self.sequence > 1:
+            _scores("s_val", s_val, query_major)  # checked first, as the core does
+            s_val = oriented(_causal_match(oriented(np.asarray(s_val)), self.sequence))
+        # Each parameter given, else the file's: passed whole.
+        p = _sequence_params(self.defaults["sequence_gate"], sequence_window, sequence_level, sequence_speed,
+                             sequence_tolerance, sequence_drift)
         return quantile_transfer(
             oriented(self._s), oriented(self._gt), s_val, gt_soft=oriented(self._soft), k=k,
             precision=precision, matching=self.matching, segment_size=segment_size, gate=gate,
-            query_major=query_major,
+            query_major=query_major, sequence_window=p["window"], sequence_level=p["level"],
+            sequence_speed=p["speed"], sequence_tolerance=p["tolerance"], sequence_drift=p["drift"],
         )
 
     def threshold(self, precision=None) -> float:
@@ -1639,11 +1935,14 @@ class Calibration:
         _check_confident(self.matching, self.db_size)
         return _confidence_blocks(self._s64, self._gt, self._ignored)
 
-    def save(self, path, *, k=None, precision=None, window=None, gate=None) -> None:
+    def save(self, path, *, k=None, precision=None, window=None, gate=None, sequence_window=None,
+             sequence_level=None, sequence_speed=None, sequence_tolerance=None, sequence_drift=None) -> None:
         """Write the semantics §12 ``.npz`` to ``path`` (the name is used as given):
         ``s``, ``gt``, ``gt_soft`` when there is one, and ``meta``, a 0-d string array of
-        JSON whose ``params`` are ``k``, ``precision``, ``window`` and ``gate`` (each
-        ``None``: the calibration's own :attr:`defaults`)."""
+        JSON whose ``params`` are ``k``, ``precision``, ``window`` and ``gate``, with
+        ``sequence_gate`` when the sequence gate is on or its parameters are not the
+        defaults, and ``sequence`` when the sequence length is above 1 (each ``None``:
+        the calibration's own :attr:`defaults`)."""
         k = self.defaults["k"] if k is None else k
         precision = self.defaults["precision"] if precision is None else precision
         window = self.defaults["window"] if window is None else window
@@ -1653,8 +1952,16 @@ class Calibration:
             "window": None if window is None else _check_positive_int("window", window),
             "gate": _check_gate(self.defaults["gate"] if gate is None else gate),
         }
-        if params["gate"] == "margin":
+        sequence_gate = _sequence_params(self.defaults["sequence_gate"], sequence_window, sequence_level,
+                                         sequence_speed, sequence_tolerance, sequence_drift)
+        if "margin" in params["gate"]:
             _check_gated(self.matching, self.db_size)
+        if "sequence" in params["gate"]:
+            _check_sequence_gate(self.matching, self.db_size, sequence_gate)
+        if "sequence" in params["gate"] or sequence_gate != SEQUENCE_DEFAULTS:
+            params["sequence_gate"] = sequence_gate
+        if self.sequence > 1:
+            params["sequence"] = self.sequence
         meta = {
             "format": CALIBRATION_FORMAT,
             "version": CALIBRATION_VERSION,
@@ -1724,7 +2031,7 @@ class Calibration:
         for key in ("k", "precision"):
             if key not in params:
                 raise bad(f"meta params has no {key}")
-        defaults = {"window": None, "gate": "none", **params}
+        defaults = {"window": None, "gate": "none", "sequence": 1, **params}
         try:
             for key in ("k", "window"):
                 v = defaults[key]
@@ -1736,7 +2043,14 @@ class Calibration:
             defaults["precision"] = _check_precision(defaults["precision"])
             if defaults["window"] is not None:
                 defaults["window"] = _check_positive_int("window", defaults["window"])
-            _check_gate(defaults["gate"])
+            defaults["gate"] = _check_gate(defaults["gate"])
+            given = defaults.get("sequence_gate") or {}
+            if not isinstance(given, dict):
+                raise TypeError(f"sequence_gate must be a JSON object, got {given!r}")
+            defaults["sequence_gate"] = _sequence_params(
+                SEQUENCE_DEFAULTS, *(given.get(key) for key in ("window", "level", "speed", "tolerance", "drift"))
+            )
+            length = _check_sequence_length(defaults["sequence"])
         except (TypeError, ValueError) as e:
             raise bad(f"meta params: {e}") from None
         for key in ("gt", "gt_soft"):
@@ -1748,10 +2062,13 @@ class Calibration:
                       meta.get("matching"), False)
         except (TypeError, ValueError) as e:  # a dtype stays a TypeError
             raise type(e)(f"{name}: {e}") from None
-        cal.defaults = {key: defaults[key] for key in ("k", "precision", "window", "gate")}
-        if cal.defaults["gate"] == "margin":
-            try:
+        cal.defaults = {key: defaults[key] for key in ("k", "precision", "window", "gate", "sequence_gate")}
+        cal.sequence = length  # s is already matched over it
+        try:
+            if "margin" in cal.defaults["gate"]:
                 _check_gated(cal.matching, cal.db_size)
-            except ValueError as e:
-                raise bad(f"meta params: {e}") from None
+            if "sequence" in cal.defaults["gate"]:
+                _check_sequence_gate(cal.matching, cal.db_size, cal.defaults["sequence_gate"])
+        except ValueError as e:
+            raise bad(f"meta params: {e}") from None
         return cal

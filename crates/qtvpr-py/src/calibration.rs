@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use qtvpr::{Matching, Params, QuerySplit, ScoreSource, Split, SplitError};
 
-use crate::convert::{self, GroundTruthArgs, Int, count, non_negative};
+use crate::convert::{self, GroundTruthArgs, Int, count, non_negative, sequence_gate};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -42,6 +42,12 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// candidates) is computed here, once; each :meth:`transfer` reuses it. Arrays are read
 /// in place and the GIL is released while the work runs.
 ///
+/// ``sequence=L`` (odd, >= 1; semantics §15) calibrates on the causal sequence-matched
+/// calibration similarity (:func:`sequence_match` with ``causal=True`` over the
+/// calibration queries in order): every :meth:`transfer` and :class:`Online` that uses
+/// it matches its deployment columns the same way before deciding, and its file
+/// records ``L``. ``None`` (the default) is 1, no matching.
+///
 /// A calibration can be saved as a calibration file (:meth:`save`), a NumPy ``.npz``
 /// that :meth:`load` reads back with bit-identical results, so that calibration is done
 /// once, offline; it pickles (as the bytes of that file), so it can be sent to worker
@@ -67,7 +73,10 @@ impl PyCalibration {
 
     /// `precision`, or the calibration's default when `None`, checked by the core.
     fn precision(&self, precision: Option<f64>) -> PyResult<f64> {
-        let defaults = self.inner.defaults().resolve(None, precision, None, None);
+        let defaults = self
+            .inner
+            .defaults()
+            .resolve(None, precision, None, None, Default::default());
         Ok(defaults.map_err(|e| CAL_ARGS.error(e))?.precision)
     }
 }
@@ -103,16 +112,16 @@ impl<'py> CalibrationArgs<'py> {
     }
 
     /// The calibration of every query, or of the first queries of `split` (then the
-    /// ground truth labels every query).
-    pub(crate) fn calibrate(self, py: Python<'_>, split: Option<Split>) -> PyResult<PyCalibration> {
+    /// ground truth labels every query), sequence-matched over `length`.
+    pub(crate) fn calibrate(self, py: Python<'_>, split: Option<Split>, length: usize) -> PyResult<PyCalibration> {
         let Self { s, gt, matching, args } = self;
         let inner = s
             .with(py, |s| match split {
-                None => qtvpr::Calibration::new(s, &gt, matching),
+                None => qtvpr::Calibration::new_sequence(s, &gt, matching, length),
                 Some(split) => {
                     let split = QuerySplit::new(split, s.dim())?;
                     let gt = split.calibration_truth(&gt)?;
-                    qtvpr::Calibration::new(s.columns(split.calibration()), &gt, matching)
+                    qtvpr::Calibration::new_sequence(s.columns(split.calibration()), &gt, matching, length)
                 }
             })?
             .map_err(|e| args.error(e))?;
@@ -147,15 +156,34 @@ impl PyCalibration {
         precision: Option<f64>,
         segment_size: Option<Int>,
         gate: Option<&str>,
+        sequence: SequenceGateArgs,
         args: Args,
     ) -> PyResult<Params> {
         let (k, segment_size) = (
             k.map(|k| count("k", k)).transpose()?,
             segment_size.map(|m| count("segment_size", m)).transpose()?,
         );
+        let sequence = sequence.overrides()?;
         convert::gate(gate)
-            .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate))
+            .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate, sequence))
             .map_err(|e| args.error(e))
+    }
+}
+
+/// The sequence gate's keyword arguments of a Python call, as given (semantics §15).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SequenceGateArgs {
+    pub(crate) window: Option<Int>,
+    pub(crate) level: Option<f64>,
+    pub(crate) speed: Option<f64>,
+    pub(crate) tolerance: Option<f64>,
+    pub(crate) drift: Option<f64>,
+}
+
+impl SequenceGateArgs {
+    /// The core's overrides, the window checked.
+    pub(crate) fn overrides(self) -> PyResult<qtvpr::SequenceOverrides> {
+        sequence_gate(self.window, self.level, self.speed, self.tolerance, self.drift)
     }
 }
 
@@ -188,7 +216,7 @@ impl PyCalibration {
     #[new]
     #[pyo3(signature = (
         s_cal, gt_cal, *, gt_soft = None, matching = "single", query_major = false, cal_queries = None,
-        cal_fraction = None,
+        cal_fraction = None, sequence = None,
     ))]
     #[allow(clippy::too_many_arguments)] // the Python signature
     pub(crate) fn new(
@@ -200,9 +228,15 @@ impl PyCalibration {
         query_major: bool,
         cal_queries: Option<Int>,
         cal_fraction: Option<f64>,
+        sequence: Option<Int>,
     ) -> PyResult<Self> {
         let split = split_arg(cal_queries, cal_fraction)?;
-        CalibrationArgs::extract(py, s_cal, gt_cal, gt_soft, matching, query_major)?.calibrate(py, split)
+        // Checked by the core (odd, >= 1) before the calibration does any work.
+        let length = sequence.map(|l| non_negative("sequence", l)).transpose()?.unwrap_or(1);
+        qtvpr::Sequence::causal(length)
+            .validate()
+            .map_err(|e| CAL_ARGS.error(e))?;
+        CalibrationArgs::extract(py, s_cal, gt_cal, gt_soft, matching, query_major)?.calibrate(py, split, length)
     }
 
     /// Write this calibration to ``path`` as a calibration file, atomically.
@@ -213,20 +247,29 @@ impl PyCalibration {
     /// (bool), ``gt_soft``, the soft ground truth (bool; only when some entry is soft
     /// but not hard), and ``meta``, a 0-d string array of JSON: ``{"format":
     /// "qtvpr-calibration", "version": 1, "matching": ..., "params": {"k": ...,
-    /// "precision": ..., "window": ..., "gate": ...}, "qtvpr": ...}``. ``k``,
-    /// ``precision``, ``window`` and ``gate`` are stored as the defaults of whoever uses
-    /// the file (:class:`Online`, :meth:`transfer`, ``qtvpr-cli stream``); each can be
-    /// overridden there. Each left as ``None`` is this calibration's own
-    /// (:attr:`defaults`: a loaded file's, else 10, 1.0, no window and ``"none"``), so a
-    /// loaded file saved again keeps its ``params``. The name is used as
-    /// given (no ``.npz`` is appended).
+    /// "precision": ..., "window": ..., "gate": ...}, "qtvpr": ...}`` (with
+    /// ``"sequence_gate"``, the sequence gate's parameters, when it is on or they are not
+    /// the defaults, and ``"sequence"``, the calibration's sequence length, when it is
+    /// above 1). ``k``, ``precision``, ``window``, ``gate`` and the sequence gate's
+    /// ``sequence_window``, ``sequence_level``, ``sequence_speed``,
+    /// ``sequence_tolerance`` and ``sequence_drift`` are stored as the defaults of
+    /// whoever uses the file (:class:`Online`, :meth:`transfer`, ``qtvpr-cli stream``);
+    /// each can be overridden there. Each left as ``None`` is this calibration's own
+    /// (:attr:`defaults`: a loaded file's, else 10, 1.0, no window, ``"none"`` and the
+    /// sequence gate's defaults), so a loaded file saved again keeps its ``params``.
+    /// The name is used as given (no ``.npz`` is appended).
     ///
     /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1],
-    /// ``window < 1``, or a ``gate`` other than ``"none"`` or ``"margin"`` (or
-    /// ``"margin"`` on a multi-matching calibration), and ``OSError`` (``FileNotFoundError``, ``PermissionError``,
+    /// ``window < 1``, a ``gate`` that is not ``"none"`` or a set of ``"margin"`` and
+    /// ``"sequence"`` (or a gate on a multi-matching calibration), or a bad sequence
+    /// gate parameter, and ``OSError`` (``FileNotFoundError``, ``PermissionError``,
     /// ...) naming the file when it cannot be written; a failed save leaves no file
     /// behind.
-    #[pyo3(signature = (path, *, k = None, precision = None, window = None, gate = None))]
+    #[pyo3(signature = (
+        path, *, k = None, precision = None, window = None, gate = None, sequence_window = None,
+        sequence_level = None, sequence_speed = None, sequence_tolerance = None, sequence_drift = None,
+    ))]
+    #[allow(clippy::too_many_arguments)] // the Python signature
     fn save(
         &self,
         py: Python<'_>,
@@ -235,13 +278,25 @@ impl PyCalibration {
         precision: Option<f64>,
         window: Option<Int>,
         gate: Option<&str>,
+        sequence_window: Option<Int>,
+        sequence_level: Option<f64>,
+        sequence_speed: Option<f64>,
+        sequence_tolerance: Option<f64>,
+        sequence_drift: Option<f64>,
     ) -> PyResult<()> {
         let (k, window) = (
             k.map(|k| count("k", k)).transpose()?,
             window.map(|m| count("window", m)).transpose()?,
         );
+        let sequence = sequence_gate(
+            sequence_window,
+            sequence_level,
+            sequence_speed,
+            sequence_tolerance,
+            sequence_drift,
+        )?;
         let defaults = convert::gate(gate)
-            .and_then(|gate| self.inner.defaults().resolve(k, precision, window, gate))
+            .and_then(|gate| self.inner.defaults().resolve(k, precision, window, gate, sequence))
             .map_err(|e| FILE_ARGS.error(e))?;
         py.detach(|| self.inner.save(&path, &defaults))
             .map_err(|e| FILE_ARGS.error(e))
@@ -286,9 +341,10 @@ impl PyCalibration {
     }
 
     /// The defaults of a calibration file's ``params``: ``{"k", "precision",
-    /// "window", "gate"}`` (``{"k": 10, "precision": 1.0, "window": None, "gate":
-    /// "none"}`` for a calibration built from arrays). :meth:`transfer` and
-    /// :class:`Online` take each one they are not given from here.
+    /// "window", "gate", "sequence_gate"}`` (``{"k": 10, "precision": 1.0, "window":
+    /// None, "gate": "none", "sequence_gate": {"window": 5, "level": 0.8, "speed": 1.0,
+    /// "tolerance": 2.0, "drift": 0.2}}`` for a calibration built from arrays).
+    /// :meth:`transfer` and :class:`Online` take each one they are not given from here.
     #[getter]
     fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         Ok(pythonize::pythonize(py, self.inner.defaults())?)
@@ -298,6 +354,15 @@ impl PyCalibration {
     #[getter]
     fn db_size(&self) -> usize {
         self.inner.db_size()
+    }
+
+    /// The sequence length ``L`` (semantics §15): 1, or the causal sequence matching
+    /// of ``Calibration(..., sequence=L)`` (a file's ``params.sequence``), which every
+    /// transfer and :class:`Online` of this calibration applies to its deployment
+    /// columns.
+    #[getter]
+    fn sequence(&self) -> usize {
+        self.inner.sequence()
     }
 
     /// Transfer thresholds to the deployment similarity ``s_val`` (|DB| x |Qval|).
@@ -317,13 +382,25 @@ impl PyCalibration {
     /// outside (0, 1], ``segment_size`` outside 1..=|Qval|); ``OSError`` (or its
     /// subclass ``FileNotFoundError``, ...) for a file that cannot be read.
     ///
-    /// ``k``, ``precision`` and ``gate`` left as ``None`` are the calibration's
-    /// :attr:`defaults` (its file's ``params``; 10, 1.0 and ``"none"`` for a calibration
-    /// made from arrays). With ``gate="margin"`` (single matching only) the result also
-    /// has the margin gate's ``gate`` (m*) and every query's margin
-    /// (``query_margins``): a best match is accepted when its score is at or above its
-    /// segment's threshold and its margin at or above m*.
-    #[pyo3(signature = (s_val, *, k = None, precision = None, segment_size = None, gate = None, query_major = false))]
+    /// ``k``, ``precision``, ``gate`` and the sequence gate's parameters left as
+    /// ``None`` are the calibration's :attr:`defaults` (its file's ``params``; 10, 1.0,
+    /// ``"none"`` and the sequence gate's defaults for a calibration made from arrays).
+    /// With ``gate="margin"`` (single matching only) the result also has the margin
+    /// gate's ``gate`` (m*) and every query's margin (``query_margins``): a best match
+    /// is accepted when its score is at or above its segment's threshold and its margin
+    /// at or above m*. With ``gate="sequence"`` (semantics §15; single matching only) it
+    /// has the sequence gate's ``consistency_level`` and every query's consistency with
+    /// the queries before it (``query_consistencies``, the columns of ``s_val`` a stream
+    /// in order, from its first): a best match is accepted when its consistency reaches
+    /// the level too. ``gate="margin,sequence"``: both. ``sequence_window`` (W),
+    /// ``sequence_level``, ``sequence_speed``, ``sequence_tolerance`` and
+    /// ``sequence_drift`` are the sequence gate's parameters. A calibration of sequence
+    /// length ``L > 1`` (:attr:`sequence`) matches ``s_val`` causally first.
+    #[pyo3(signature = (
+        s_val, *, k = None, precision = None, segment_size = None, gate = None, query_major = false,
+        sequence_window = None, sequence_level = None, sequence_speed = None, sequence_tolerance = None,
+        sequence_drift = None,
+    ))]
     #[allow(clippy::too_many_arguments)] // the Python signature
     pub(crate) fn transfer(
         &self,
@@ -334,16 +411,45 @@ impl PyCalibration {
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
+        sequence_window: Option<Int>,
+        sequence_level: Option<f64>,
+        sequence_speed: Option<f64>,
+        sequence_tolerance: Option<f64>,
+        sequence_drift: Option<f64>,
     ) -> PyResult<TransferResult> {
-        // The transfer of a whole set is that of a block starting at query 0.
-        self._transfer_at(py, s_val, Int::Small(0), k, precision, segment_size, gate, query_major)
+        let args = Args {
+            gt: "gt_cal",
+            query_major,
+        };
+        let sequence = SequenceGateArgs {
+            window: sequence_window,
+            level: sequence_level,
+            speed: sequence_speed,
+            tolerance: sequence_tolerance,
+            drift: sequence_drift,
+        };
+        let params = self.params(k, precision, segment_size, gate, sequence, args)?;
+        let s = SourceArg::extract("s_val", s_val, query_major)?;
+        let out = s
+            .with(py, |s| self.inner.transfer(s, &params))?
+            .map_err(|e| args.error(e))?;
+        Ok(TransferResult::new(py, out))
     }
 
     /// Check, from its shape alone, a transfer of a deployment similarity of shape
     /// ``shape`` (as given: |Qval| x |DB| with ``query_major=True``): what
     /// :meth:`transfer` refuses before it reads a score, with its messages. For a
     /// scheduler that transfers blocks of the matrix (``qtvpr.dask``).
-    #[pyo3(signature = (shape, *, k = None, precision = None, segment_size = None, gate = None, query_major = false))]
+    ///
+    /// Returns how many queries before a block's first one its decisions look back at
+    /// (:meth:`_transfer_at`'s ``before``, at most): ``Calibration::lookback`` of the
+    /// core, the sequence gate's window and the ``L - 1`` raw columns of a sequence
+    /// length ``L``.
+    #[pyo3(signature = (
+        shape, *, k = None, precision = None, segment_size = None, gate = None, query_major = false,
+        sequence_window = None, sequence_level = None, sequence_speed = None, sequence_tolerance = None,
+        sequence_drift = None,
+    ))]
     #[allow(clippy::too_many_arguments)] // the Python signature
     fn _check_transfer(
         &self,
@@ -353,21 +459,38 @@ impl PyCalibration {
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
-    ) -> PyResult<()> {
+        sequence_window: Option<Int>,
+        sequence_level: Option<f64>,
+        sequence_speed: Option<f64>,
+        sequence_tolerance: Option<f64>,
+        sequence_drift: Option<f64>,
+    ) -> PyResult<usize> {
         let args = Args {
             gt: "gt_cal",
             query_major,
         };
-        let params = self.params(k, precision, segment_size, gate, args)?;
+        let sequence = SequenceGateArgs {
+            window: sequence_window,
+            level: sequence_level,
+            speed: sequence_speed,
+            tolerance: sequence_tolerance,
+            drift: sequence_drift,
+        };
+        let params = self.params(k, precision, segment_size, gate, sequence, args)?;
         let shape = if query_major { (shape.1, shape.0) } else { shape };
-        self.inner.check_transfer(shape, &params).map_err(|e| args.error(e))
+        self.inner.check_transfer(shape, &params).map_err(|e| args.error(e))?;
+        Ok(self.inner.lookback(params.gate, &params.sequence_gate))
     }
 
     /// :meth:`transfer` of a block of a larger deployment set whose first query is
-    /// ``first_query`` (an array or a path): its segments and the positions in its
-    /// errors count in the larger set. For a scheduler (``qtvpr.dask``).
+    /// ``first_query`` (an array or a path), preceded by the ``before`` queries before
+    /// it that its decisions look back at (the first ``before`` columns of ``s_val``;
+    /// ``Calibration::transfer_block`` of the core): its segments and the positions in
+    /// its errors count in the larger set. For a scheduler (``qtvpr.dask``).
     #[pyo3(signature = (
-        s_val, first_query, *, k = None, precision = None, segment_size = None, gate = None, query_major = false,
+        s_val, first_query, *, before = Int::Small(0), k = None, precision = None, segment_size = None, gate = None,
+        query_major = false, sequence_window = None, sequence_level = None, sequence_speed = None,
+        sequence_tolerance = None, sequence_drift = None,
     ))]
     #[allow(clippy::too_many_arguments)] // the Python signature
     fn _transfer_at(
@@ -375,21 +498,35 @@ impl PyCalibration {
         py: Python<'_>,
         s_val: &Bound<'_, PyAny>,
         first_query: Int,
+        before: Int,
         k: Option<Int>,
         precision: Option<f64>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
+        sequence_window: Option<Int>,
+        sequence_level: Option<f64>,
+        sequence_speed: Option<f64>,
+        sequence_tolerance: Option<f64>,
+        sequence_drift: Option<f64>,
     ) -> PyResult<TransferResult> {
         let args = Args {
             gt: "gt_cal",
             query_major,
         };
         let first_query = non_negative("first_query", first_query)?;
-        let params = self.params(k, precision, segment_size, gate, args)?;
+        let before = non_negative("before", before)?;
+        let sequence = SequenceGateArgs {
+            window: sequence_window,
+            level: sequence_level,
+            speed: sequence_speed,
+            tolerance: sequence_tolerance,
+            drift: sequence_drift,
+        };
+        let params = self.params(k, precision, segment_size, gate, sequence, args)?;
         let s = SourceArg::extract("s_val", s_val, query_major)?;
         let out = s
-            .with(py, |s| self.inner.transfer_at(s, &params, first_query))?
+            .with(py, |s| self.inner.transfer_block(s, &params, first_query, before))?
             .map_err(|e| args.error(e))?;
         Ok(TransferResult::new(py, out))
     }
@@ -443,8 +580,14 @@ impl PyCalibration {
     }
 
     fn __repr__(&self) -> String {
+        // The sequence length only where it matters, so that plain calibrations print as
+        // they did.
+        let sequence = match self.inner.sequence() {
+            1 => String::new(),
+            l => format!(", sequence={l}"),
+        };
         format!(
-            "Calibration(queries={}, matching='{}')",
+            "Calibration(queries={}, matching='{}'{sequence})",
             self.inner.len(),
             self.inner.matching().as_str()
         )
@@ -463,7 +606,9 @@ impl PyCalibration {
 /// ``query_margins`` (every query's margin); both ``None`` without it. In single
 /// matching: ``query_confidences`` (every query's probability that its best match is
 /// right, semantics §14, whatever the gate) and ``query_confidences_lower95`` (their
-/// one-sided 95% Clopper-Pearson lower bounds); both ``None`` in multi matching.
+/// one-sided 95% Clopper-Pearson lower bounds); both ``None`` in multi matching. With
+/// the sequence gate (semantics §15): ``consistency_level`` (the consistency a best
+/// match needs) and ``query_consistencies`` (every query's); both ``None`` without it.
 #[pyclass(frozen, module = "qtvpr", name = "TransferResult")]
 pub(crate) struct TransferResult {
     /// One threshold per segment (float64).
@@ -503,6 +648,13 @@ pub(crate) struct TransferResult {
     /// Clopper-Pearson lower bound (float64; ``None`` in multi matching).
     #[pyo3(get)]
     query_confidences_lower95: Option<Py<PyArray1<f64>>>,
+    /// With the sequence gate: its level (``None`` without it).
+    #[pyo3(get)]
+    consistency_level: Option<f64>,
+    /// With the sequence gate: per deployment query, its consistency with the queries
+    /// before it (float64; ``None`` without it).
+    #[pyo3(get)]
+    query_consistencies: Option<Py<PyArray1<f64>>>,
 }
 
 impl TransferResult {
@@ -521,6 +673,8 @@ impl TransferResult {
             query_margins: out.query_margins.map(|m| m.into_pyarray(py).unbind()),
             query_confidences: out.query_confidences.map(|c| c.into_pyarray(py).unbind()),
             query_confidences_lower95: out.query_confidences_lower95.map(|c| c.into_pyarray(py).unbind()),
+            consistency_level: out.consistency_level,
+            query_consistencies: out.query_consistencies.map(|c| c.into_pyarray(py).unbind()),
         }
     }
 }
@@ -534,12 +688,13 @@ impl TransferResult {
     /// ``ValueError`` when the per-segment fields (``thresholds``, ``quantiles``,
     /// ``segments``) or the per-query fields (``query_quantiles``,
     /// ``query_thresholds``, ``query_weights``, the rows of ``neighbours``,
-    /// ``query_margins``, ``query_confidences``, ``query_confidences_lower95``) differ in
-    /// length.
+    /// ``query_margins``, ``query_confidences``, ``query_confidences_lower95``,
+    /// ``query_consistencies``) differ in length.
     #[staticmethod]
     #[pyo3(signature = (
         thresholds, quantiles, segments, query_quantiles, query_thresholds, query_weights, neighbours,
         gate = None, query_margins = None, query_confidences = None, query_confidences_lower95 = None,
+        consistency_level = None, query_consistencies = None,
     ))]
     #[allow(clippy::too_many_arguments)] // the fields
     fn _from_parts(
@@ -554,6 +709,8 @@ impl TransferResult {
         query_margins: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences_lower95: Option<Bound<'_, PyArray1<f64>>>,
+        consistency_level: Option<f64>,
+        query_consistencies: Option<Bound<'_, PyArray1<f64>>>,
     ) -> PyResult<Self> {
         let per_segment = [thresholds.len(), quantiles.len(), segments.len()];
         let per_query = [
@@ -566,12 +723,13 @@ impl TransferResult {
             query_confidences_lower95
                 .as_ref()
                 .map_or(query_quantiles.len(), |m| m.len()),
+            query_consistencies.as_ref().map_or(query_quantiles.len(), |m| m.len()),
         ];
         if per_segment.iter().any(|&n| n != per_segment[0]) || per_query.iter().any(|&n| n != per_query[0]) {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "TransferResult parts differ in length: thresholds, quantiles, segments {per_segment:?}; \
                  query_quantiles, query_thresholds, query_weights, neighbours rows, query_margins, query_confidences, \
-                 query_confidences_lower95 {per_query:?}"
+                 query_confidences_lower95, query_consistencies {per_query:?}"
             )));
         }
         Ok(Self {
@@ -586,6 +744,8 @@ impl TransferResult {
             query_margins: query_margins.map(Bound::unbind),
             query_confidences: query_confidences.map(Bound::unbind),
             query_confidences_lower95: query_confidences_lower95.map(Bound::unbind),
+            consistency_level,
+            query_consistencies: query_consistencies.map(Bound::unbind),
         })
     }
 

@@ -400,6 +400,26 @@ pub(crate) fn gate(gate: Option<&str>) -> qtvpr::Result<Option<qtvpr::Gate>> {
     gate.map(str::parse).transpose()
 }
 
+/// The sequence gate's keyword arguments (semantics §15: ``sequence_window``,
+/// ``sequence_level``, ``sequence_speed``, ``sequence_tolerance``, ``sequence_drift``)
+/// as given, each ``None`` taking the calibration's (its file's), else the default; the
+/// core checks them.
+pub(crate) fn sequence_gate(
+    window: Option<Int>,
+    level: Option<f64>,
+    speed: Option<f64>,
+    tolerance: Option<f64>,
+    drift: Option<f64>,
+) -> PyResult<qtvpr::SequenceOverrides> {
+    Ok(qtvpr::SequenceOverrides {
+        window: window.map(|w| count("sequence_window", w)).transpose()?,
+        level,
+        speed,
+        tolerance,
+        drift,
+    })
+}
+
 /// An integer argument as Python gave it, however large. pyo3 names the argument of a
 /// failed conversion only in a `TypeError`, so that `window=2**70` or `start=-1` into a
 /// Rust integer would raise an `OverflowError` that names nothing; taken as this, every

@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 use qtvpr::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
+use crate::calibration::SequenceGateArgs;
 use crate::convert::{GroundTruthArgs, Int, count};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
@@ -36,9 +37,16 @@ fn nonempty<T>(name: &str, values: OneOrMany<T>) -> PyResult<Vec<T>> {
 
 /// The arguments `evaluate` and `ablation` share, checked.
 struct Setup {
-    methods: Vec<Method>,
+    /// `None`: every method that applies ([`methods_for`]).
+    methods: Option<Vec<Method>>,
     protocol: Protocol,
     args: Args,
+}
+
+/// The methods asked for, or (`None`) every method that applies to the protocol's
+/// matching on a database of `n_db` images (the core's [`Method::all_applying`]).
+fn methods_for(methods: Option<Vec<Method>>, protocol: &Protocol, n_db: usize) -> Vec<Method> {
+    methods.unwrap_or_else(|| Method::all_applying(protocol.matching, n_db, &protocol.sequence_gate))
 }
 
 /// The methods, and the protocol of the values given (the core's defaults for those
@@ -53,24 +61,31 @@ fn setup(
     segment_fraction: Option<f64>,
     segment_size: Option<Int>,
     deploy_fraction: Option<f64>,
+    sequence: SequenceGateArgs,
     query_major: bool,
 ) -> PyResult<Setup> {
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
-    let methods: Vec<Method> = match methods {
-        None => Method::all_for(matching),
-        Some(names) => names
-            .iter()
-            .map(|n| n.parse())
-            .collect::<qtvpr::Result<_>>()
-            .map_err(|e| args.error(e))?,
-    };
+    // None, every method that applies, is resolved on the input ([`methods_for`]).
+    let methods: Option<Vec<Method>> = methods
+        .map(|names| names.iter().map(|n| n.parse()).collect::<qtvpr::Result<_>>())
+        .transpose()
+        .map_err(|e| args.error(e))?;
     let segment = match segment_size {
         Some(n) => Some(Split::Count(count("segment_size", n)?)),
         None => segment_fraction.map(Split::Fraction),
     };
-    let protocol = Protocol::resolve(k, precision, Some(matching), calibration, segment, deploy_fraction)
-        .map_err(|e| args.error(e))?;
+    let sequence = sequence.overrides()?;
+    let protocol = Protocol::resolve(
+        k,
+        precision,
+        Some(matching),
+        calibration,
+        segment,
+        deploy_fraction,
+        sequence,
+    )
+    .map_err(|e| args.error(e))?;
     Ok(Setup {
         methods,
         protocol,
@@ -117,10 +132,21 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 /// calibration-size ablation: the queries between the two sets are unused). It is cut
 /// into full segments of ``segment_size`` queries (default
 /// ``ceil(segment_fraction * |Q|)``), the remainder dropped. Each of ``methods``
-/// (default all: ``"quantile-transfer"``, ``"quantile-transfer-online"``,
-/// ``"schubert"``, ``"schubert-calibrated"``, ``"calibration-threshold"``,
-/// ``"oracle"``) gives every segment a threshold, and the segment's decisions
-/// (``matching``) are counted against its own ground truth.
+/// (default all that apply to ``matching``: ``"quantile-transfer"``,
+/// ``"quantile-transfer-online"``, ``"quantile-transfer-margin"``, ``"margin"``,
+/// ``"quantile-transfer-sequence"``, ``"quantile-transfer-margin-sequence"``,
+/// ``"sequence"`` (the gated ones single matching's only), ``"schubert"``,
+/// ``"schubert-calibrated"``, ``"calibration-threshold"``, ``"oracle"``) gives every
+/// segment a threshold, and the segment's decisions (``matching``) are counted against
+/// its own ground truth.
+///
+/// The sequence methods (semantics §15) keep a best match only when the best matches
+/// of the queries before it (the whole matrix is one traverse, in column order) agree
+/// with it, by the sequence gate of ``sequence_window``, ``sequence_level``,
+/// ``sequence_speed``, ``sequence_tolerance`` and ``sequence_drift`` (``None``: the
+/// defaults); each of their segments reports the gate's ``consistency_level``, and the
+/// consistency is a signal (``confidence["signals"]["consistency"]``) beside the score,
+/// the margin and the PA-score.
 ///
 /// ``"quantile-transfer-online"`` is :class:`Online` inside the protocol: every
 /// deployment query is decided at its own threshold, over a window of the segment size
@@ -150,7 +176,8 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 #[pyo3(signature = (
     s, gt, *, gt_soft = None, methods = None, k = None, precision = None, matching = "single",
     cal_fraction = None, cal_queries = None, segment_fraction = None, segment_size = None,
-    deploy_fraction = None, query_major = false,
+    deploy_fraction = None, query_major = false, sequence_window = None, sequence_level = None,
+    sequence_speed = None, sequence_tolerance = None, sequence_drift = None,
 ))]
 #[allow(clippy::too_many_arguments)] // the Python signature
 pub(crate) fn evaluate<'py>(
@@ -168,7 +195,19 @@ pub(crate) fn evaluate<'py>(
     segment_size: Option<Int>,
     deploy_fraction: Option<f64>,
     query_major: bool,
+    sequence_window: Option<Int>,
+    sequence_level: Option<f64>,
+    sequence_speed: Option<f64>,
+    sequence_tolerance: Option<f64>,
+    sequence_drift: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let sequence = SequenceGateArgs {
+        window: sequence_window,
+        level: sequence_level,
+        speed: sequence_speed,
+        tolerance: sequence_tolerance,
+        drift: sequence_drift,
+    };
     let Setup {
         methods,
         protocol,
@@ -182,13 +221,17 @@ pub(crate) fn evaluate<'py>(
         segment_fraction,
         segment_size,
         deploy_fraction,
+        sequence,
         query_major,
     )?;
     let (s, gt, dataset) = inputs(s, gt, gt_soft, query_major)?;
     let gt = build_ground_truth(py, &gt, query_major)?;
     let orientation = s.orientation(py, &gt)?;
     let out = s
-        .with(py, |s| qtvpr::evaluate(s, &gt, &protocol, &methods))?
+        .with(py, |s| {
+            let methods = methods_for(methods, &protocol, s.dim().0);
+            qtvpr::evaluate(s, &gt, &protocol, &methods)
+        })?
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),
@@ -223,6 +266,8 @@ pub(crate) fn evaluate<'py>(
         s, gt, *, gt_soft = None, methods = None, k = None, precision = None,
         matching = "single", cal_fraction = None, cal_queries = None,
         segment_fraction = None, segment_size = None, deploy_fraction = None, query_major = false,
+        sequence_window = None, sequence_level = None, sequence_speed = None, sequence_tolerance = None,
+        sequence_drift = None,
     ),
 )]
 #[allow(clippy::too_many_arguments)] // the Python signature
@@ -241,7 +286,19 @@ pub(crate) fn ablation<'py>(
     segment_size: Option<Int>,
     deploy_fraction: Option<f64>,
     query_major: bool,
+    sequence_window: Option<Int>,
+    sequence_level: Option<f64>,
+    sequence_speed: Option<f64>,
+    sequence_tolerance: Option<f64>,
+    sequence_drift: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let sequence = SequenceGateArgs {
+        window: sequence_window,
+        level: sequence_level,
+        speed: sequence_speed,
+        tolerance: sequence_tolerance,
+        drift: sequence_drift,
+    };
     // Empty lists: the base protocol's value (the core's default) alone.
     let ks: Vec<usize> = match k {
         Some(k) => nonempty("k", k)?
@@ -271,6 +328,7 @@ pub(crate) fn ablation<'py>(
         segment_fraction,
         segment_size,
         deploy_fraction,
+        sequence,
         query_major,
     )?;
     // Every setting is checked before any input is read (an empty list: the base's).
@@ -279,7 +337,10 @@ pub(crate) fn ablation<'py>(
     let gt = build_ground_truth(py, &gt, query_major)?;
     let orientation = s.orientation(py, &gt)?;
     let out = s
-        .with(py, |s| qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods))?
+        .with(py, |s| {
+            let methods = methods_for(methods, &protocol, s.dim().0);
+            qtvpr::ablation(s, &gt, &protocol, &ks, &calibrations, &methods)
+        })?
         .map_err(|e| args.error(e))?;
     let report = Report {
         dataset: dataset.as_deref(),

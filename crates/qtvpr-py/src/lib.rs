@@ -27,7 +27,7 @@ mod similarity;
 use pyo3::prelude::*;
 use qtvpr::Matching;
 
-use crate::calibration::{CalibrationArgs, PyCalibration, TransferResult};
+use crate::calibration::{CalibrationArgs, PyCalibration, SequenceGateArgs, TransferResult};
 use crate::convert::{GroundTruthArgs, Int, MatrixArg};
 use crate::error::Args;
 use qtvpr::with_scores;
@@ -53,13 +53,24 @@ use qtvpr::with_scores;
 /// first queries of ``s_cal`` (a matrix, a path or :class:`Descriptors`) calibrate and
 /// the rest are thresholded; ``gt_cal`` then labels every query of ``s_cal``, and
 /// segments count from the first thresholded query. Errors name ``s_cal`` and give
-/// positions in the whole matrix.
+/// positions in the whole matrix. The queries split are one traverse: with the sequence
+/// gate, the first thresholded queries' consistency reads the calibration queries' best
+/// matches (semantics §15).
+///
+/// ``gate`` (``"none"``, ``"margin"``, ``"sequence"`` or ``"margin,sequence"``) and the
+/// sequence gate's ``sequence_window``, ``sequence_level``, ``sequence_speed``,
+/// ``sequence_tolerance`` and ``sequence_drift`` (``None``: the defaults) are those of
+/// :meth:`Calibration.transfer`.
 #[pyfunction]
 #[pyo3(signature = (
     s_cal, gt_cal, s_val = None, *, gt_soft = None, k = Int::Small(10), precision = 1.0, matching = "single",
     segment_size = None, gate = "none", query_major = false, cal_queries = None, cal_fraction = None,
+    sequence_window = None, sequence_level = None, sequence_speed = None, sequence_tolerance = None,
+    sequence_drift = None,
 ), text_signature = "(s_cal, gt_cal, s_val=None, *, gt_soft=None, k=10, precision=1.0, matching='single', \
-    segment_size=None, gate='none', query_major=False, cal_queries=None, cal_fraction=None)")]
+    segment_size=None, gate='none', query_major=False, cal_queries=None, cal_fraction=None, \
+    sequence_window=None, sequence_level=None, sequence_speed=None, sequence_tolerance=None, \
+    sequence_drift=None)")]
 #[allow(clippy::too_many_arguments)] // the Python signature
 fn quantile_transfer(
     py: Python<'_>,
@@ -75,8 +86,20 @@ fn quantile_transfer(
     query_major: bool,
     cal_queries: Option<Int>,
     cal_fraction: Option<f64>,
+    sequence_window: Option<Int>,
+    sequence_level: Option<f64>,
+    sequence_speed: Option<f64>,
+    sequence_tolerance: Option<f64>,
+    sequence_drift: Option<f64>,
 ) -> PyResult<TransferResult> {
     let (k, precision) = (Some(convert::count("k", k)?), Some(precision));
+    let sequence = SequenceGateArgs {
+        window: sequence_window,
+        level: sequence_level,
+        speed: sequence_speed,
+        tolerance: sequence_tolerance,
+        drift: sequence_drift,
+    };
     let segment_size = segment_size.map(|m| convert::count("segment_size", m)).transpose()?;
     let args = Args {
         gt: "gt_cal",
@@ -86,12 +109,13 @@ fn quantile_transfer(
     let split = calibration::split_arg(cal_queries, cal_fraction)?;
     // Check the cheap parameters before the calibration does any work (a calibration
     // from arrays has the library's defaults).
-    let params = qtvpr::Params::resolve(&qtvpr::Defaults::default(), k, precision, segment_size, gate)
+    let overrides = sequence.clone().overrides()?;
+    let params = qtvpr::Params::resolve(&qtvpr::Defaults::default(), k, precision, segment_size, gate, overrides)
         .map_err(|e| args.error(e))?;
     let calibration = || CalibrationArgs::extract(py, s_cal, gt_cal, gt_soft, matching, query_major);
     match (s_val, split) {
         (Some(s_val), None) => {
-            let cal = calibration()?.calibrate(py, None)?;
+            let cal = calibration()?.calibrate(py, None, 1)?;
             cal.transfer(
                 py,
                 s_val,
@@ -100,6 +124,11 @@ fn quantile_transfer(
                 segment_size.map(Int::from),
                 gate.map(qtvpr::Gate::as_str),
                 query_major,
+                sequence.window,
+                sequence.level,
+                sequence.speed,
+                sequence.tolerance,
+                sequence.drift,
             )
         }
         (None, Some(split)) => calibration()?.split_transfer(py, split, params),

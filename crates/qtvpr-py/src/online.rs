@@ -10,7 +10,7 @@ use pyo3::types::{PyCFunction, PyTuple};
 use qtvpr::{Decision, Error, Kind, OnlineParams, Value};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{self, Column, Int, MatrixArg, count, non_negative};
+use crate::convert::{self, Column, Int, MatrixArg, count, non_negative, sequence_gate};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
 
@@ -39,15 +39,33 @@ const _: () = assert!(qtvpr::DEFAULT_MIN_WINDOW == 1);
 /// else ``"none"``) also requires a best match's margin (how far it stands out of its
 /// column: :func:`qtvpr.margins`) to be at least the calibration's m*
 /// (:meth:`Calibration.gate`); each decision then carries its ``margin`` and ``gate``.
+/// ``gate="sequence"`` (semantics §15; single matching only) requires the best
+/// matches of the previous queries of the stream to agree with it: its consistency,
+/// the share of the last ``sequence_window`` queries that lie on its line through the
+/// database (``sequence_speed`` rows per query, within ``sequence_tolerance`` rows
+/// widening by ``sequence_drift`` per step), must reach ``sequence_level``; each
+/// decision then carries its ``consistency`` and ``consistency_level``. The stream
+/// starts at the first push: its first queries cannot pass. ``gate="margin,sequence"``:
+/// both. The sequence gate's parameters left as ``None`` are the calibration's.
+///
+/// A calibration of sequence length ``L > 1`` (``Calibration(..., sequence=L)``, a file
+/// of ``qtvpr-cli calibrate --sequence L``) decides each query on its causal
+/// sequence-matched column, formed from the last ``L - 1`` pushed columns, as
+/// ``sequence_match(s_val, L, causal=True)`` would match the stream. ``sequence=L``
+/// checks that the calibration's is ``L`` (``None``: whatever it is).
 ///
 /// The state keeps only the window (its sorted columns with their quantiles and
-/// weights): memory ``8 * window * |DB|`` bytes. The GIL is released while a query is
+/// weights): memory ``8 * window * |DB|`` bytes, and ``8 * (L - 1) * |DB|`` more for
+/// the raw columns of a sequence length ``L``. The GIL is released while a query is
 /// decided. One ``Online`` is one stream: calls on it from several threads at once
 /// raise ``RuntimeError`` (already borrowed); give each stream its own.
 ///
 /// Raises ``ValueError`` for ``k < 1``, ``precision`` outside (0, 1], ``window < 1``,
-/// no window at all, ``min_window`` outside ``1..=window``, or a ``gate`` other than
-/// ``"none"`` or ``"margin"`` (or ``"margin"`` on a multi-matching calibration).
+/// no window at all, ``min_window`` outside ``1..=window``, a ``gate`` that is not
+/// ``"none"`` or a set of ``"margin"`` and ``"sequence"`` (or a gate on a
+/// multi-matching calibration, or the sequence gate on a database too small for its
+/// tolerance), a bad sequence gate parameter, or a ``sequence`` other than the
+/// calibration's.
 #[pyclass(module = "qtvpr", name = "Online")]
 pub(crate) struct PyOnline {
     inner: qtvpr::Online,
@@ -58,9 +76,16 @@ pub(crate) struct PyOnline {
 impl PyOnline {
     #[new]
     #[pyo3(
-        signature = (calibration, *, k = None, precision = None, window = None, min_window = None, gate = None),
-        text_signature = "(calibration, *, k=None, precision=None, window=None, min_window=1, gate=None)"
+        signature = (
+            calibration, *, k = None, precision = None, window = None, min_window = None, gate = None,
+            sequence_window = None, sequence_level = None, sequence_speed = None, sequence_tolerance = None,
+            sequence_drift = None, sequence = None,
+        ),
+        text_signature = "(calibration, *, k=None, precision=None, window=None, min_window=1, gate=None, \
+            sequence_window=None, sequence_level=None, sequence_speed=None, sequence_tolerance=None, \
+            sequence_drift=None, sequence=None)"
     )]
+    #[allow(clippy::too_many_arguments)] // the Python signature
     fn new(
         calibration: Bound<'_, PyCalibration>,
         k: Option<Int>,
@@ -68,6 +93,12 @@ impl PyOnline {
         window: Option<Int>,
         min_window: Option<Int>,
         gate: Option<&str>,
+        sequence_window: Option<Int>,
+        sequence_level: Option<f64>,
+        sequence_speed: Option<f64>,
+        sequence_tolerance: Option<f64>,
+        sequence_drift: Option<f64>,
+        sequence: Option<Int>,
     ) -> PyResult<Self> {
         let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
         let (k, window, min_window) = (
@@ -75,8 +106,17 @@ impl PyOnline {
             window.map(|m| count("window", m)).transpose()?,
             min_window.map(|w| count("min_window", w)).transpose()?,
         );
+        let sequence = sequence.map(|l| non_negative("sequence", l)).transpose()?;
+        cal.check_sequence(sequence).map_err(|e| ARGS.error(e))?;
+        let given = sequence_gate(
+            sequence_window,
+            sequence_level,
+            sequence_speed,
+            sequence_tolerance,
+            sequence_drift,
+        )?;
         let params = convert::gate(gate)
-            .and_then(|gate| OnlineParams::resolve(cal.defaults(), k, precision, window, min_window, gate))
+            .and_then(|gate| OnlineParams::resolve(cal.defaults(), k, precision, window, min_window, gate, given))
             .map_err(|e| ARGS.error(e))?;
         let inner = qtvpr::Online::new(Arc::clone(cal), params).map_err(|e| ARGS.error(e))?;
         Ok(Self {
@@ -123,11 +163,10 @@ impl PyOnline {
     }
 
     /// Continue a stream at query ``first_query`` on a fresh state: ``s_before`` holds
-    /// the scores of the ``min(first_query, window - 1)`` queries before it (|DB| x
-    /// that many; transposed with ``query_major=True``). The next push is query
-    /// ``first_query``, decided as in the whole stream. For a scheduler that decides
-    /// blocks of a stream independently (``qtvpr.dask``); errors name the stream's
-    /// queries.
+    /// the scores of the :meth:`_lookback` queries before it (|DB| x that many;
+    /// transposed with ``query_major=True``). The next push is query ``first_query``,
+    /// decided as in the whole stream. For a scheduler that decides blocks of a stream
+    /// independently (``qtvpr.dask``); errors name the stream's queries.
     #[pyo3(signature = (first_query, s_before, *, query_major = false))]
     fn _resume(
         &mut self,
@@ -142,6 +181,15 @@ impl PyOnline {
         let online = &mut self.inner;
         py.detach(|| with_scores!(view, |s| online.resume(first, s)))
             .map_err(|e| matrix_error(e, 0, query_major))
+    }
+
+    /// How many queries before query ``first_query`` a resumed state's decisions look
+    /// back at (the core's ``Online::lookback``): its window's, the sequence gate's
+    /// (its ``sequence_window``), and the ``L - 1`` raw columns before each of a
+    /// calibration of sequence length ``L``; fewer at the start of the stream.
+    #[pyo3(signature = (first_query))]
+    fn _lookback(&self, first_query: Int) -> PyResult<usize> {
+        Ok(self.inner.lookback(non_negative("first_query", first_query)?))
     }
 
     /// :meth:`push_many`, with the positions in its errors counted in the stream (from
@@ -199,10 +247,24 @@ impl PyOnline {
         self.inner.params().min_window
     }
 
-    /// The gate: ``"none"`` or ``"margin"``.
+    /// The gates: ``"none"``, ``"margin"``, ``"sequence"`` or ``"margin,sequence"``.
     #[getter]
     fn gate(&self) -> &'static str {
         self.inner.params().gate.as_str()
+    }
+
+    /// The sequence gate's parameters (semantics §15), read when :attr:`gate` has it:
+    /// ``{"window", "level", "speed", "tolerance", "drift"}``.
+    #[getter]
+    fn sequence_gate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pythonize::pythonize(py, &self.inner.params().sequence_gate)?)
+    }
+
+    /// The calibration's sequence length ``L``: each query is decided on its causal
+    /// sequence-matched column over ``L`` queries (1: its own column).
+    #[getter]
+    fn sequence(&self) -> usize {
+        self.inner.calibration().sequence()
     }
 
     /// The :class:`Calibration` this state decides from.
@@ -213,8 +275,13 @@ impl PyOnline {
 
     fn __repr__(&self) -> String {
         let p = self.inner.params();
+        // The sequence length only where it matters.
+        let sequence = match self.inner.calibration().sequence() {
+            1 => String::new(),
+            l => format!(", sequence={l}"),
+        };
         format!(
-            "Online(k={}, precision={:?}, window={}, min_window={}, gate='{}', matching='{}', pushed={})",
+            "Online(k={}, precision={:?}, window={}, min_window={}, gate='{}', matching='{}'{sequence}, pushed={})",
             p.k,
             p.precision,
             p.window,
@@ -271,7 +338,8 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// One deployment query decided by :meth:`Online.push`: the decision record, with the
 /// values of a ``qtvpr-cli stream`` line and of C's ``qtvpr_decision``.
 ///
-/// Its attributes are the record's fields, :attr:`FIELDS` (then :attr:`GATE_FIELDS`):
+/// Its attributes are the record's fields, :attr:`FIELDS` (then :attr:`GATE_FIELDS`
+/// and :attr:`SEQUENCE_FIELDS`):
 /// ``query`` is its index in arrival order (from 0); ``query_quantile`` and ``weight``
 /// its own quantile and weight (from its calibration neighbours, as in
 /// :class:`TransferResult`); ``quantile`` and ``threshold`` its window's weighted-median
@@ -282,7 +350,10 @@ fn matrix_error(err: Error, first: usize, query_major: bool) -> PyErr {
 /// when ``score >= threshold``, else 0; in ``"multi"`` matching every image with a
 /// score ``>= threshold``; with the margin gate, single matching also needs
 /// ``margin >= gate``) and ``accept`` is ``accepted > 0``. ``margin`` (the query's
-/// margin) and ``gate`` (m*) are those of the margin gate, ``None`` without it.
+/// margin) and ``gate`` (m*) are those of the margin gate, ``None`` without it;
+/// ``consistency`` (the share of the previous queries whose best matches agree with
+/// its own) and ``consistency_level`` are those of the sequence gate (semantics §15),
+/// ``None`` without it.
 /// ``confidence`` is the probability that the best match is right (the calibration's
 /// hit rate at the query's PA-score, semantics §14), whatever the gate, and
 /// ``confidence_lower95`` its one-sided 95% Clopper-Pearson lower bound; both NaN in
@@ -326,10 +397,19 @@ impl OnlineDecision {
         Ok(PyTuple::new(py, Decision::GATE_FIELDS)?.unbind())
     }
 
+    /// The fields a record decided with the sequence gate has after :attr:`FIELDS` and
+    /// :attr:`GATE_FIELDS` (``consistency`` and ``consistency_level``, semantics §15;
+    /// ``None`` on a record without the gate).
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn SEQUENCE_FIELDS(py: Python<'_>) -> PyResult<Py<PyTuple>> {
+        Ok(PyTuple::new(py, Decision::SEQUENCE_FIELDS)?.unbind())
+    }
+
     /// Every field of the record, in order, as ``(name, column, kind, gate)``: its
     /// attribute here, its attribute of :class:`OnlineDecisions`, what it holds
     /// (``"count"``, ``"real"`` or ``"flag"``) and the gate that brings it (``"none"``:
-    /// every record). The core's list, which this class and :class:`OnlineDecisions`
+    /// every record; ``"margin"`` or ``"sequence"``). The core's list, which this class and :class:`OnlineDecisions`
     /// are laid out from.
     #[classattr]
     #[allow(non_snake_case)]
@@ -340,11 +420,14 @@ impl OnlineDecision {
 
     fn __repr__(&self) -> String {
         let d = &self.decision;
-        // With the margin gate, what the decision also rested on.
-        let gated = match (d.margin, d.gate) {
+        // With a gate, what the decision also rested on.
+        let mut gated = match (d.margin, d.gate) {
             (Some(margin), Some(gate)) => format!(", margin={margin:?}, gate={gate:?}"),
             _ => String::new(),
         };
+        if let (Some(c), Some(level)) = (d.consistency, d.consistency_level) {
+            gated += &format!(", consistency={c:?}, consistency_level={level:?}");
+        }
         format!(
             "OnlineDecision(query={}, quantile={:?}, threshold={:?}, best={}, score={:?}, accepted={}{gated}, accept={})",
             d.query,
@@ -365,8 +448,9 @@ impl OnlineDecision {
 /// indices in arrival order), ``query_quantiles``, ``weights``, ``quantiles``,
 /// ``thresholds`` and ``score`` (float64), ``best`` and ``accepted`` (int64),
 /// ``accept`` (bool), ``confidences`` and ``confidences_lower95`` (float64, NaN in
-/// multi matching); with the margin gate ``margins`` and ``gates`` (float64), ``None``
-/// without it.
+/// multi matching); with the margin gate ``margins`` and ``gates`` (float64), with the
+/// sequence gate ``consistencies`` and ``consistency_levels`` (float64), ``None``
+/// without them.
 #[pyclass(frozen, module = "qtvpr", name = "OnlineDecisions")]
 pub(crate) struct OnlineDecisions {
     /// One array per field of the core's record, in its order; `None` for the field of
