@@ -10,8 +10,7 @@ fn main() -> qtvpr::Result<()> {
     let gt = read_ground_truth(Path::new("data/corridor/cal_GT.npy"), None)?; // bool or 0/1
     let s_val = read_scores(Path::new("data/corridor/deploy_S.npy"))?; // no ground truth needed
     let cal = Calibration::new(s_cal.view(), &gt, Matching::Single)?;
-    // k, precision, segment size, gate, the sequence gate's parameters: None (or default) is the
-    // default (k = 10, 100% precision, ...).
+    // k, precision, segment size, gate and its parameters: None is the default (k = 10, ...).
     let params = Params::resolve(&Defaults::default(), None, None, Some(25), None, Default::default())?;
     let out = cal.transfer(s_val.view(), &params)?;
     for seg in &out.segments {
