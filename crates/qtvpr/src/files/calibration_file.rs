@@ -18,7 +18,9 @@
 //! `params` are [`Defaults`](crate::input::params::Defaults) for whoever uses the file (`window` is `null` when none is
 //! set; `gate`, `"none"` or `"margin"`, is `"none"` when left out); each can be
 //! overridden there. `qtvpr` is the version of the crate that wrote
-//! it. Keys beyond these are ignored on load.
+//! it. `labels`, only when the ground truth came from self-motion labels (semantics §16),
+//! is their record ([`LabelRecord`](crate::input::LabelRecord)), checked on load; such a
+//! calibration is single matching. Keys beyond these are ignored on load.
 //!
 //! Loading checks everything the same arrays are checked for as input (finite, non-empty
 //! scores; bool ground truth of the same shape), the `format` and `version`, the
@@ -44,9 +46,10 @@ mod file {
     use crate::files::npy::{self, NpyArray};
     use crate::input::params::Defaults;
     use crate::input::params::Gate;
-    use crate::input::{GroundTruth, ScoreMatrix, Truth};
+    use crate::input::{GroundTruth, LabelRecord, ScoreMatrix, Truth};
     use crate::operations::calibration::Calibration;
     use crate::rules::decisions::Matching;
+    use crate::signals::self_motion::check_record;
 
     /// The `meta` JSON.
     #[derive(Serialize, Deserialize)]
@@ -59,6 +62,10 @@ mod file {
         /// by another tool may leave it out.
         #[serde(default)]
         qtvpr: String,
+        /// The record of self-motion labels (semantics §16), when the ground truth is
+        /// theirs.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        labels: Option<serde_json::Value>,
     }
 
     #[derive(Serialize, Deserialize)]
@@ -157,6 +164,9 @@ mod file {
                     gate: Some(defaults.gate.as_str().into()),
                 },
                 qtvpr: env!("CARGO_PKG_VERSION").into(),
+                labels: self
+                    .labels()
+                    .map(|r| serde_json::from_str(r.json()).expect("a record is checked JSON")),
             };
             let meta = serde_json::to_string(&meta).expect("meta serialises");
             let labels = labels.view();
@@ -229,10 +239,12 @@ mod file {
                 ));
             }
         }
-        let (matching, defaults) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
+        let (matching, defaults, record) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
         let scores = npy::read_owned_scores(s.npy, &s.label)?;
         let hard_gt = npy::read_bool_matrix(hard.npy, &hard.label)?;
-        let mut gt = GroundTruth::new(hard_gt.view()).map_err(|e| in_file(path, e))?;
+        let mut gt = GroundTruth::new(hard_gt.view())
+            .map_err(|e| in_file(path, e))?
+            .with_record(record);
         if let Some(soft) = soft {
             let soft_gt = npy::read_bool_matrix(soft.npy, &soft.label)?;
             gt = gt.with_soft(soft_gt.view()).map_err(|e| in_file(path, e))?;
@@ -243,8 +255,8 @@ mod file {
         calibration.with_defaults(defaults).map_err(|e| in_file(path, e))
     }
 
-    /// The matching mode and defaults of a `meta` JSON text.
-    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults)> {
+    /// The matching mode, defaults and record of self-motion labels of a `meta` JSON text.
+    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults, Option<LabelRecord>)> {
         let bad = |message: String| file_error(path, message);
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| bad(format!("has a meta that is not JSON: {e}")))?;
@@ -287,6 +299,16 @@ mod file {
                 .map_err(bad_params)?,
         };
         defaults.validate().map_err(bad_params)?;
-        Ok((matching, defaults))
+        let record = meta
+            .labels
+            .map(|labels| {
+                check_record(labels).map_err(|why| {
+                    bad(format!(
+                        "has meta labels that are not a record of self-motion labels: it {why}"
+                    ))
+                })
+            })
+            .transpose()?;
+        Ok((matching, defaults, record))
     }
 }

@@ -96,9 +96,10 @@ impl QuerySplit {
                 calibration: self.calibration_queries,
             });
         }
-        Ok(GroundTruth::from_truth(
-            gt.view().slice(s![.., ..self.calibration_queries]).to_owned(),
-        ))
+        Ok(
+            GroundTruth::from_truth(gt.view().slice(s![.., ..self.calibration_queries]).to_owned())
+                .with_record(gt.record().cloned()),
+        )
     }
 
     /// An error of the transfer of the deployment columns alone (a view of
