@@ -38,6 +38,12 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// same reader as ``qtvpr-cli``. Similarity files are memory-mapped: a path is the
 /// zero-copy way to pass a matrix too large to load.
 ///
+/// Without ground truth, ``gt_cal`` may be the :class:`SelfMotionLabels` of
+/// :func:`ground_truth_from_sequence` (with no ``gt_soft``): the calibration keeps their
+/// record (:attr:`labels`, and its file's ``meta["labels"]``), and, since they judge one
+/// entry per column, ``matching="multi"`` is a ``ValueError``, as with a ground-truth
+/// ``.npz`` that holds such a record.
+///
 /// Everything that depends on the calibration traverse alone (ranked profiles,
 /// candidates) is computed here, once; each :meth:`transfer` reuses it. Arrays are read
 /// in place and the GIL is released while the work runs.
@@ -292,6 +298,16 @@ impl PyCalibration {
     #[getter]
     fn defaults<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         Ok(pythonize::pythonize(py, self.inner.defaults())?)
+    }
+
+    /// How the calibration's ground truth was labelled when it came from self-motion
+    /// labels (:func:`ground_truth_from_sequence`, or a ground-truth ``.npz`` of
+    /// ``qtvpr-cli ground-truth --from-sequence``): their record, a dict (``{"labels":
+    /// "self-motion", "neighbours": 5, ...}``), which its calibration file keeps in
+    /// ``meta["labels"]``; ``None`` for other ground truth.
+    #[getter]
+    fn labels<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        crate::ground_truth::record_dict(py, self.inner.labels())
     }
 
     /// |DB|, the number of database images (rows) of the calibration.

@@ -40,6 +40,7 @@ use qtvpr::ScoresView;
 use qtvpr::npy::FloatMatrix;
 
 use crate::error::input_error;
+use crate::ground_truth::SelfMotionLabels;
 
 /// `numpy.asarray`, looked up once.
 fn asarray(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
@@ -289,17 +290,22 @@ labels! {
     U64(u64) = (b'u', 8),
 }
 
-/// One ground-truth argument: an array, or the path of a file.
+/// One ground-truth argument: an array, the path of a file, or self-motion labels.
 pub(crate) enum LabelArg<'py> {
     /// A bool or integer array, borrowed.
     Array(Labels<'py>),
     /// A `.npy` file (or, for hard ground truth, a VPR_Tutorial `.npz`), read when the
     /// ground truth is built.
     File(PathBuf),
+    /// A `SelfMotionLabels` (semantics §16): hard and soft ground truth with their record.
+    SelfMotion(Py<SelfMotionLabels>),
 }
 
 impl<'py> LabelArg<'py> {
     fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Ok(labels) = obj.cast::<SelfMotionLabels>() {
+            return Ok(Self::SelfMotion(labels.clone().unbind()));
+        }
         match path_of(obj)? {
             Some(path) => Ok(Self::File(path)),
             None => Ok(Self::Array(Labels::extract(name, obj)?)),
@@ -310,6 +316,7 @@ impl<'py> LabelArg<'py> {
         match self {
             Self::Array(labels) => LabelSource::Array(labels.view()),
             Self::File(path) => LabelSource::File(path),
+            Self::SelfMotion(labels) => LabelSource::Truth(labels.get().truth()),
         }
     }
 }
@@ -355,6 +362,7 @@ impl<'py> GroundTruthArgs<'py> {
 enum LabelSource<'a> {
     Array(LabelView<'a>),
     File(&'a Path),
+    Truth(&'a qtvpr::GroundTruth),
 }
 
 /// Hard and optional soft ground truth, as views or paths the core reads.
@@ -383,12 +391,25 @@ impl GroundTruthView<'_> {
             LabelSource::Array(labels) => labels.hard(),
             LabelSource::File(path) if self.soft.is_some() => read_hard_ground_truth(path),
             LabelSource::File(path) => read_ground_truth(path, None),
+            LabelSource::Truth(_) if self.soft.is_some() => {
+                return Err(PyValueError::new_err(format!(
+                    "gt_soft: {} is self-motion labels, which hold their own soft ground truth; give no gt_soft",
+                    self.name
+                )));
+            }
+            LabelSource::Truth(gt) => Ok(gt.clone()),
         }
         .map_err(|e| input_error(self.name, e))?;
         let gt = match self.soft {
             None => Ok(gt),
             Some(LabelSource::Array(labels)) => labels.soft(gt),
             Some(LabelSource::File(path)) => add_soft_ground_truth(gt, path),
+            Some(LabelSource::Truth(_)) => {
+                return Err(PyValueError::new_err(format!(
+                    "gt_soft: self-motion labels are hard and soft ground truth at once; give them as {}",
+                    self.name
+                )));
+            }
         }
         .map_err(|e| input_error("gt_soft", e))?;
         Ok(gt.oriented(self.query_major))

@@ -1,12 +1,14 @@
-//! `ground_truth_tolerance` and `ground_truth_positions`: ground truth without a matrix.
+//! `ground_truth_tolerance` and `ground_truth_positions`: ground truth without a matrix;
+//! `ground_truth_from_sequence`: ground truth for calibration queries without any
+//! (semantics §16's self-motion labels, a `SelfMotionLabels`).
 
-use numpy::{IntoPyArray, PyArray2};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
-use qtvpr::with_scores;
+use qtvpr::{LabelParams, with_scores};
 
-use crate::convert::{Int, MatrixArg, non_negative};
-use crate::error::{Args, named_error};
+use crate::convert::{Int, MatrixArg, count, non_negative};
+use crate::error::{Args, input_error, named_error};
 
 /// Ground truth of frame-aligned traverses: ``GT[i, j] = |i - j| <= tolerance``.
 ///
@@ -72,4 +74,181 @@ pub(crate) fn ground_truth_positions<'py>(
         .detach(|| with_scores!(d, |d| with_scores!(q, |q| qtvpr::within_radius(d, q, radius))))
         .map_err(named_error)?;
     Ok(gt.into_pyarray(py))
+}
+
+/// Self-motion labels (semantics §16): ground truth for calibration queries from their
+/// similarity alone, for a robot without GNSS.
+///
+/// ``s_cal`` is the |DB| x |Qcal| calibration similarity (float32 or float64, or the
+/// path of a ``.npy`` file; |Qcal| x |DB| with ``query_major=True``), its columns in the
+/// order the queries were taken. Query q's best match (the first maximum of its column)
+/// is believed when the best matches of its ``neighbours`` neighbours on each side lie
+/// on its line through the database (query ``q + d`` agrees when its best match is
+/// within ``sequence_tolerance + sequence_drift * |d|`` rows of ``b_q + sequence_speed *
+/// d``): a *pseudo-positive* when at least ``positive_level`` of them agree, a
+/// *pseudo-negative* when at most ``negative_level`` do, and it *abstains* in between.
+/// Each argument left as ``None`` is the library's default: 5 neighbours, levels 0.7 and
+/// 0.3, speed 1 (the same spacing; -1 for the database's route driven backwards),
+/// tolerance 2 and drift 0.2 (the sequence gate's). It assumes that both traverses are
+/// sequences in the same direction at a similar spacing (or the speed that relates
+/// them).
+///
+/// Returns a :class:`SelfMotionLabels`: its ``hard`` and ``soft`` ground truth (a
+/// pseudo-positive's best match is its column's one hard positive, a pseudo-negative's
+/// column has none, an abstaining query's best match is soft only, so it makes no
+/// decision), in the layout of ``s_cal``, for ``Calibration(s_cal, labels.hard,
+/// gt_soft=labels.soft)``; or pass the labels themselves, ``Calibration(s_cal,
+/// labels)``, and the calibration keeps their :attr:`~SelfMotionLabels.record`
+/// (:attr:`Calibration.labels`, ``meta["labels"]`` of its file). Single matching only.
+///
+/// Raises ``ValueError`` naming the argument for a parameter out of range (``neighbours
+/// < 1``, levels outside ``0 <= negative_level < positive_level <= 1``, a non-finite
+/// speed, a negative tolerance or drift), and naming ``s_cal`` for fewer than
+/// ``neighbours + 1`` queries, a database too small to tell a line from chance, or no
+/// pseudo-positive at all (the traverse is not a sequence, runs backwards, or its
+/// matcher is rarely right): a calibration on such labels would reject every query.
+/// ``TypeError`` for another dtype.
+#[pyfunction]
+#[pyo3(signature = (
+    s_cal, *, neighbours = None, positive_level = None, negative_level = None, sequence_speed = None,
+    sequence_tolerance = None, sequence_drift = None, query_major = false,
+))]
+#[allow(clippy::too_many_arguments)] // the Python signature
+pub(crate) fn ground_truth_from_sequence(
+    py: Python<'_>,
+    s_cal: &Bound<'_, PyAny>,
+    neighbours: Option<Int>,
+    positive_level: Option<f64>,
+    negative_level: Option<f64>,
+    sequence_speed: Option<f64>,
+    sequence_tolerance: Option<f64>,
+    sequence_drift: Option<f64>,
+    query_major: bool,
+) -> PyResult<SelfMotionLabels> {
+    let args = Args {
+        gt: "gt_cal",
+        query_major,
+    };
+    let neighbours = neighbours.map(|n| count("neighbours", n)).transpose()?;
+    let params = LabelParams::resolve(
+        neighbours,
+        positive_level,
+        negative_level,
+        sequence_speed,
+        sequence_tolerance,
+        sequence_drift,
+    )
+    .map_err(|e| args.error(e))?;
+    let s = MatrixArg::extract("s_cal", s_cal)?;
+    let s = s.view(query_major);
+    let labels = py
+        .detach(|| with_scores!(s, |s| qtvpr::self_motion_labels(s, &params)))
+        .map_err(|e| match e {
+            // The rule's own errors are about the traverse.
+            qtvpr::Error::InvalidParameter { .. } => input_error("s_cal", e),
+            e => args.error(e),
+        })?;
+    SelfMotionLabels::new(py, &labels, query_major)
+}
+
+/// The self-motion labels of a calibration traverse (:func:`ground_truth_from_sequence`).
+///
+/// Per calibration query: ``labels`` (``"positive"``, ``"negative"`` or ``"abstain"``),
+/// ``agreement`` (the share of its neighbours that agree with it) and ``best`` (its best
+/// match, a database row). As ground truth, in the layout of the similarity they were
+/// found on (|DB| x |Qcal|, or |Qcal| x |DB| with ``query_major=True``): ``hard`` and
+/// ``soft`` (bool). ``counts`` is ``{"positive", "negative", "abstain"}``, and
+/// ``record`` the JSON object that says how they were made (the rule, its parameters,
+/// the counts), as a ground-truth ``.npz`` of ``qtvpr-cli ground-truth --from-sequence``
+/// holds it in its member ``labels``. ``len()`` is the number of queries.
+///
+/// Pass it as the ground truth of a :class:`Calibration` (``gt_cal``, with no
+/// ``gt_soft``) to keep the record with the calibration.
+#[pyclass(frozen, module = "qtvpr", name = "SelfMotionLabels")]
+pub(crate) struct SelfMotionLabels {
+    /// The hard ground truth (bool).
+    #[pyo3(get)]
+    hard: Py<PyArray2<bool>>,
+    /// The soft ground truth (bool): the hard one and the abstaining queries' best matches.
+    #[pyo3(get)]
+    soft: Py<PyArray2<bool>>,
+    /// Per query, ``"positive"``, ``"negative"`` or ``"abstain"`` (a NumPy string array).
+    #[pyo3(get)]
+    labels: Py<PyAny>,
+    /// Per query, the share of its neighbours that agree with it (float64).
+    #[pyo3(get)]
+    agreement: Py<PyArray1<f64>>,
+    /// Per query, its best match (int64).
+    #[pyo3(get)]
+    best: Py<PyArray1<i64>>,
+    counts: qtvpr::LabelCounts,
+    /// The core's ground truth, in the caller's layout, with its record.
+    truth: qtvpr::GroundTruth,
+}
+
+impl SelfMotionLabels {
+    fn new(py: Python<'_>, labels: &qtvpr::SelfMotionLabels, query_major: bool) -> PyResult<Self> {
+        let qtvpr::HardSoft { hard, soft } = labels.ground_truth();
+        let soft = soft.expect("self-motion labels have a soft ground truth");
+        let layout = |m: ndarray::Array2<bool>| if query_major { m.reversed_axes() } else { m };
+        let names: Vec<&str> = labels.labels.iter().map(|l| l.as_str()).collect();
+        Ok(Self {
+            hard: layout(hard).into_pyarray(py).unbind(),
+            soft: layout(soft).into_pyarray(py).unbind(),
+            labels: py.import("numpy")?.call_method1("array", (names,))?.unbind(),
+            agreement: PyArray1::from_slice(py, &labels.agreement).unbind(),
+            // Rows of a matrix: they fit an i64.
+            best: PyArray1::from_iter(py, labels.best.iter().map(|&b| b as i64)).unbind(),
+            counts: labels.counts(),
+            truth: labels.truth().oriented(query_major),
+        })
+    }
+
+    /// The labels as the ground truth of a calibration, with their record, in the
+    /// caller's layout (what a ``gt_cal`` array would be).
+    pub(crate) fn truth(&self) -> &qtvpr::GroundTruth {
+        &self.truth
+    }
+}
+
+#[pymethods]
+impl SelfMotionLabels {
+    /// ``{"positive", "negative", "abstain"}``: how many queries have each label.
+    #[getter]
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pythonize::pythonize(py, &self.counts)?)
+    }
+
+    /// How the labels were made, a dict: ``{"labels": "self-motion", "neighbours": 5,
+    /// "positive_level": 0.7, "negative_level": 0.3, "speed": 1.0, "tolerance": 2.0,
+    /// "drift": 0.2, "queries": ..., "positive": ..., "negative": ..., "abstain": ...}``.
+    #[getter]
+    fn record<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        record_dict(py, self.truth.record())
+    }
+
+    /// The number of calibration queries.
+    fn __len__(&self) -> usize {
+        let c = &self.counts;
+        c.positive + c.negative + c.abstain
+    }
+
+    fn __repr__(&self) -> String {
+        let c = &self.counts;
+        format!(
+            "SelfMotionLabels(queries={}, positive={}, negative={}, abstain={})",
+            c.positive + c.negative + c.abstain,
+            c.positive,
+            c.negative,
+            c.abstain
+        )
+    }
+}
+
+/// A record of self-motion labels as a dict (``None`` for none).
+pub(crate) fn record_dict<'py>(py: Python<'py>, record: Option<&qtvpr::LabelRecord>) -> PyResult<Bound<'py, PyAny>> {
+    match record {
+        Some(r) => py.import("json")?.call_method1("loads", (r.json(),)),
+        None => Ok(py.None().into_bound(py)),
+    }
 }

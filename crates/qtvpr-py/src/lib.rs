@@ -284,6 +284,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(similarity::sequence_match, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_tolerance, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_positions, m)?)?;
+    m.add_function(wrap_pyfunction!(ground_truth::ground_truth_from_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(image_names::utm_positions, m)?)?;
     m.add_function(wrap_pyfunction!(image_names::image_paths, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
@@ -292,6 +293,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<descriptors::PyDescriptors>()?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
+    m.add_class::<ground_truth::SelfMotionLabels>()?;
     m.add_class::<online::PyOnline>()?;
     m.add_class::<online::OnlineDecision>()?;
     m.add_class::<online::OnlineDecisions>()?;
