@@ -12,4 +12,5 @@ mod online;
 mod properties;
 mod regressions;
 mod screen;
+mod self_motion;
 mod semantics;
