@@ -134,14 +134,18 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 /// ``segments``, ...), ``recall_at_1`` (R@1 of the deployment set: queries whose best
 /// match is a hard match over queries with a hard match) and ``methods``: ``{name:
 /// {"pct_segs", "avg_recall", "segments_counted", "segments_skipped", "threshold_mse",
-/// "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
-/// "pooled_precision_lower95", "segments": [...]}}``. A segment meets the target when
-/// its precision is at least ``precision``; segments without positives are skipped;
+/// "pooled_tp", "pooled_fp", "pooled_accepted", "pooled_positives", "pooled_precision",
+/// "pooled_recall", "pooled_precision_lower95", "segments": [...]}}``: ``pooled_accepted``
+/// is how many matches the method accepted over every full segment, and
+/// ``pooled_precision`` is ``None`` when it accepted none. A segment meets the target when
+/// its precision is at least ``precision``, or when it accepts nothing (the paper's
+/// convention: a %Segs of 100 may rest on no decision); segments without positives are skipped;
 /// ``pct_segs`` is the percentage of counted segments that meet, ``avg_recall`` the
 /// mean of their recall (0 for those that miss), both ``None`` when no segment is
 /// counted. Each segment has ``start``, ``end`` (indices into the deployment set),
 /// ``threshold``, ``oracle_threshold`` (``inf`` is reject-all), ``tp``, ``fp``,
-/// ``positives``, ``precision``, ``recall``, ``precision_lower95`` and ``meets``.
+/// ``accepted``, ``positives``, ``precision`` (``None`` when nothing is accepted),
+/// ``recall``, ``precision_lower95`` and ``meets``.
 /// ``precision_lower95`` is the one-sided 95% Clopper-Pearson lower bound on the
 /// precision (the 0.05 quantile of Beta(TP, FP + 1); 0 when TP = 0, ``None`` when
 /// nothing is accepted). ``threshold_mse`` is the mean squared difference from the

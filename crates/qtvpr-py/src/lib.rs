@@ -175,9 +175,10 @@ fn best_threshold(
 /// The decisions of a similarity matrix at one threshold.
 ///
 /// A candidate (per ``matching``, as in :func:`best_threshold`) is accepted when its
-/// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
+/// score is ``>= threshold``. Returns ``{"tp", "fp", "accepted", "positives", "precision",
 /// "recall", "precision_lower95"}``, the keys of a segment of :func:`evaluate`:
-/// precision is 1 when nothing is accepted, recall 0 when there are no positives
+/// ``accepted`` is TP + FP, precision ``None`` when nothing is accepted (it would rest on
+/// no decision), recall 0 when there are no positives
 /// (queries with a hard match in ``"single"`` mode, hard matches in ``"multi"``), and
 /// ``precision_lower95`` the one-sided 95% Clopper-Pearson lower bound on the precision
 /// (``None`` when nothing is accepted). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
