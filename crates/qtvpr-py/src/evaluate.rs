@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use qtvpr::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
-use crate::convert::{GroundTruthArgs, Int, count};
+use crate::convert::{GroundTruthArgs, Int, Real, count, real};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -47,14 +47,17 @@ struct Setup {
 fn setup(
     methods: Option<Vec<String>>,
     k: Option<usize>,
-    precision: Option<f64>,
+    precision: Option<Real>,
     matching: &str,
     calibration: Option<Split>,
-    segment_fraction: Option<f64>,
+    segment_fraction: Option<Real>,
     segment_size: Option<Int>,
-    deploy_fraction: Option<f64>,
+    deploy_fraction: Option<Real>,
     query_major: bool,
 ) -> PyResult<Setup> {
+    let precision = real("precision", precision)?;
+    let segment_fraction = real("segment_fraction", segment_fraction)?;
+    let deploy_fraction = real("deploy_fraction", deploy_fraction)?;
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let methods: Vec<Method> = match methods {
@@ -79,10 +82,10 @@ fn setup(
 }
 
 /// ``cal_queries`` or ``cal_fraction``, `None` for neither.
-fn calibration(cal_fraction: Option<f64>, cal_queries: Option<Int>) -> PyResult<Option<Split>> {
+fn calibration(cal_fraction: Option<Real>, cal_queries: Option<Int>) -> PyResult<Option<Split>> {
     Ok(match cal_queries {
         Some(n) => Some(Split::Count(count("cal_queries", n)?)),
-        None => cal_fraction.map(Split::Fraction),
+        None => real("cal_fraction", cal_fraction)?.map(Split::Fraction),
     })
 }
 
@@ -164,13 +167,13 @@ pub(crate) fn evaluate<'py>(
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
     k: Option<Int>,
-    precision: Option<f64>,
+    precision: Option<Real>,
     matching: &str,
-    cal_fraction: Option<f64>,
+    cal_fraction: Option<Real>,
     cal_queries: Option<Int>,
-    segment_fraction: Option<f64>,
+    segment_fraction: Option<Real>,
     segment_size: Option<Int>,
-    deploy_fraction: Option<f64>,
+    deploy_fraction: Option<Real>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let Setup {
@@ -237,13 +240,13 @@ pub(crate) fn ablation<'py>(
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
     k: Option<OneOrMany<Int>>,
-    precision: Option<f64>,
+    precision: Option<Real>,
     matching: &str,
-    cal_fraction: Option<OneOrMany<f64>>,
+    cal_fraction: Option<OneOrMany<Real>>,
     cal_queries: Option<OneOrMany<Int>>,
-    segment_fraction: Option<f64>,
+    segment_fraction: Option<Real>,
     segment_size: Option<Int>,
-    deploy_fraction: Option<f64>,
+    deploy_fraction: Option<Real>,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     // Empty lists: the base protocol's value (the core's default) alone.
@@ -259,7 +262,10 @@ pub(crate) fn ablation<'py>(
             .into_iter()
             .map(|n| count("cal_queries", n).map(Split::Count))
             .collect::<PyResult<_>>()?,
-        (None, Some(f)) => nonempty("cal_fraction", f)?.into_iter().map(Split::Fraction).collect(),
+        (None, Some(f)) => nonempty("cal_fraction", f)?
+            .into_iter()
+            .map(|f| f.get("cal_fraction").map(Split::Fraction))
+            .collect::<PyResult<_>>()?,
         (None, None) => vec![],
     };
     let Setup {

@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
 use qtvpr::with_scores;
 
-use crate::convert::{Int, MatrixArg, non_negative};
+use crate::convert::{Int, MatrixArg, Real, non_negative};
 use crate::error::{Args, named_error};
 
 /// Ground truth of frame-aligned traverses: ``GT[i, j] = |i - j| <= tolerance``.
@@ -62,8 +62,9 @@ pub(crate) fn ground_truth_positions<'py>(
     py: Python<'py>,
     db_positions: &Bound<'py, PyAny>,
     query_positions: &Bound<'py, PyAny>,
-    radius: f64,
+    radius: Real,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
+    let radius = radius.get("radius")?;
     qtvpr::check_radius("radius", radius).map_err(named_error)?;
     let db = MatrixArg::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
     let q = MatrixArg::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
