@@ -18,3 +18,4 @@ mod online;
 mod outputs;
 mod progress;
 mod readme;
+mod split;
