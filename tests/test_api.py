@@ -125,15 +125,17 @@ def test_counts_types():
     c = qtvpr.counts(S_CAL, GT_CAL, 0.5)
     want = ref.counts(S_CAL, GT_CAL, 0.5)
     # The keys of an evaluate segment, in its order (qtvpr::report).
-    assert list(c) == list(want) == ["tp", "fp", "positives", "precision", "recall", "precision_lower95"]
+    assert list(c) == list(want) == ["tp", "fp", "accepted", "positives", "precision", "recall", "precision_lower95"]
     # The best matches 0.9, 0.8, 0.7 are all correct and >= 0.5: TP 3 of 3 positives, and
     # the lower bound of 3 correct of 3 is 0.05 ** (1 / 3).
     assert [c[k] for k in ("tp", "fp", "positives", "precision", "recall")] == [3, 0, 3, 1.0, 1.0]
     assert [type(c[k]) for k in ("tp", "fp", "positives", "precision", "recall")] == [int, int, int, float, float]
     assert c["precision_lower95"] == pytest.approx(0.05 ** (1 / 3), abs=1e-12)
     assert want["precision_lower95"] == pytest.approx(0.05 ** (1 / 3), abs=1e-12)
+    # Nothing accepted: the precision rests on no decision, so it is undefined (None).
     nothing = qtvpr.counts(S_CAL, GT_CAL, np.inf)
-    assert (nothing["tp"], nothing["precision"], nothing["precision_lower95"]) == (0, 1.0, None)
+    assert (nothing["tp"], nothing["accepted"], nothing["precision"], nothing["precision_lower95"]) == (
+        0, 0, None, None)
 
 
 def test_read_only_shared_and_byte_swapped_inputs():

@@ -60,8 +60,9 @@ _Matrix = ArrayLike | str | os.PathLike[str]
 class _Counts(TypedDict):
     tp: int
     fp: int
+    accepted: int
     positives: int
-    precision: float
+    precision: float | None
     recall: float
     precision_lower95: float | None
 
@@ -73,8 +74,9 @@ class _Segment(TypedDict):
     gate: NotRequired[float]
     tp: int
     fp: int
+    accepted: int
     positives: int
-    precision: float
+    precision: float | None
     recall: float
     precision_lower95: float | None
     meets: bool
@@ -87,8 +89,9 @@ class _MethodResult(TypedDict):
     threshold_mse: float | None
     pooled_tp: int
     pooled_fp: int
+    pooled_accepted: int
     pooled_positives: int
-    pooled_precision: float
+    pooled_precision: float | None
     pooled_recall: float
     pooled_precision_lower95: float | None
     segments: list[_Segment]

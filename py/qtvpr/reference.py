@@ -227,11 +227,18 @@ def _count_at(scores: np.ndarray, correct: np.ndarray, positives: int, threshold
 
 
 def _counts_of(tp: int, fp: int, positives: int) -> dict:
-    """The counts dict, with precision 1 when nothing is accepted and recall 0 without
-    positives."""
-    precision = tp / (tp + fp) if tp + fp > 0 else 1.0
+    """The counts dict, with precision None when nothing is accepted (semantics §2: a
+    precision that rests on no decision is undefined) and recall 0 without positives."""
+    precision = tp / (tp + fp) if tp + fp > 0 else None
     recall = tp / positives if positives > 0 else 0.0
-    return {"tp": tp, "fp": fp, "positives": positives, "precision": precision, "recall": recall}
+    return {"tp": tp, "fp": fp, "accepted": tp + fp, "positives": positives, "precision": precision,
+            "recall": recall}
+
+
+def _meets(c: dict, tau: float) -> bool:
+    """Semantics §8.3: precision >= tau - 1e-12, or nothing accepted (the paper's
+    convention, precision taken as 1)."""
+    return c["accepted"] == 0 or c["precision"] >= tau - EPS
 
 
 def _binomial_upper_tail(n: int, a: int, x: float, log_comb: np.ndarray) -> float:
@@ -273,9 +280,9 @@ def precision_lower95(tp: int, fp: int) -> float | None:
 def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
     """Counts of one matrix's decisions at ``threshold`` (semantics §2).
 
-    Returns ``dict(tp=, fp=, positives=, precision=, recall=, precision_lower95=)``, the
-    keys of a segment of ``evaluate``. Precision is 1 when nothing is accepted; recall is
-    0 when there are no positives. ``threshold`` may be ``inf`` (accepts nothing) but
+    Returns ``dict(tp=, fp=, accepted=, positives=, precision=, recall=,
+    precision_lower95=)``, the keys of a segment of ``evaluate``. Precision is None when
+    nothing is accepted; recall is 0 when there are no positives. ``threshold`` may be ``inf`` (accepts nothing) but
     not NaN.
     """
     matching = _check_matching(matching)
@@ -1256,7 +1263,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
             row = {"start": a, "end": b, "threshold": t, "oracle_threshold": t_oracle}
             if name in GATED:
                 row["gate"] = m_star
-            rows.append({**row, **_counts_with_bound(c), "meets": c["precision"] >= tau - EPS})
+            rows.append({**row, **_counts_with_bound(c), "meets": _meets(c, tau)})
         counted = [r for r in rows if r["positives"] > 0]
         if counted:
             pct_segs = 100.0 * sum(r["meets"] for r in counted) / len(counted)
@@ -1269,14 +1276,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout) -> dict:
             if math.isfinite(r["threshold"]) and math.isfinite(r["oracle_threshold"])
         ]
         # Pooled over every full segment, skipped ones included.
-        tp, fp, positives = (sum(r[key] for r in rows) for key in ("tp", "fp", "positives"))
-        pooled = {
-            "tp": tp,
-            "fp": fp,
-            "positives": positives,
-            "precision": tp / (tp + fp) if tp + fp > 0 else 1.0,
-            "recall": tp / positives if positives > 0 else 0.0,
-        }
+        pooled = _counts_of(*(sum(r[key] for r in rows) for key in ("tp", "fp", "positives")))
         report[name] = {
             "pct_segs": pct_segs,
             "avg_recall": avg_recall,
@@ -1338,9 +1338,11 @@ def orientation(shape: tuple[int, int], gt: np.ndarray | None, query_major: bool
     view) and, with hard ground truth ``gt`` given in the matrix's orientation, what its
     positives say: ``"contradicts"`` when every database image has a positive and at
     least 5% of the queries (and one) have none, ``"consistent"`` the other way round,
-    else ``"cannot-tell"``."""
+    else ``"cannot-tell"``; and ``layout``, whether the layout read was confirmed by the
+    ground truth, assumed or contradicted, in words."""
     out = {"db": shape[0], "queries": shape[1], "query_major": bool(query_major)}
     if gt is None or gt.shape[0] != shape[0]:
+        out["layout"] = "assumed (no ground truth was read in the matrix's layout to tell)"
         return out
     n_db, n_q = gt.shape
     q_without = int((~gt.any(axis=0)).sum())
@@ -1355,6 +1357,17 @@ def orientation(shape: tuple[int, int], gt: np.ndarray | None, query_major: bool
         verdict = "consistent"
     else:
         verdict = "cannot-tell"
+    if verdict == "consistent":
+        out["layout"] = (f"confirmed by the ground truth (every query has a positive; database images without "
+                         f"one: {db_without} of {n_db})")
+    elif verdict == "contradicts":
+        out["layout"] = (f"contradicted by the ground truth (queries without a positive: {q_without} of {n_q}, "
+                         "while every database image has one)")
+    elif q_without == db_without == 0:
+        out["layout"] = "assumed (the ground truth cannot tell: every query and every database image has a positive)"
+    else:
+        out["layout"] = (f"assumed (the ground truth cannot tell: queries without a positive: {q_without} of {n_q}; "
+                         f"database images without one: {db_without} of {n_db})")
     out["evidence"] = {"labelled_queries": n_q, "queries_without_positive": q_without,
                        "db_without_positive": db_without, "verdict": verdict}
     return out
@@ -1393,15 +1406,16 @@ def evaluate(
     ``queries``, ``calibration_queries``, ``deployment_start``, ``deployment_queries``,
     ``segment_size``, ``segments``), ``recall_at_1`` of the full segments' queries, and
     ``methods``: ``{name: {"pct_segs", "avg_recall", "segments_counted",
-    "segments_skipped", "threshold_mse", "pooled_tp", "pooled_fp", "pooled_positives",
-    "pooled_precision", "pooled_recall", "pooled_precision_lower95", "segments":
+    "segments_skipped", "threshold_mse", "pooled_tp", "pooled_fp", "pooled_accepted",
+    "pooled_positives", "pooled_precision", "pooled_recall", "pooled_precision_lower95", "segments":
     [...]}}``; each segment reports ``start``, ``end`` (indices into the deployment set,
     end exclusive: deployment query i is column ``|Q| - |Qdeploy| + i`` of ``s``),
-    ``threshold``, ``oracle_threshold``, ``tp``, ``fp``, ``positives``, ``precision``,
+    ``threshold``, ``oracle_threshold``, ``tp``, ``fp``, ``accepted``, ``positives``, ``precision``,
     ``recall``, ``precision_lower95`` (:func:`precision_lower95`) and ``meets``.
     Segments without positives are skipped in the summary figures, which are None when
     no segment is counted; ``threshold_mse`` is None when no counted segment has both
-    thresholds finite. The pooled counts are summed over every full segment.
+    thresholds finite. The pooled counts are summed over every full segment; a precision
+    (a segment's or the pooled one) is None when nothing was accepted.
     """
     k, precision, cal_fraction, segment_fraction = _protocol_defaults(k, precision, cal_fraction, segment_fraction)
     k = _check_positive_int("k", k)

@@ -50,7 +50,7 @@ impl Case {
     }
 
     /// `evaluate --similarity S.npy --gt GT.npy` with the tiny protocol (2 calibration
-    /// queries, segments of 2, tau = 0.5) and `extra` arguments.
+    /// queries, segments of 2, tau = 0.5), as JSON, and `extra` arguments.
     /// Each default is left out when `extra` gives that flag itself.
     fn run(&self, extra: &[&str]) -> Output {
         let (s, gt) = (self.path("S.npy"), self.path("GT.npy"));
@@ -60,6 +60,7 @@ impl Case {
             ("--cal-queries", "2"),
             ("--segment-size", "2"),
             ("--precision", "0.5"),
+            ("--format", "json"),
         ];
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
         cmd.arg("evaluate");
@@ -162,13 +163,18 @@ fn hand_computed_json() {
     assert_eq!(
         seg,
         json!({"start": 0, "end": 2, "threshold": 0.7, "oracle_threshold": 0.7, "tp": 1, "fp": 0,
-               "positives": 2, "precision": 1.0, "recall": 0.5, "precision_lower95": 0.05, "meets": true})
+               "accepted": 1, "positives": 2, "precision": 1.0, "recall": 0.5, "precision_lower95": 0.05,
+               "meets": true})
     );
-    // Segment 1 accepts nothing at inf: no bound. Pooled: TP 1, FP 0, positives 2.
-    assert_eq!(o["segments"][1]["precision_lower95"], Value::Null);
+    // Segment 1 accepts nothing at inf: no precision, no bound. Pooled: TP 1, FP 0,
+    // 1 accepted, positives 2.
     assert_eq!(
-        (&o["pooled_tp"], &o["pooled_fp"], &o["pooled_positives"]),
-        (&json!(1), &json!(0), &json!(2))
+        (&o["segments"][1]["precision"], &o["segments"][1]["precision_lower95"]),
+        (&Value::Null, &Value::Null)
+    );
+    assert_eq!(
+        (&o["pooled_tp"], &o["pooled_fp"], &o["pooled_accepted"], &o["pooled_positives"]),
+        (&json!(1), &json!(0), &json!(1), &json!(2))
     );
     assert_eq!(
         (&o["pooled_precision"], &o["pooled_recall"]),
@@ -223,6 +229,17 @@ fn hand_computed_json() {
         &methods["schubert-calibrated"]["segments"][1]["threshold"],
         0.35 + 0.2 / 0.675 * Z
     ));
+    // Both Schubert fits lie above every deployment score (1.81 and 1.41 on segments 0
+    // and 1; 1.76 calibrated): nothing accepted, so segment 0 meets by convention and
+    // %Segs is 100 on no decision; the count and the undefined precision say so.
+    for name in ["schubert", "schubert-calibrated"] {
+        let m = &methods[name];
+        assert_eq!(
+            (&m["pct_segs"], &m["pooled_accepted"], &m["pooled_precision"]),
+            (&json!(100.0), &json!(0), &Value::Null),
+            "{name}"
+        );
+    }
     // Semantics §14's reliability bins (the decisions of table_and_csv below):
     // confidences 0.2712 (d0, right), 0.1005 (d1), 0.0874 (d2) and 0.4856 (d3, wrong),
     // one in each of bins 2, 1, 0 and 4; the ECE, the mean of their |p - c|,
@@ -260,28 +277,36 @@ fn hand_computed_json() {
 #[test]
 fn table_and_csv() {
     let case = Case::new();
-    let table = case.ok(&["--format", "table", "--method", "oracle,calibration-threshold"]);
+    let table = case.ok(&["--format", "table", "--method", "oracle,calibration-threshold,schubert"]);
     let lines: Vec<&str> = table.lines().collect();
     assert!(lines[0].contains("queries 0..2 calibrate; 2 segments of 2"), "{table}");
     // The orientation assumed: the tiny ground truth cannot tell (queries d2..d4 and
-    // database image 1 have no positive), so no warning.
+    // database image 1 have no positive), so no warning, and the line says it is assumed.
     assert_eq!(
         lines[2],
-        "orientation: |DB| 3 x |Q| 7 (DB-major; pass --query-major for VPR-Bench files)"
+        "orientation: |DB| 3 x |Q| 7 (DB-major; pass --query-major for VPR-Bench files), assumed (the ground \
+         truth cannot tell: queries without a positive: 3 of 7; database images without one: 1 of 3)"
     );
     let lines = &lines[2..];
     assert_eq!(
         lines[2],
         "| method | %Segs | AvgR@50P | segments counted | skipped (no positives) | threshold MSE vs oracle \
-         | pooled precision | its 95% lower bound |"
+         | matches accepted | pooled precision | its 95% lower bound |"
     );
     // Pooled: the oracle accepts one correct decision (bound 0.05^1); the calibration
-    // threshold one wrong one (precision 0, bound 0).
-    assert_eq!(lines[4], "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 | 1.000 | 0.050 |");
+    // threshold one wrong one (precision 0, bound 0); Schubert none (its %Segs of 100
+    // rests on nothing: no precision). Schubert's MSE: segment 0 only (segment 1 is
+    // skipped), (0.4 + 0.2 / 0.675 z - 0.7)^2 = 1.10842^2 = 1.2286.
+    assert_eq!(
+        lines[4],
+        "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 | 1 | 1.000 | 0.050 |"
+    );
     assert_eq!(
         lines[5],
-        "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 0.000 | 0.000 |"
+        "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 1 | 0.000 | 0.000 |"
     );
+    assert_eq!(lines[6], "| schubert | 100.0 | 0.000 | 1 | 1 | 1.23e0 | 0 | n/a | n/a |");
+    let lines = &lines[1..];
     // Semantics §14's signals. The calibration's best matches: query 0 right (PA-score
     // sqrt(0.2 / 1.4) = 0.37796), query 1 wrong (sqrt(0.1 / 1.2) = 0.28868): a
     // violator, one block of 1 of 2, centre 0.33332, value 2/4, from its lower bound
@@ -303,7 +328,10 @@ fn table_and_csv() {
     // Two settings (an ablation): the deployment set becomes the last floor(0.5 x 7) = 3
     // queries, one segment of 2 (d2, d3 in the original numbering: no positives).
     assert_eq!(rows.len(), 3, "{csv}");
-    assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,"), "{csv}");
+    // No segment counted: no %Segs, AvgR or MSE; nothing accepted: 0, no precision,
+    // recall 0, no bound.
+    assert!(rows[0].contains(",threshold_mse,pooled_accepted,pooled_precision,pooled_recall,"), "{csv}");
+    assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,,0,,0,,"), "{csv}");
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
     // Nothing accepted (the oracle of a segment without positives is reject-all): no
     // bound; no deployment query with a hard match: no R@1.
@@ -388,7 +416,7 @@ fn query_major_and_soft_ground_truth() {
     );
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
     let out = cmd
-        .args(["evaluate", "--query-major", "--method", "oracle"])
+        .args(["evaluate", "--format", "json", "--query-major", "--method", "oracle"])
         .args(["--cal-queries", "2", "--segment-size", "2", "--precision", "0.5"])
         .arg("--similarity")
         .arg(case.path("S_t.npy"))
@@ -470,6 +498,17 @@ fn plots_are_written() {
         assert!(svg.contains("<text") && svg.contains("quantile-transfer"), "{name}");
         assert!(svg.contains("quantile-transfer-online"), "{name}");
     }
+    // The Schubert fits accept nothing (hand_computed_json): no operating point, and a
+    // legend that says why, where the others give their precision and count.
+    let svg = std::fs::read_to_string(dir.join("precision_recall.svg")).unwrap();
+    assert!(
+        svg.contains("schubert: no match accepted, so no precision (not drawn)"),
+        "{svg}"
+    );
+    assert!(
+        svg.contains("oracle: precision 1.000, recall 0.500 (1 accepted: TP 1, FP 0)"),
+        "{svg}"
+    );
     case.ok(&["--plot", dir.to_str().unwrap(), "--k", "1,2,3"]);
     let svg = std::fs::read_to_string(dir.join("ablation_k.svg")).unwrap();
     assert!(svg.contains("Sensitivity to k"));
@@ -636,18 +675,24 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     // one of the 100 (the real queries) has a positive, and 9 of the 111 (database
     // images 0..=8, before the first deployment query's matches) have none:
     // 9 >= 0.05 * 111, so the ground truth contradicts the layout.
-    let out = cli(dir.path(), &["evaluate", "--similarity", "S_t.npy", "--gt", "GT_t.npy"]);
+    let out = cli(
+        dir.path(),
+        &["evaluate", "--format", "json", "--similarity", "S_t.npy", "--gt", "GT_t.npy"],
+    );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
-        "warning: 9 of the 111 queries have no positive in the ground truth while every one of the 100 database \
-         images has one; a VPR traverse is usually the other way round, so the matrices may be query-major \
-         (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major\n"
+        "warning: the layout is contradicted by the ground truth: 9 of the 111 queries have no positive in it \
+         while every one of the 100 database images has one; a VPR traverse is usually the other way round, so \
+         the matrices may be query-major (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major\n"
     );
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(
         v["orientation"],
-        json!({"db": 100, "queries": 111, "query_major": false, "evidence": {
+        json!({"db": 100, "queries": 111, "query_major": false,
+            "layout": "contradicted by the ground truth (queries without a positive: 9 of 111, while every \
+                       database image has one)",
+            "evidence": {
             "labelled_queries": 111, "queries_without_positive": 9, "db_without_positive": 0,
             "verdict": "contradicts"}})
     );
@@ -659,6 +704,8 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
         dir.path(),
         &[
             "evaluate",
+            "--format",
+            "json",
             "--similarity",
             "S_t.npy",
             "--gt",
@@ -673,7 +720,10 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
                             "verdict": "consistent"});
     assert_eq!(
         v["orientation"],
-        json!({"db": 111, "queries": 100, "query_major": true, "evidence": consistent})
+        json!({"db": 111, "queries": 100, "query_major": true,
+               "layout": "confirmed by the ground truth (every query has a positive; database images without \
+                          one: 9 of 111)",
+               "evidence": consistent})
     );
     let out = cli(
         dir.path(),
@@ -691,7 +741,10 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(
         text.lines().nth(2),
-        Some("orientation: |DB| 111 x |Q| 100 (DB-major; pass --query-major for VPR-Bench files)"),
+        Some(
+            "orientation: |DB| 111 x |Q| 100 (DB-major; pass --query-major for VPR-Bench files), confirmed by \
+             the ground truth (every query has a positive; database images without one: 9 of 111)"
+        ),
         "{text}"
     );
 
@@ -710,7 +763,8 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(
-        String::from_utf8_lossy(&out.stderr).starts_with("warning: 9 of the 111 queries have no positive"),
+        String::from_utf8_lossy(&out.stderr)
+            .starts_with("warning: the layout is contradicted by the ground truth: 9 of the 111 queries"),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );

@@ -19,3 +19,4 @@ mod outputs;
 mod progress;
 mod readme;
 mod self_motion;
+mod split;

@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use qtvpr::{Matching, Params, QuerySplit, ScoreSource, Split, SplitError};
 
-use crate::convert::{self, GroundTruthArgs, Int, count, non_negative};
+use crate::convert::{self, GroundTruthArgs, Int, Real, count, non_negative, real};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -72,7 +72,8 @@ impl PyCalibration {
     }
 
     /// `precision`, or the calibration's default when `None`, checked by the core.
-    fn precision(&self, precision: Option<f64>) -> PyResult<f64> {
+    fn precision(&self, precision: Option<Real>) -> PyResult<f64> {
+        let precision = real("precision", precision)?;
         let defaults = self.inner.defaults().resolve(None, precision, None, None);
         Ok(defaults.map_err(|e| CAL_ARGS.error(e))?.precision)
     }
@@ -150,7 +151,7 @@ impl PyCalibration {
     fn params(
         &self,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         args: Args,
@@ -159,6 +160,7 @@ impl PyCalibration {
             k.map(|k| count("k", k)).transpose()?,
             segment_size.map(|m| count("segment_size", m)).transpose()?,
         );
+        let precision = real("precision", precision)?;
         convert::gate(gate)
             .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate))
             .map_err(|e| args.error(e))
@@ -168,11 +170,11 @@ impl PyCalibration {
 /// ``cal_queries`` / ``cal_fraction``: how many of the first queries calibrate, as a
 /// [`Split`] (checked by the core once the number of queries is known); `None` for
 /// neither.
-pub(crate) fn split_arg(cal_queries: Option<Int>, cal_fraction: Option<f64>) -> PyResult<Option<Split>> {
+pub(crate) fn split_arg(cal_queries: Option<Int>, cal_fraction: Option<Real>) -> PyResult<Option<Split>> {
     match (cal_queries, cal_fraction) {
         (Some(_), Some(_)) => Err(PyValueError::new_err("give cal_queries or cal_fraction, not both")),
         (Some(n), None) => Ok(Some(Split::Count(count("cal_queries", n)?))),
-        (None, Some(f)) => Ok(Some(Split::Fraction(f))),
+        (None, Some(f)) => Ok(Some(Split::Fraction(f.get("cal_fraction")?))),
         (None, None) => Ok(None),
     }
 }
@@ -205,7 +207,7 @@ impl PyCalibration {
         matching: &str,
         query_major: bool,
         cal_queries: Option<Int>,
-        cal_fraction: Option<f64>,
+        cal_fraction: Option<Real>,
     ) -> PyResult<Self> {
         let split = split_arg(cal_queries, cal_fraction)?;
         CalibrationArgs::extract(py, s_cal, gt_cal, gt_soft, matching, query_major)?.calibrate(py, split)
@@ -238,7 +240,7 @@ impl PyCalibration {
         py: Python<'_>,
         path: PathBuf,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         window: Option<Int>,
         gate: Option<&str>,
     ) -> PyResult<()> {
@@ -246,6 +248,7 @@ impl PyCalibration {
             k.map(|k| count("k", k)).transpose()?,
             window.map(|m| count("window", m)).transpose()?,
         );
+        let precision = real("precision", precision)?;
         let defaults = convert::gate(gate)
             .and_then(|gate| self.inner.defaults().resolve(k, precision, window, gate))
             .map_err(|e| FILE_ARGS.error(e))?;
@@ -346,7 +349,7 @@ impl PyCalibration {
         py: Python<'_>,
         s_val: &Bound<'_, PyAny>,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
@@ -365,7 +368,7 @@ impl PyCalibration {
         &self,
         shape: (usize, usize),
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
@@ -392,7 +395,7 @@ impl PyCalibration {
         s_val: &Bound<'_, PyAny>,
         first_query: Int,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
@@ -417,7 +420,7 @@ impl PyCalibration {
     /// This is the threshold tuned once offline and kept fixed, as practised today.
     /// ``precision=None`` is the calibration's default (:attr:`defaults`).
     #[pyo3(signature = (precision = None))]
-    fn threshold(&self, py: Python<'_>, precision: Option<f64>) -> PyResult<f64> {
+    fn threshold(&self, py: Python<'_>, precision: Option<Real>) -> PyResult<f64> {
         let precision = self.precision(precision)?;
         py.detach(|| self.inner.threshold(precision))
             .map_err(|e| CAL_ARGS.error(e))
@@ -429,7 +432,7 @@ impl PyCalibration {
     /// ``math.inf`` means reject all. Raises ``ValueError`` for a multi-matching
     /// calibration, which has no gate.
     #[pyo3(signature = (precision = None))]
-    fn gate(&self, precision: Option<f64>) -> PyResult<f64> {
+    fn gate(&self, precision: Option<Real>) -> PyResult<f64> {
         let precision = self.precision(precision)?;
         self.inner.gate(precision).map_err(|e| CAL_ARGS.error(e))
     }
@@ -566,7 +569,7 @@ impl TransferResult {
         query_thresholds: Bound<'_, PyArray1<f64>>,
         query_weights: Bound<'_, PyArray1<f64>>,
         neighbours: Bound<'_, PyArray2<i64>>,
-        gate: Option<f64>,
+        gate: Option<Real>,
         query_margins: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences_lower95: Option<Bound<'_, PyArray1<f64>>>,
@@ -598,7 +601,7 @@ impl TransferResult {
             query_thresholds: query_thresholds.unbind(),
             query_weights: query_weights.unbind(),
             neighbours: neighbours.unbind(),
-            gate,
+            gate: real("gate", gate)?,
             query_margins: query_margins.map(Bound::unbind),
             query_confidences: query_confidences.map(Bound::unbind),
             query_confidences_lower95: query_confidences_lower95.map(Bound::unbind),

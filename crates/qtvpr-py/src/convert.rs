@@ -482,6 +482,52 @@ impl Int {
     }
 }
 
+/// A float argument as Python gave it. pyo3 converts a bool to a float (`True` is 1.0,
+/// a subclass of `int`), so that `precision=True` would silently be 1.0; taken as this,
+/// every float argument keeps a bool apart, and [`Real::get`] (or [`real`]) refuses it
+/// with a `TypeError` naming the argument, as [`Int::at_least`] does for an integer.
+/// Anything else is as `f64` extracts it (a float, an int, a NumPy scalar, an object
+/// with `__float__`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Real {
+    /// A number.
+    Value(f64),
+    /// A bool, refused by [`Real::get`].
+    Bool(bool),
+}
+
+impl FromPyObject<'_, '_> for Real {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'_, '_, PyAny>) -> PyResult<Self> {
+        if let Ok(flag) = obj.cast::<PyBool>() {
+            return Ok(Real::Bool(flag.is_true()));
+        }
+        obj.extract::<f64>().map(Real::Value)
+    }
+}
+
+impl Real {
+    /// The number, or a `TypeError` naming `name` for a bool.
+    pub(crate) fn get(self, name: &str) -> PyResult<f64> {
+        match self {
+            Real::Value(x) => Ok(x),
+            Real::Bool(flag) => Err(PyTypeError::new_err(format!(
+                "{name} must be a float, got a bool ({})",
+                if flag { "True" } else { "False" }
+            ))),
+        }
+    }
+}
+
+/// An optional float argument `name` as an `f64`: [`Real::get`] of it when given.
+///
+/// # Errors
+/// `TypeError` naming the argument for a bool.
+pub(crate) fn real(name: &str, value: Option<Real>) -> PyResult<Option<f64>> {
+    value.map(|x| x.get(name)).transpose()
+}
+
 /// A count argument (`k`, `window`, `segment_size`) as the core's `usize`.
 ///
 /// A negative value or one too large for a `usize` is refused here, since it does not

@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use qtvpr::npy::FloatMatrix;
 use qtvpr::{LabelParams, with_scores};
 
-use crate::convert::{Int, MatrixArg, count, non_negative};
+use crate::convert::{Int, MatrixArg, Real, count, non_negative, real};
 use crate::error::{Args, input_error, named_error};
 
 /// Ground truth of frame-aligned traverses: ``GT[i, j] = |i - j| <= tolerance``.
@@ -64,8 +64,9 @@ pub(crate) fn ground_truth_positions<'py>(
     py: Python<'py>,
     db_positions: &Bound<'py, PyAny>,
     query_positions: &Bound<'py, PyAny>,
-    radius: f64,
+    radius: Real,
 ) -> PyResult<Bound<'py, PyArray2<bool>>> {
+    let radius = radius.get("radius")?;
     qtvpr::check_radius("radius", radius).map_err(named_error)?;
     let db = MatrixArg::extract_as("db_positions", db_positions, FloatMatrix::Positions)?;
     let q = MatrixArg::extract_as("query_positions", query_positions, FloatMatrix::Positions)?;
@@ -118,11 +119,11 @@ pub(crate) fn ground_truth_from_sequence(
     py: Python<'_>,
     s_cal: &Bound<'_, PyAny>,
     neighbours: Option<Int>,
-    positive_level: Option<f64>,
-    negative_level: Option<f64>,
-    sequence_speed: Option<f64>,
-    sequence_tolerance: Option<f64>,
-    sequence_drift: Option<f64>,
+    positive_level: Option<Real>,
+    negative_level: Option<Real>,
+    sequence_speed: Option<Real>,
+    sequence_tolerance: Option<Real>,
+    sequence_drift: Option<Real>,
     query_major: bool,
 ) -> PyResult<SelfMotionLabels> {
     let args = Args {
@@ -132,11 +133,11 @@ pub(crate) fn ground_truth_from_sequence(
     let neighbours = neighbours.map(|n| count("neighbours", n)).transpose()?;
     let params = LabelParams::resolve(
         neighbours,
-        positive_level,
-        negative_level,
-        sequence_speed,
-        sequence_tolerance,
-        sequence_drift,
+        real("positive_level", positive_level)?,
+        real("negative_level", negative_level)?,
+        real("sequence_speed", sequence_speed)?,
+        real("sequence_tolerance", sequence_tolerance)?,
+        real("sequence_drift", sequence_drift)?,
     )
     .map_err(|e| args.error(e))?;
     let s = MatrixArg::extract("s_cal", s_cal)?;

@@ -28,7 +28,7 @@ use pyo3::prelude::*;
 use qtvpr::Matching;
 
 use crate::calibration::{CalibrationArgs, PyCalibration, TransferResult};
-use crate::convert::{GroundTruthArgs, Int, MatrixArg};
+use crate::convert::{GroundTruthArgs, Int, MatrixArg, Real};
 use crate::error::Args;
 use qtvpr::with_scores;
 
@@ -56,7 +56,7 @@ use qtvpr::with_scores;
 /// positions in the whole matrix.
 #[pyfunction]
 #[pyo3(signature = (
-    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = Int::Small(10), precision = 1.0, matching = "single",
+    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = Int::Small(10), precision = Real::Value(1.0), matching = "single",
     segment_size = None, gate = "none", query_major = false, cal_queries = None, cal_fraction = None,
 ), text_signature = "(s_cal, gt_cal, s_val=None, *, gt_soft=None, k=10, precision=1.0, matching='single', \
     segment_size=None, gate='none', query_major=False, cal_queries=None, cal_fraction=None)")]
@@ -68,15 +68,15 @@ fn quantile_transfer(
     s_val: Option<&Bound<'_, PyAny>>,
     gt_soft: Option<&Bound<'_, PyAny>>,
     k: Int,
-    precision: f64,
+    precision: Real,
     matching: &str,
     segment_size: Option<Int>,
     gate: &str,
     query_major: bool,
     cal_queries: Option<Int>,
-    cal_fraction: Option<f64>,
+    cal_fraction: Option<Real>,
 ) -> PyResult<TransferResult> {
-    let (k, precision) = (Some(convert::count("k", k)?), Some(precision));
+    let (k, precision) = (Some(convert::count("k", k)?), Some(precision.get("precision")?));
     let segment_size = segment_size.map(|m| convert::count("segment_size", m)).transpose()?;
     let args = Args {
         gt: "gt_cal",
@@ -96,7 +96,7 @@ fn quantile_transfer(
                 py,
                 s_val,
                 k.map(Int::from),
-                precision,
+                precision.map(Real::Value),
                 segment_size.map(Int::from),
                 gate.map(qtvpr::Gate::as_str),
                 query_major,
@@ -152,16 +152,20 @@ fn margins<'py>(
 /// ``ValueError`` for bad input or a bad file, ``OSError`` (``FileNotFoundError``,
 /// ...) for a file that cannot be read.
 #[pyfunction]
-#[pyo3(signature = (s, gt, *, gt_soft = None, precision = 1.0, matching = "single", query_major = false))]
+#[pyo3(
+    signature = (s, gt, *, gt_soft = None, precision = Real::Value(1.0), matching = "single", query_major = false),
+    text_signature = "(s, gt, *, gt_soft=None, precision=1.0, matching='single', query_major=False)"
+)]
 fn best_threshold(
     py: Python<'_>,
     s: &Bound<'_, PyAny>,
     gt: &Bound<'_, PyAny>,
     gt_soft: Option<&Bound<'_, PyAny>>,
-    precision: f64,
+    precision: Real,
     matching: &str,
     query_major: bool,
 ) -> PyResult<f64> {
+    let precision = precision.get("precision")?;
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let s = MatrixArg::extract("s", s)?;
@@ -175,9 +179,10 @@ fn best_threshold(
 /// The decisions of a similarity matrix at one threshold.
 ///
 /// A candidate (per ``matching``, as in :func:`best_threshold`) is accepted when its
-/// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
+/// score is ``>= threshold``. Returns ``{"tp", "fp", "accepted", "positives", "precision",
 /// "recall", "precision_lower95"}``, the keys of a segment of :func:`evaluate`:
-/// precision is 1 when nothing is accepted, recall 0 when there are no positives
+/// ``accepted`` is TP + FP, precision ``None`` when nothing is accepted (it would rest on
+/// no decision), recall 0 when there are no positives
 /// (queries with a hard match in ``"single"`` mode, hard matches in ``"multi"``), and
 /// ``precision_lower95`` the one-sided 95% Clopper-Pearson lower bound on the precision
 /// (``None`` when nothing is accepted). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
@@ -188,11 +193,12 @@ fn counts<'py>(
     py: Python<'py>,
     s: &Bound<'py, PyAny>,
     gt: &Bound<'py, PyAny>,
-    threshold: f64,
+    threshold: Real,
     gt_soft: Option<&Bound<'py, PyAny>>,
     matching: &str,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let threshold = threshold.get("threshold")?;
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let s = MatrixArg::extract("s", s)?;

@@ -10,7 +10,7 @@ use pyo3::types::{PyCFunction, PyTuple};
 use qtvpr::{Decision, Error, Kind, OnlineParams, Value};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{self, Column, Int, MatrixArg, count, non_negative};
+use crate::convert::{self, Column, Int, MatrixArg, Real, count, non_negative, real};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
 
@@ -64,11 +64,12 @@ impl PyOnline {
     fn new(
         calibration: Bound<'_, PyCalibration>,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         window: Option<Int>,
         min_window: Option<Int>,
         gate: Option<&str>,
     ) -> PyResult<Self> {
+        let precision = real("precision", precision)?;
         let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
         let (k, window, min_window) = (
             k.map(|k| count("k", k)).transpose()?,

@@ -241,13 +241,14 @@ fn counts_strip(area: &Area<'_>, m: &MethodResult, end: f64, size: f64, tau: f64
     ticks.extend((0..=down / down_step).map(|k| -((k * down_step) as f64) / down as f64));
     let failed = m.segments.iter().filter(|g| g.counts.positives > 0 && !g.meets).count();
     let caption = format!(
-        "{}: %Segs {}, AvgR {}, {} of {} counted segments below precision {}",
+        "{}: %Segs {}, AvgR {}, {} of {} counted segments below precision {}; {} matches accepted",
         m.method,
         m.pct_segs.map_or("n/a".into(), |v| format!("{v:.1}")),
         m.avg_recall.map_or("n/a".into(), |v| format!("{v:.3}")),
         failed,
         m.segments_counted,
-        fmt_num(tau)
+        fmt_num(tau),
+        m.pooled().accepted()
     );
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (FONT, 15).into_font().color(&colour(m.method)))

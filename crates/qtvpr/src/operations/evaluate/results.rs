@@ -338,6 +338,25 @@ mod tests {
     }
 
     #[test]
+    fn a_method_that_accepts_nothing_has_no_precision() {
+        // Schubert's thresholds: segment 0 (d0, d1) 1.808 (mod.rs' schubert test); segment
+        // 1 (d2, d3) scores ascending (0.1, 0.2, 0.3, 0.4, 0.5, 0.9): mu = 0.35, |S - mu|
+        // sorted (0.05, 0.05, 0.15, 0.15, 0.25, 0.55), median 0.15, t = 0.35 + 0.15 /
+        // 0.675 * z = 1.406. Both above every score: nothing accepted. Segment 0 meets
+        // by the paper's convention and segment 1 has no positive: %Segs 100 on no
+        // decision, which its count (0) and its undefined precision say.
+        let e = run(&[Method::Schubert]);
+        let m = &e.methods[0];
+        assert_eq!(m.pct_segs, Some(100.0));
+        let pooled = m.pooled();
+        assert_eq!((pooled.accepted(), pooled.measured_precision()), (0, None));
+        assert_eq!(pooled.precision_lower95(), None);
+        // The oracle accepts d0's 0.7 (TP): 1 accepted, precision 1 measured.
+        let o = run(&[Method::Oracle]).methods[0].pooled();
+        assert_eq!((o.accepted(), o.measured_precision()), (1, Some(1.0)));
+    }
+
+    #[test]
     fn pooled_counts_and_their_lower_bound() {
         // Oracle: segment 0 TP 1, FP 0, positives 2; segment 1 (d2 0.5, d3 0.9 wrong, no
         // positives) at inf accepts nothing. Pooled: TP 1, FP 0, positives 2; precision 1,
@@ -382,7 +401,10 @@ mod tests {
         );
         assert_eq!(
             v["orientation"],
-            serde_json::json!({"db": 3, "queries": 7, "query_major": false, "evidence": {
+            serde_json::json!({"db": 3, "queries": 7, "query_major": false,
+                "layout": "assumed (the ground truth cannot tell: queries without a positive: 3 of 7; database \
+                           images without one: 1 of 3)",
+                "evidence": {
                 "labelled_queries": 7, "queries_without_positive": 3, "db_without_positive": 1,
                 "verdict": "cannot-tell"}})
         );
@@ -425,6 +447,7 @@ mod tests {
             [
                 "avg_recall",
                 "pct_segs",
+                "pooled_accepted",
                 "pooled_fp",
                 "pooled_positives",
                 "pooled_precision",
@@ -442,6 +465,7 @@ mod tests {
         assert_eq!(
             keys(seg),
             [
+                "accepted",
                 "end",
                 "fp",
                 "meets",
@@ -455,10 +479,21 @@ mod tests {
                 "tp"
             ]
         );
-        // Reject-all is null in JSON; so is a bound over nothing accepted.
+        // Reject-all is null in JSON; so are a precision and its bound over nothing
+        // accepted, which still meets (the paper's convention).
         assert_eq!(
             (seg["threshold"].is_null(), seg["precision_lower95"].is_null()),
             (true, true)
+        );
+        assert_eq!(
+            (&seg["accepted"], &seg["precision"], &seg["meets"]),
+            (&serde_json::json!(0), &serde_json::Value::Null, &serde_json::json!(true))
+        );
+        // Schubert accepts nothing anywhere (a_method_that_accepts_nothing_has_no_precision).
+        let schubert = &v["methods"]["schubert"];
+        assert_eq!(
+            (&schubert["pooled_accepted"], &schubert["pooled_precision"]),
+            (&serde_json::json!(0), &serde_json::Value::Null)
         );
         assert_eq!(v["recall_at_1"], 0.5);
         let (s, gt) = tiny();
