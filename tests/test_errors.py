@@ -9,6 +9,7 @@ on which exception each case raises; the wheel-only tests cover its extra entry 
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -280,6 +281,10 @@ def _cal():
     return qtvpr.Calibration(S_CAL, GT_CAL)
 
 
+def _labels_with(name, value):
+    return qtvpr.ground_truth_from_sequence(np.eye(20), **{name: value})
+
+
 #: A call of each float argument with ``value``, the others valid.
 FLOAT_CALLS = {
     ("TransferResult._from_parts", "gate"): lambda v: qtvpr.TransferResult._from_parts(
@@ -303,6 +308,8 @@ FLOAT_CALLS = {
     **{(f, name): (lambda f, name: lambda v: getattr(qtvpr, f)(S_CAL, GT_CAL, **{name: v}))(f, name)
        for f in ("evaluate", "ablation")
        for name in ("precision", "cal_fraction", "segment_fraction", "deploy_fraction")},
+    **{("ground_truth_from_sequence", name): functools.partial(_labels_with, name)
+       for name in ("positive_level", "negative_level", "sequence_speed", "sequence_tolerance", "sequence_drift")},
 }
 
 
