@@ -18,7 +18,9 @@ use ndarray::{Array2, ArrayView2};
 use crate::error::names::Input;
 use crate::error::{Error, Result};
 use crate::extensions::ground_truth::HardSoft;
-use crate::input::{GroundTruth, LabelRecord, Score, Truth, validate_scores};
+use crate::input::{GroundTruth, Score, validate_scores};
+#[cfg(feature = "npy")]
+use crate::input::{LabelRecord, Truth};
 use crate::rules::agreement::Line;
 use crate::rules::decisions::{Matching, best_match};
 
