@@ -28,6 +28,8 @@ def test_public_names():
         # extensions
         + ["Descriptors", "cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "image_paths",
            "sequence_match", "utm_positions"]
+        # self-motion labels (semantics §16)
+        + ["SelfMotionLabels", "ground_truth_from_sequence"]
         # the thread pool (no reference counterpart)
         + ["set_threads"]
     )
@@ -36,7 +38,9 @@ def test_public_names():
     assert isinstance(qtvpr.__version__, str) and qtvpr.__version__
 
 
-@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts", "evaluate", "ablation"])
+@pytest.mark.parametrize(
+    "name", ["quantile_transfer", "best_threshold", "counts", "evaluate", "ablation", "ground_truth_from_sequence"]
+)
 def test_signatures_match_reference(name):
     assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
         return_annotation=inspect.Signature.empty
