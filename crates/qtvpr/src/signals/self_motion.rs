@@ -18,9 +18,9 @@ use ndarray::{Array2, ArrayView2};
 use crate::error::names::Input;
 use crate::error::{Error, Result};
 use crate::extensions::ground_truth::HardSoft;
-use crate::input::{GroundTruth, Score, validate_scores};
 #[cfg(feature = "npy")]
-use crate::input::{LabelRecord, Truth};
+use crate::input::LabelRecord;
+use crate::input::{GroundTruth, Score, validate_scores};
 use crate::rules::agreement::Line;
 use crate::rules::decisions::{Matching, best_match};
 
@@ -233,15 +233,12 @@ impl SelfMotionLabels {
     /// their [`record`](SelfMotionLabels::record), so that a calibration on them says so.
     #[cfg(feature = "npy")]
     pub fn truth(&self) -> GroundTruth {
-        let mut truth = Array2::from_elem((self.db_size, self.labels.len()), Truth::False);
-        for (q, (&b, &label)) in self.best.iter().zip(&self.labels).enumerate() {
-            truth[[b, q]] = match label {
-                SelfMotionLabel::Positive => Truth::True,
-                SelfMotionLabel::Abstain => Truth::Ignored,
-                SelfMotionLabel::Negative => Truth::False,
-            };
-        }
-        GroundTruth::from_truth(truth).with_record(Some(self.record()))
+        let HardSoft { hard, soft } = self.ground_truth();
+        let soft = soft.expect("self-motion labels have a soft ground truth");
+        GroundTruth::new(hard.view())
+            .and_then(|gt| gt.with_soft(soft.view()))
+            .expect("two non-empty bool matrices of one shape")
+            .with_record(Some(self.record()))
     }
 
     /// The labels as ground truth, |DB| x |Qcal|: a pseudo-positive's best match is the
@@ -518,6 +515,7 @@ mod tests {
     #[test]
     #[cfg(feature = "npy")]
     fn as_the_cores_ground_truth_an_abstaining_match_is_ignored_and_the_record_rides_along() {
+        use crate::input::Truth;
         // The stop of `a_stop_abstains_and_a_wrong_match_is_negative`: query 20 abstains at
         // row 110; query 0 (f = 1) is positive at row 100.
         let best: Vec<usize> = (100..=110).chain([110; 19]).chain(111..=120).collect();
