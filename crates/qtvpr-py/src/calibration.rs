@@ -310,7 +310,7 @@ impl PyCalibration {
     /// ``meta["labels"]``; ``None`` for other ground truth.
     #[getter]
     fn labels<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::ground_truth::record_dict(py, self.inner.labels())
+        crate::self_motion::record_dict(py, self.inner.labels())
     }
 
     /// |DB|, the number of database images (rows) of the calibration.

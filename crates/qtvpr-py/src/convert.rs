@@ -40,7 +40,7 @@ use qtvpr::ScoresView;
 use qtvpr::npy::FloatMatrix;
 
 use crate::error::input_error;
-use crate::ground_truth::SelfMotionLabels;
+use crate::self_motion::SelfMotionLabels;
 
 /// `numpy.asarray`, looked up once.
 fn asarray(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {

@@ -22,6 +22,7 @@ mod evaluate;
 mod ground_truth;
 mod image_names;
 mod online;
+mod self_motion;
 mod similarity;
 
 use pyo3::prelude::*;
@@ -299,7 +300,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<descriptors::PyDescriptors>()?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
-    m.add_class::<ground_truth::SelfMotionLabels>()?;
+    m.add_class::<self_motion::SelfMotionLabels>()?;
     m.add_class::<online::PyOnline>()?;
     m.add_class::<online::OnlineDecision>()?;
     m.add_class::<online::OnlineDecisions>()?;
