@@ -205,11 +205,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         _ => {
             let (s, gt) = embedded::corridor()?;
             embedded_scores = s;
-            (
-                embedded::NAME.to_string(),
-                ScoresView::F64(embedded_scores.view()),
-                gt,
-            )
+            (embedded::NAME.to_string(), ScoresView::F64(embedded_scores.view()), gt)
         }
     };
     // What was assumed of a matrix file's orientation, and what its ground truth says

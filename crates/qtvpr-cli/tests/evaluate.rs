@@ -173,7 +173,12 @@ fn hand_computed_json() {
         (&Value::Null, &Value::Null)
     );
     assert_eq!(
-        (&o["pooled_tp"], &o["pooled_fp"], &o["pooled_accepted"], &o["pooled_positives"]),
+        (
+            &o["pooled_tp"],
+            &o["pooled_fp"],
+            &o["pooled_accepted"],
+            &o["pooled_positives"]
+        ),
         (&json!(1), &json!(0), &json!(1), &json!(2))
     );
     assert_eq!(
@@ -305,7 +310,10 @@ fn table_and_csv() {
         lines[5],
         "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 1 | 0.000 | 0.000 |"
     );
-    assert_eq!(lines[6], "| schubert | 100.0 | 0.000 | 1 | 1 | 1.23e0 | 0 | n/a | n/a |");
+    assert_eq!(
+        lines[6],
+        "| schubert | 100.0 | 0.000 | 1 | 1 | 1.23e0 | 0 | n/a | n/a |"
+    );
     let lines = &lines[1..];
     // Semantics §14's signals. The calibration's best matches: query 0 right (PA-score
     // sqrt(0.2 / 1.4) = 0.37796), query 1 wrong (sqrt(0.1 / 1.2) = 0.28868): a
@@ -330,7 +338,10 @@ fn table_and_csv() {
     assert_eq!(rows.len(), 3, "{csv}");
     // No segment counted: no %Segs, AvgR or MSE; nothing accepted: 0, no precision,
     // recall 0, no bound.
-    assert!(rows[0].contains(",threshold_mse,pooled_accepted,pooled_precision,pooled_recall,"), "{csv}");
+    assert!(
+        rows[0].contains(",threshold_mse,pooled_accepted,pooled_precision,pooled_recall,"),
+        "{csv}"
+    );
     assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,,0,,0,,"), "{csv}");
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
     // Nothing accepted (the oracle of a segment without positives is reject-all): no
@@ -677,7 +688,15 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     // 9 >= 0.05 * 111, so the ground truth contradicts the layout.
     let out = cli(
         dir.path(),
-        &["evaluate", "--format", "json", "--similarity", "S_t.npy", "--gt", "GT_t.npy"],
+        &[
+            "evaluate",
+            "--format",
+            "json",
+            "--similarity",
+            "S_t.npy",
+            "--gt",
+            "GT_t.npy",
+        ],
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(

@@ -641,7 +641,11 @@ mod tests {
         );
         assert_eq!(
             (&seg["accepted"], &seg["precision"], &seg["meets"]),
-            (&serde_json::json!(0), &serde_json::Value::Null, &serde_json::json!(true))
+            (
+                &serde_json::json!(0),
+                &serde_json::Value::Null,
+                &serde_json::json!(true)
+            )
         );
         // Schubert accepts nothing anywhere (a_method_that_accepts_nothing_has_no_precision).
         let schubert = &v["methods"]["schubert"];
