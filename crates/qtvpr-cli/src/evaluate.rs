@@ -119,8 +119,8 @@ pub struct EvaluateArgs {
     #[arg(long, short, value_name = "FILE")]
     output: Option<PathBuf>,
     /// Write SVG figures into this directory (created if need be): thresholds.svg,
-    /// precision_recall.svg and (single matching) reliability.svg for one setting;
-    /// ablation_k.svg / ablation_cal.svg for an ablation.
+    /// precision_recall.svg, scores.svg and (single matching) reliability.svg for one
+    /// setting; ablation_k.svg / ablation_cal.svg for an ablation.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
 }
@@ -205,11 +205,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         _ => {
             let (s, gt) = embedded::corridor()?;
             embedded_scores = s;
-            (
-                embedded::NAME.to_string(),
-                ScoresView::F64(embedded_scores.view()),
-                gt,
-            )
+            (embedded::NAME.to_string(), ScoresView::F64(embedded_scores.view()), gt)
         }
     };
     // What was assumed of a matrix file's orientation, and what its ground truth says

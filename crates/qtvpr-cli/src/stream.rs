@@ -113,9 +113,9 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let split = split
         .map(|asked| {
             let split = crate::args::query_split(asked, s_val.dim(), args.query_major, &input)?;
-            split.check_calibration(calibration_queries).with_context(|| {
-                format!("{} of {input} / --calibration {}", asked.1, args.calibration.display())
-            })?;
+            split
+                .check_calibration(calibration_queries)
+                .with_context(|| format!("{} of {input} / --calibration {}", asked.1, args.calibration.display()))?;
             anyhow::Ok(split)
         })
         .transpose()?;

@@ -20,8 +20,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::npy::{MatrixFile, read_scores};
 use qtvpr::{
-    Calibration, Defaults, Descriptors, Matching, Options, Orientation, Params, ScoreSource, Split,
-    SplitError, ThresholdReport, Transfer,
+    Calibration, Defaults, Descriptors, Matching, Options, Orientation, Params, ScoreSource, Split, SplitError,
+    ThresholdReport, Transfer,
 };
 
 use crate::args::{DescriptorFiles, MatchingArg, SplitArgs};

@@ -173,7 +173,12 @@ fn hand_computed_json() {
         (&Value::Null, &Value::Null)
     );
     assert_eq!(
-        (&o["pooled_tp"], &o["pooled_fp"], &o["pooled_accepted"], &o["pooled_positives"]),
+        (
+            &o["pooled_tp"],
+            &o["pooled_fp"],
+            &o["pooled_accepted"],
+            &o["pooled_positives"]
+        ),
         (&json!(1), &json!(0), &json!(1), &json!(2))
     );
     assert_eq!(
@@ -305,7 +310,10 @@ fn table_and_csv() {
         lines[5],
         "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 1 | 0.000 | 0.000 |"
     );
-    assert_eq!(lines[6], "| schubert | 100.0 | 0.000 | 1 | 1 | 1.23e0 | 0 | n/a | n/a |");
+    assert_eq!(
+        lines[6],
+        "| schubert | 100.0 | 0.000 | 1 | 1 | 1.23e0 | 0 | n/a | n/a |"
+    );
     let lines = &lines[1..];
     // Semantics §14's signals. The calibration's best matches: query 0 right (PA-score
     // sqrt(0.2 / 1.4) = 0.37796), query 1 wrong (sqrt(0.1 / 1.2) = 0.28868): a
@@ -330,7 +338,10 @@ fn table_and_csv() {
     assert_eq!(rows.len(), 3, "{csv}");
     // No segment counted: no %Segs, AvgR or MSE; nothing accepted: 0, no precision,
     // recall 0, no bound.
-    assert!(rows[0].contains(",threshold_mse,pooled_accepted,pooled_precision,pooled_recall,"), "{csv}");
+    assert!(
+        rows[0].contains(",threshold_mse,pooled_accepted,pooled_precision,pooled_recall,"),
+        "{csv}"
+    );
     assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,,0,,0,,"), "{csv}");
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
     // Nothing accepted (the oracle of a segment without positives is reject-all): no
@@ -491,7 +502,7 @@ fn plots_are_written() {
     let case = Case::new();
     let dir = case.path("figs");
     case.ok(&["--plot", dir.to_str().unwrap()]);
-    for name in ["thresholds.svg", "precision_recall.svg"] {
+    for name in ["thresholds.svg", "precision_recall.svg", "scores.svg"] {
         let svg = std::fs::read_to_string(dir.join(name)).unwrap();
         assert!(svg.starts_with("<svg"), "{name}");
         // Text is real SVG text, with the legend's method names.
@@ -677,7 +688,15 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     // 9 >= 0.05 * 111, so the ground truth contradicts the layout.
     let out = cli(
         dir.path(),
-        &["evaluate", "--format", "json", "--similarity", "S_t.npy", "--gt", "GT_t.npy"],
+        &[
+            "evaluate",
+            "--format",
+            "json",
+            "--similarity",
+            "S_t.npy",
+            "--gt",
+            "GT_t.npy",
+        ],
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(
@@ -939,4 +958,153 @@ fn gated_threshold_lines_are_dashed_and_the_others_solid() {
         let l = lines(name);
         assert!(l.iter().any(|&n| n > 10), "{name}: {l:?}");
     }
+}
+
+/// The value of attribute `name` in one line of an SVG written by plotters.
+fn svg_attr(line: &str, name: &str) -> Option<String> {
+    let start = line.find(&format!(" {name}=\""))? + name.len() + 3;
+    Some(line[start..start + line[start..].find('"')?].to_string())
+}
+
+/// The texts of an SVG written by plotters with the `x` of each (the text is on the
+/// line after its `<text` element).
+fn svg_texts(svg: &str) -> Vec<(f64, String)> {
+    let lines: Vec<&str> = svg.lines().collect();
+    lines
+        .windows(2)
+        .filter(|w| w[0].starts_with("<text"))
+        .map(|w| (svg_attr(w[0], "x").unwrap().parse().unwrap(), w[1].trim().to_string()))
+        .collect()
+}
+
+#[test]
+fn the_three_quantile_transfer_lines_all_show() {
+    // The embedded data: quantile-transfer-online's segment thresholds (its last
+    // query's, whose window is the segment) and quantile-transfer-margin's are
+    // quantile transfer's. Each line must leave the one beneath it visible: quantile
+    // transfer's is drawn first and wider than the two drawn over it, online's is solid
+    // and the gated one dashed on top of it (many short polylines).
+    let dir = tempfile::tempdir().unwrap();
+    let out = cli(dir.path(), &["evaluate", "--plot", "figs"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("figs/thresholds.svg")).unwrap();
+    // (colour, stroke width, points) of every polyline, in drawing order.
+    let lines: Vec<(String, u32, usize)> = svg
+        .lines()
+        .filter(|l| l.starts_with("<polyline"))
+        .map(|l| {
+            (
+                svg_attr(l, "stroke").unwrap(),
+                svg_attr(l, "stroke-width").unwrap().parse().unwrap(),
+                svg_attr(l, "points").unwrap().split_whitespace().count(),
+            )
+        })
+        .collect();
+    // The colours of crates/qtvpr-cli/src/plot/mod.rs: #1F77B4 quantile-transfer,
+    // #17BECF online, #2CA02C margin. A plotted line has more than 2 points, or is one
+    // of many dashes; a legend swatch is the last polyline of its colour.
+    let first = |c: &str| lines.iter().position(|l| l.0 == c).unwrap();
+    let widths = |c: &str| -> Vec<u32> { lines.iter().filter(|l| l.0 == c).map(|l| l.1).collect() };
+    let (qt, online, gated) = ("#1F77B4", "#17BECF", "#2CA02C");
+    assert!(
+        first(qt) < first(online) && first(online) < first(gated),
+        "drawing order"
+    );
+    let (w_qt, w_online, w_gated) = (widths(qt), widths(online), widths(gated));
+    assert!(
+        w_qt.iter().all(|&w| w > w_online[0] && w > w_gated[0]),
+        "{w_qt:?} {w_online:?} {w_gated:?}"
+    );
+    let long = |c: &str| lines.iter().filter(|l| l.0 == c && l.2 > 10).count();
+    assert!(long(online) >= 1, "online is solid");
+    assert_eq!(long(gated), 0, "the gated line is dashed");
+}
+
+#[test]
+fn ablation_points_sit_at_their_k() {
+    // The embedded data, k = 1, 2, 3: each of quantile transfer's points (circles,
+    // #1F77B4) of the %Segs panel is at the x of its k's tick label, and the axis is
+    // log k: the label of 2 sits ln 2 / ln 3 = 0.631 of the way from 1 to 3.
+    let dir = tempfile::tempdir().unwrap();
+    let out = cli(dir.path(), &["evaluate", "--plot", "figs", "--k", "1,2,3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("figs/ablation_k.svg")).unwrap();
+    let texts = svg_texts(&svg);
+    let tick = |k: &str| {
+        texts
+            .iter()
+            .find(|t| t.1 == k)
+            .unwrap_or_else(|| panic!("no tick {k}"))
+            .0
+    };
+    let (x1, x2, x3) = (tick("1"), tick("2"), tick("3"));
+    let ratio = (x2 - x1) / (x3 - x1);
+    assert!((ratio - 2f64.ln() / 3f64.ln()).abs() < 0.01, "{x1} {x2} {x3}");
+    // The chart's circles (the legend's are below y = 500), left panel (x < 600).
+    let xs: Vec<f64> = svg
+        .lines()
+        .filter(|l| l.starts_with("<circle") && svg_attr(l, "fill").as_deref() == Some("#1F77B4"))
+        .filter(|l| svg_attr(l, "cy").unwrap().parse::<f64>().unwrap() < 500.0)
+        .map(|l| svg_attr(l, "cx").unwrap().parse().unwrap())
+        .filter(|&x: &f64| x < 600.0)
+        .collect();
+    assert_eq!(xs.len(), 3, "{xs:?}");
+    for (x, k) in xs.iter().zip([x1, x2, x3]) {
+        assert!((x - k).abs() <= 1.0, "a point at {x}, its k at {k}");
+    }
+}
+
+#[test]
+fn scores_figure_shows_right_and_wrong_and_each_threshold() {
+    // Full segments d0..d3 (single): best matches 0.7 T, 0.6 F, 0.5 F, 0.9 F, in 40
+    // bins of 0.5..0.9 (0.01 wide): one right bar, three wrong ones (bins 0, 10, 39).
+    // Legend, 3 decimals (the axis's 1 plus 2): Schubert's segment thresholds 1.808 and
+    // 1.406, lower median 1.406; the oracle's 0.7 (segment 0: 0.7 T then 0.6 F at tau
+    // 0.5) and reject-all (segment 1 has no positive), lower median 0.7.
+    let case = Case::new();
+    let dir = case.path("figs");
+    case.ok(&["--plot", dir.to_str().unwrap()]);
+    let svg = std::fs::read_to_string(dir.join("scores.svg")).unwrap();
+    let bars = |fill: &str| {
+        svg.lines()
+            .filter(|l| l.starts_with("<rect") && svg_attr(l, "fill").as_deref() == Some(fill))
+            .filter(|l| svg_attr(l, "opacity").as_deref() == Some("0.85"))
+            .count()
+    };
+    assert_eq!((bars("#4DAF4A"), bars("#E41A1C")), (1, 3), "{svg}");
+    let texts: Vec<String> = svg_texts(&svg).into_iter().map(|t| t.1).collect();
+    for want in [
+        "schubert: 1.406 (median of its 2 segments)",
+        "oracle: 0.700 (median of its 2 segments)",
+        "margin: no score threshold (the gate alone)",
+        "right best matches (up)",
+    ] {
+        assert!(texts.iter().any(|t| t == want), "no {want:?} in {texts:?}");
+    }
+    // Segments of one: the oracle's thresholds are 0.7 (d0), then reject-all (d1's
+    // best match is wrong; d2, d3 and d4 have no positive): median reject-all, no line.
+    case.ok(&[
+        "--plot",
+        dir.to_str().unwrap(),
+        "--segment-size",
+        "1",
+        "--method",
+        "oracle",
+    ]);
+    let svg = std::fs::read_to_string(dir.join("scores.svg")).unwrap();
+    assert!(
+        svg.contains("oracle: reject-all in most of its 5 segments (not drawn)"),
+        "{svg}"
+    );
+    // No dashed black line: the only black polylines are the axes and the zero line.
+    let black = svg
+        .lines()
+        .filter(|l| l.starts_with("<polyline") && svg_attr(l, "stroke").as_deref() == Some("#000000"))
+        .filter(|l| svg_attr(l, "stroke-width").as_deref() == Some("2"))
+        .count();
+    assert_eq!(black, 0, "{svg}");
+    // Multi matching: every candidate, named as such.
+    case.ok(&["--plot", dir.to_str().unwrap(), "--matching", "multi"]);
+    let svg = std::fs::read_to_string(dir.join("scores.svg")).unwrap();
+    assert!(svg.contains("right candidates (up)"), "{svg}");
 }

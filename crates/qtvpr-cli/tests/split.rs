@@ -42,25 +42,78 @@ fn calibrate_and_stream_split_one_traverse_as_threshold_does() {
     one_traverse(d);
     // The first 11 queries (--cal-queries 11, or floor(0.1 x 111) = 11) are the
     // calibration traverse cal_S.npy: the same calibration as from the two files.
-    ok_in(d, &["calibrate", "--cal", "cal_S.npy", "--cal-gt", "cal_GT.npy", "--window", "28", "-o", "two.npz"]);
+    ok_in(
+        d,
+        &[
+            "calibrate",
+            "--cal",
+            "cal_S.npy",
+            "--cal-gt",
+            "cal_GT.npy",
+            "--window",
+            "28",
+            "-o",
+            "two.npz",
+        ],
+    );
     for (flag, value) in [("--cal-queries", "11"), ("--cal-fraction", "0.1")] {
         ok_in(
             d,
-            &["calibrate", "--similarity", "S.npy", "--cal-gt", "GT.npy", flag, value, "--window", "28", "-o", "one.npz"],
+            &[
+                "calibrate",
+                "--similarity",
+                "S.npy",
+                "--cal-gt",
+                "GT.npy",
+                flag,
+                value,
+                "--window",
+                "28",
+                "-o",
+                "one.npz",
+            ],
         );
-        let (one, two) = (std::fs::read(d.join("one.npz")).unwrap(), std::fs::read(d.join("two.npz")).unwrap());
+        let (one, two) = (
+            std::fs::read(d.join("one.npz")).unwrap(),
+            std::fs::read(d.join("two.npz")).unwrap(),
+        );
         assert!(one == two, "{flag}: the calibration files differ");
         // stream skips the 11 calibration columns of the one traverse: its lines are
         // those of the 100 deployment queries streamed alone, from query 0.
         let alone = ok_in(d, &["stream", "--calibration", "two.npz", "--val", "deploy_S.npy"]);
-        let skipped = ok_in(d, &["stream", "--calibration", "one.npz", "--val", "S.npy", flag, value]);
+        let skipped = ok_in(
+            d,
+            &["stream", "--calibration", "one.npz", "--val", "S.npy", flag, value],
+        );
         assert_eq!(skipped.lines().count(), 100);
         assert!(skipped.starts_with("{\"query\":0,"), "{skipped}");
         assert_eq!(skipped, alone, "{flag}");
     }
     // threshold splits the same way: its thresholds are those of the two files.
-    let split = ok_in(d, &["threshold", "--similarity", "S.npy", "--cal-gt", "GT.npy", "--cal-queries", "11"]);
-    let two = ok_in(d, &["threshold", "--cal", "cal_S.npy", "--cal-gt", "cal_GT.npy", "--val", "deploy_S.npy"]);
+    let split = ok_in(
+        d,
+        &[
+            "threshold",
+            "--similarity",
+            "S.npy",
+            "--cal-gt",
+            "GT.npy",
+            "--cal-queries",
+            "11",
+        ],
+    );
+    let two = ok_in(
+        d,
+        &[
+            "threshold",
+            "--cal",
+            "cal_S.npy",
+            "--cal-gt",
+            "cal_GT.npy",
+            "--val",
+            "deploy_S.npy",
+        ],
+    );
     let segments = |text: &str| serde_json::from_str::<serde_json::Value>(text).unwrap()["segments"].clone();
     assert_eq!(segments(&split), segments(&two));
 }
@@ -70,7 +123,20 @@ fn the_split_is_refused_alike_in_every_command() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     one_traverse(d);
-    ok_in(d, &["calibrate", "--cal", "cal_S.npy", "--cal-gt", "cal_GT.npy", "--window", "28", "-o", "cal.npz"]);
+    ok_in(
+        d,
+        &[
+            "calibrate",
+            "--cal",
+            "cal_S.npy",
+            "--cal-gt",
+            "cal_GT.npy",
+            "--window",
+            "28",
+            "-o",
+            "cal.npz",
+        ],
+    );
     let commands: [&[&str]; 3] = [
         &["threshold", "--similarity", "S.npy", "--cal-gt", "GT.npy", "-o", "out"],
         &["calibrate", "--similarity", "S.npy", "--cal-gt", "GT.npy", "-o", "out"],
@@ -80,7 +146,12 @@ fn the_split_is_refused_alike_in_every_command() {
     for command in commands {
         let run = |extra: &[&str]| run_in(d, &[command, extra].concat());
         // Checked before any file is read: the same words, naming the option.
-        assert_clean_failure(&run(&["--cal-queries", "0"]), d, &[&out], &["error: --cal-queries: cal queries must be >= 1, got 0"]);
+        assert_clean_failure(
+            &run(&["--cal-queries", "0"]),
+            d,
+            &[&out],
+            &["error: --cal-queries: cal queries must be >= 1, got 0"],
+        );
         assert_clean_failure(
             &run(&["--cal-fraction", "1.5"]),
             d,
@@ -92,26 +163,66 @@ fn the_split_is_refused_alike_in_every_command() {
             &run(&["--cal-queries", "111"]),
             d,
             &[&out],
-            &["--cal-queries of --", " S.npy: the calibration set must have between 1 and 110 of the 111 queries, got 111"],
+            &[
+                "--cal-queries of --",
+                " S.npy: the calibration set must have between 1 and 110 of the 111 queries, got 111",
+            ],
         );
         // Both at once: clap's usage error (exit 2).
         let both = run(&["--cal-queries", "11", "--cal-fraction", "0.1"]);
         assert_eq!(both.status.code(), Some(2));
-        assert!(String::from_utf8_lossy(&both.stderr).contains("cannot be used with"), "{command:?}");
+        assert!(
+            String::from_utf8_lossy(&both.stderr).contains("cannot be used with"),
+            "{command:?}"
+        );
     }
     // stream: a split that skips other columns than the calibration's 11.
     assert_clean_failure(
-        &run_in(d, &["stream", "--calibration", "cal.npz", "--val", "S.npy", "--cal-queries", "10", "-o", "out"]),
+        &run_in(
+            d,
+            &[
+                "stream",
+                "--calibration",
+                "cal.npz",
+                "--val",
+                "S.npy",
+                "--cal-queries",
+                "10",
+                "-o",
+                "out",
+            ],
+        ),
         d,
         &[&out],
-        &["error: --cal-queries of --val S.npy / --calibration cal.npz: the split makes the first 10 queries the \
-           calibration queries, but the calibration holds 11: skip the queries it was calibrated on"],
+        &[
+            "error: --cal-queries of --val S.npy / --calibration cal.npz: the split makes the first 10 queries the \
+           calibration queries, but the calibration holds 11: skip the queries it was calibrated on",
+        ],
     );
     // calibrate: --similarity needs the split; --cal is a calibration traverse already.
-    let no_split = run_in(d, &["calibrate", "--similarity", "S.npy", "--cal-gt", "GT.npy", "-o", "out"]);
+    let no_split = run_in(
+        d,
+        &["calibrate", "--similarity", "S.npy", "--cal-gt", "GT.npy", "-o", "out"],
+    );
     assert_eq!(no_split.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&no_split.stderr).contains("--cal-queries <N>"), "{no_split:?}");
-    let cal_split = run_in(d, &["calibrate", "--cal", "cal_S.npy", "--cal-gt", "cal_GT.npy", "--cal-queries", "5", "-o", "out"]);
+    assert!(
+        String::from_utf8_lossy(&no_split.stderr).contains("--cal-queries <N>"),
+        "{no_split:?}"
+    );
+    let cal_split = run_in(
+        d,
+        &[
+            "calibrate",
+            "--cal",
+            "cal_S.npy",
+            "--cal-gt",
+            "cal_GT.npy",
+            "--cal-queries",
+            "5",
+            "-o",
+            "out",
+        ],
+    );
     assert_eq!(cal_split.status.code(), Some(2));
     assert!(!out.exists());
 }
@@ -122,7 +233,9 @@ fn the_split_options_are_explained_once() {
     let help = |command: &str| -> String {
         let out = run_in(Path::new("."), &[command, "--help"]);
         let text = String::from_utf8(out.stdout).unwrap();
-        let start = text.find("      --cal-queries <N>").unwrap_or_else(|| panic!("{command}: no --cal-queries"));
+        let start = text
+            .find("      --cal-queries <N>")
+            .unwrap_or_else(|| panic!("{command}: no --cal-queries"));
         let end = start + text[start..].find("      --cal-fraction <F>").unwrap();
         let end = end + text[end..].find("\n\n").unwrap();
         text[start..end].to_string()

@@ -105,7 +105,7 @@ pub use input::{GroundTruth, Label, LabelRecord, Score, Truth};
 pub use operations::calibration::Calibration;
 pub use operations::evaluate::{
     ABLATION_DEPLOY_FRACTION, Ablation, DEFAULT_CAL_FRACTION, DEFAULT_SEGMENT_FRACTION, Evaluation, Layout, Method,
-    MethodResult, PrPoint, Protocol, SegmentResult, Split, ablation, evaluate,
+    MethodResult, PrPoint, Protocol, SCORE_HISTOGRAM_BINS, ScoreHistogram, SegmentResult, Split, ablation, evaluate,
 };
 pub use operations::online::{Decision, Online};
 pub use operations::source::ScoreSource;
