@@ -281,6 +281,10 @@ def _cal():
     return qtvpr.Calibration(S_CAL, GT_CAL)
 
 
+def _evaluate_with(function, name, value):
+    return getattr(qtvpr, function)(S_CAL, GT_CAL, **{name: value})
+
+
 def _labels_with(name, value):
     return qtvpr.ground_truth_from_sequence(np.eye(20), **{name: value})
 
@@ -305,7 +309,7 @@ FLOAT_CALLS = {
     ("counts", "threshold"): lambda v: qtvpr.counts(S_CAL, GT_CAL, v),
     ("ground_truth_positions", "radius"): lambda v: qtvpr.ground_truth_positions(
         np.zeros((2, 2)), np.zeros((3, 2)), v),
-    **{(f, name): (lambda f, name: lambda v: getattr(qtvpr, f)(S_CAL, GT_CAL, **{name: v}))(f, name)
+    **{(f, name): functools.partial(_evaluate_with, f, name)
        for f in ("evaluate", "ablation")
        for name in ("precision", "cal_fraction", "segment_fraction", "deploy_fraction")},
     **{("ground_truth_from_sequence", name): functools.partial(_labels_with, name)

@@ -325,7 +325,8 @@ def test_cli_json_and_python_dict_have_the_same_keys(cli, shared_data, flags, kw
 def test_cli_ablation_json_and_python_dict_have_the_same_keys(cli, shared_data):
     d = shared_data / "vprbench-corridor"
     s, gt = d / "S_NetVLAD.npy", d / "GT.npy"
-    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--gt", gt, "--k", "1,3", "--cal-fraction", "0.05,0.2")
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--gt", gt,
+                  "--k", "1,3", "--cal-fraction", "0.05,0.2")
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     got = qtvpr.ablation(str(s), str(gt), k=[1, 3], cal_fraction=[0.05, 0.2])

@@ -164,8 +164,9 @@ def test_cli_errors_name_the_list_and_the_line(cli, tmp_path):
     assert res.returncode == 2
     assert "bad.txt line 3: image name 'q/img_0003.jpg' has fewer than two '@'" in res.stderr
     assert not (tmp_path / "gt.npy").exists()
-    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", tmp_path / "s.npy", "--db-images", tmp_path / "queries",
-                  "--query-images", tmp_path / "queries", "--cal-queries", 1, "--segment-size", 1)
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", tmp_path / "s.npy",
+                  "--db-images", tmp_path / "queries", "--query-images", tmp_path / "queries",
+                  "--cal-queries", 1, "--segment-size", 1)
     assert res.returncode == 2
     assert res.stderr.count("\n") == 1
     assert "lists 2 images but the similarity matrix has 3 database images" in res.stderr
