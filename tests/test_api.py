@@ -28,6 +28,8 @@ def test_public_names():
         # extensions
         + ["Descriptors", "cosine_similarity", "ground_truth_positions", "ground_truth_tolerance", "image_paths",
            "sequence_match", "utm_positions"]
+        # self-motion labels (semantics §16)
+        + ["SelfMotionLabels", "ground_truth_from_sequence"]
         # the thread pool (no reference counterpart)
         + ["set_threads"]
     )
@@ -36,7 +38,9 @@ def test_public_names():
     assert isinstance(qtvpr.__version__, str) and qtvpr.__version__
 
 
-@pytest.mark.parametrize("name", ["quantile_transfer", "best_threshold", "counts", "evaluate", "ablation"])
+@pytest.mark.parametrize(
+    "name", ["quantile_transfer", "best_threshold", "counts", "evaluate", "ablation", "ground_truth_from_sequence"]
+)
 def test_signatures_match_reference(name):
     assert inspect.signature(getattr(qtvpr, name)) == inspect.signature(getattr(ref, name)).replace(
         return_annotation=inspect.Signature.empty
@@ -127,15 +131,17 @@ def test_counts_types():
     c = qtvpr.counts(S_CAL, GT_CAL, 0.5)
     want = ref.counts(S_CAL, GT_CAL, 0.5)
     # The keys of an evaluate segment, in its order (qtvpr::report).
-    assert list(c) == list(want) == ["tp", "fp", "positives", "precision", "recall", "precision_lower95"]
+    assert list(c) == list(want) == ["tp", "fp", "accepted", "positives", "precision", "recall", "precision_lower95"]
     # The best matches 0.9, 0.8, 0.7 are all correct and >= 0.5: TP 3 of 3 positives, and
     # the lower bound of 3 correct of 3 is 0.05 ** (1 / 3).
     assert [c[k] for k in ("tp", "fp", "positives", "precision", "recall")] == [3, 0, 3, 1.0, 1.0]
     assert [type(c[k]) for k in ("tp", "fp", "positives", "precision", "recall")] == [int, int, int, float, float]
     assert c["precision_lower95"] == pytest.approx(0.05 ** (1 / 3), abs=1e-12)
     assert want["precision_lower95"] == pytest.approx(0.05 ** (1 / 3), abs=1e-12)
+    # Nothing accepted: the precision rests on no decision, so it is undefined (None).
     nothing = qtvpr.counts(S_CAL, GT_CAL, np.inf)
-    assert (nothing["tp"], nothing["precision"], nothing["precision_lower95"]) == (0, 1.0, None)
+    assert (nothing["tp"], nothing["accepted"], nothing["precision"], nothing["precision_lower95"]) == (
+        0, 0, None, None)
 
 
 def test_read_only_shared_and_byte_swapped_inputs():

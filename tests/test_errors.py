@@ -8,7 +8,10 @@ on which exception each case raises; the wheel-only tests cover its extra entry 
 
 from __future__ import annotations
 
+import ast
+import functools
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -250,6 +253,92 @@ def test_a_bool_is_not_an_integer_argument(name, value, call):
     with pytest.raises(TypeError) as info:
         call(qtvpr.Calibration(S_CAL, GT_CAL))
     assert str(info.value) == f"{name} must be an int, got a bool ({value})"
+
+
+def _float_arguments() -> set[tuple[str, str]]:
+    """Every (callable, argument) of the stubs typed as a float (``float``, ``float |
+    None``, a sequence of floats), so that a float argument added to the binding is
+    checked below, or this test fails until it is."""
+    tree = ast.parse((Path(qtvpr.__file__).parent / "_native.pyi").read_text())
+    found = set()
+
+    def walk(nodes, prefix=""):
+        for node in nodes:
+            if isinstance(node, ast.ClassDef):
+                walk(node.body, f"{prefix}{node.name}.")
+            elif isinstance(node, ast.FunctionDef):
+                a = node.args
+                for arg in a.posonlyargs + a.args + a.kwonlyargs:
+                    kind = ast.unparse(arg.annotation) if arg.annotation is not None else ""
+                    if "float" in kind and "NDArray" not in kind:
+                        found.add((prefix + node.name, arg.arg))
+
+    walk(tree.body)
+    return found
+
+
+def _cal():
+    return qtvpr.Calibration(S_CAL, GT_CAL)
+
+
+def _evaluate_with(function, name, value):
+    return getattr(qtvpr, function)(S_CAL, GT_CAL, **{name: value})
+
+
+def _labels_with(name, value):
+    return qtvpr.ground_truth_from_sequence(np.eye(20), **{name: value})
+
+
+#: A call of each float argument with ``value``, the others valid.
+FLOAT_CALLS = {
+    ("TransferResult._from_parts", "gate"): lambda v: qtvpr.TransferResult._from_parts(
+        *(np.zeros(0),) * 2, [], *(np.zeros(0),) * 3, np.zeros((0, 1), dtype=np.int64), gate=v),
+    ("Calibration.__new__", "cal_fraction"): lambda v: qtvpr.Calibration(
+        np.hstack([S_CAL, S_CAL]), np.hstack([GT_CAL, GT_CAL]), cal_fraction=v),
+    ("Calibration.transfer", "precision"): lambda v: _cal().transfer(S_VAL, precision=v),
+    ("Calibration._check_transfer", "precision"): lambda v: _cal()._check_transfer(S_VAL.shape, precision=v),
+    ("Calibration._transfer_at", "precision"): lambda v: _cal()._transfer_at(S_VAL, 0, precision=v),
+    ("Calibration.threshold", "precision"): lambda v: _cal().threshold(precision=v),
+    ("Calibration.gate", "precision"): lambda v: _cal().gate(precision=v),
+    ("Calibration.save", "precision"): lambda v: _cal().save("never-written.npz", precision=v),
+    ("Online.__new__", "precision"): lambda v: qtvpr.Online(_cal(), window=2, precision=v),
+    ("quantile_transfer", "precision"): lambda v: qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, precision=v),
+    ("quantile_transfer", "cal_fraction"): lambda v: qtvpr.quantile_transfer(
+        np.hstack([S_CAL, S_CAL]), np.hstack([GT_CAL, GT_CAL]), cal_fraction=v),
+    ("best_threshold", "precision"): lambda v: qtvpr.best_threshold(S_CAL, GT_CAL, precision=v),
+    ("counts", "threshold"): lambda v: qtvpr.counts(S_CAL, GT_CAL, v),
+    ("ground_truth_positions", "radius"): lambda v: qtvpr.ground_truth_positions(
+        np.zeros((2, 2)), np.zeros((3, 2)), v),
+    **{(f, name): functools.partial(_evaluate_with, f, name)
+       for f in ("evaluate", "ablation")
+       for name in ("precision", "cal_fraction", "segment_fraction", "deploy_fraction")},
+    **{("ground_truth_from_sequence", name): functools.partial(_labels_with, name)
+       for name in ("positive_level", "negative_level", "sequence_speed", "sequence_tolerance", "sequence_drift")},
+}
+
+
+def test_every_float_argument_is_checked_here():
+    assert _float_arguments() == set(FLOAT_CALLS)
+
+
+@pytest.mark.parametrize("value", [True, False])
+@pytest.mark.parametrize(("function", "name"), sorted(FLOAT_CALLS))
+def test_a_bool_is_not_a_float_argument(function, name, value):
+    """Issue 49: pyo3 converts a bool to a float, so ``precision=True`` ran at 1.0. Every
+    float argument refuses a bool with a ``TypeError`` naming it, as an integer one does,
+    before anything is computed or written."""
+    with pytest.raises(TypeError) as info:
+        FLOAT_CALLS[(function, name)](value)
+    assert str(info.value) == f"{name} must be a float, got a bool ({value})"
+    assert not Path("never-written.npz").exists()
+
+
+def test_a_bool_in_a_list_of_floats_is_refused_too():
+    with pytest.raises(TypeError, match=r"^cal_fraction must be a float, got a bool \(True\)$"):
+        qtvpr.ablation(S_CAL, GT_CAL, cal_fraction=[0.5, True])
+    # A float argument still takes an int or a NumPy scalar.
+    assert qtvpr.best_threshold(S_CAL, GT_CAL, precision=1) == qtvpr.best_threshold(
+        S_CAL, GT_CAL, precision=np.float32(1.0))
 
 
 def test_more_threads_than_the_cap_are_refused():

@@ -25,11 +25,11 @@ from qtvpr import reference as ref
 from shared_data import TECHNIQUES, vprbench
 from test_cli import run_cli
 
-SEGMENT_KEYS = ["start", "end", "threshold", "oracle_threshold", "tp", "fp", "positives",
+SEGMENT_KEYS = ["start", "end", "threshold", "oracle_threshold", "tp", "fp", "accepted", "positives",
                 "precision", "recall", "precision_lower95", "meets"]
 METHOD_KEYS = ["pct_segs", "avg_recall", "segments_counted", "segments_skipped", "threshold_mse",
-               "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
-               "pooled_precision_lower95", "segments"]
+               "pooled_tp", "pooled_fp", "pooled_accepted", "pooled_positives", "pooled_precision",
+               "pooled_recall", "pooled_precision_lower95", "segments"]
 RUN_KEYS = ["params", "recall_at_1", "methods"]
 #: The methods of a gate alone, whose threshold is -inf (null in JSON, as reject-all's
 #: inf is).
@@ -98,7 +98,8 @@ def assert_same_run(got: dict, want: dict) -> None:
     for name, w in want["methods"].items():
         g = got["methods"][name]
         assert list(g) == METHOD_KEYS, name
-        for key in ("segments_counted", "segments_skipped", "pooled_tp", "pooled_fp", "pooled_positives"):
+        for key in ("segments_counted", "segments_skipped", "pooled_tp", "pooled_fp", "pooled_accepted",
+                    "pooled_positives"):
             assert g[key] == w[key], (name, key, g[key], w[key])
         for key in ("pct_segs", "avg_recall", "threshold_mse", "pooled_precision", "pooled_recall",
                     "pooled_precision_lower95"):
@@ -110,12 +111,13 @@ def assert_same_run(got: dict, want: dict) -> None:
                 ["consistency_level"] if name in ref.SEQUENCE_GATED else [])
             keys = SEGMENT_KEYS[:4] + levels + SEGMENT_KEYS[4:]
             assert list(gs) == keys, name
-            for key in ("start", "end", "tp", "fp", "positives", "meets"):
+            for key in ("start", "end", "tp", "fp", "accepted", "positives", "meets"):
                 assert gs[key] == ws[key], (name, key, gs, ws)
-            for key in ("threshold", "oracle_threshold", "precision", "recall"):
+            for key in ("threshold", "oracle_threshold", "recall"):
                 a, b = gs[key], ws[key]
                 assert (math.isinf(a) and a == b) or abs(a - b) <= 1e-9, (name, key, gs, ws)
-            assert same_figure(gs["precision_lower95"], ws["precision_lower95"]), (name, gs, ws)
+            for key in ("precision", "precision_lower95"):  # None where nothing is accepted
+                assert same_figure(gs[key], ws[key]), (name, key, gs, ws)
 
 
 def same_layout(got: dict, want: dict) -> bool:
@@ -254,7 +256,7 @@ def test_cli_json_equals_reference(cli, shared_data, dataset, technique, matchin
     d = shared_data / dataset
     # Every method the reference knows that applies (the CLI's `all` may know more).
     methods = [m for m in ref.METHODS if matching == "single" or m not in ref.GATED]
-    res = run_cli(cli, "evaluate", "--similarity", d / f"S_{technique}.npy", "--gt", d / "GT.npy",
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", d / f"S_{technique}.npy", "--gt", d / "GT.npy",
                   "--matching", matching, "--precision", precision, "--method", ",".join(methods))
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
@@ -269,7 +271,7 @@ def test_cli_query_major_soft_ground_truth_and_protocol_options(cli, shared_data
     soft = soft_of(gt)
     for name, a in {"S": s.T, "GT": gt.T, "soft": soft.T}.items():
         np.save(tmp_path / f"{name}.npy", a)
-    res = run_cli(cli, "evaluate", "--query-major", "--similarity", tmp_path / "S.npy",
+    res = run_cli(cli, "evaluate", "--format", "json", "--query-major", "--similarity", tmp_path / "S.npy",
                   "--gt", tmp_path / "GT.npy", "--gt-soft", tmp_path / "soft.npy",
                   "--cal-queries", 30, "--segment-size", 5, "--k", 3,
                   "--method", "quantile-transfer,oracle,schubert-calibrated")
@@ -281,7 +283,7 @@ def test_cli_query_major_soft_ground_truth_and_protocol_options(cli, shared_data
 
 def test_cli_ablation_rows_equal_reference(cli, shared_data):
     d = shared_data / "vprbench-corridor"
-    res = run_cli(cli, "evaluate", "--similarity", d / "S_HOG.npy", "--gt", d / "GT.npy",
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", d / "S_HOG.npy", "--gt", d / "GT.npy",
                   "--cal-fraction", "0.05,0.3", "--method", "quantile-transfer,calibration-threshold")
     assert res.returncode == 0, res.stderr
     runs = json.loads(res.stdout)["ablation"]
@@ -311,7 +313,7 @@ def test_cli_ablation_rows_equal_reference(cli, shared_data):
 def test_cli_json_and_python_dict_have_the_same_keys(cli, shared_data, flags, kwargs):
     d = shared_data / "vprbench-corridor"
     s, gt = d / "S_CoHOG.npy", d / "GT.npy"
-    res = run_cli(cli, "evaluate", "--similarity", s, "--gt", gt, *flags)
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--gt", gt, *flags)
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     # Paths in, so that even `dataset` is the same.
@@ -328,7 +330,8 @@ def test_cli_json_and_python_dict_have_the_same_keys(cli, shared_data, flags, kw
 def test_cli_ablation_json_and_python_dict_have_the_same_keys(cli, shared_data):
     d = shared_data / "vprbench-corridor"
     s, gt = d / "S_NetVLAD.npy", d / "GT.npy"
-    res = run_cli(cli, "evaluate", "--similarity", s, "--gt", gt, "--k", "1,3", "--cal-fraction", "0.05,0.2")
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--gt", gt,
+                  "--k", "1,3", "--cal-fraction", "0.05,0.2")
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     got = qtvpr.ablation(str(s), str(gt), k=[1, 3], cal_fraction=[0.05, 0.2])
@@ -547,5 +550,6 @@ def test_ablation_of_the_tiny_case_by_hand():
             assert r["recall_at_1"] is None
             o = r["methods"]["oracle"]
             assert (o["segments_counted"], o["segments_skipped"], o["pct_segs"]) == (0, 3, None)
-            # Reject-all everywhere: nothing accepted, no precision bound.
-            assert (o["pooled_tp"], o["pooled_fp"], o["pooled_precision_lower95"]) == (0, 0, None)
+            # Reject-all everywhere: nothing accepted, no precision, no bound.
+            assert (o["pooled_tp"], o["pooled_fp"], o["pooled_accepted"]) == (0, 0, 0)
+            assert (o["pooled_precision"], o["pooled_precision_lower95"]) == (None, None)

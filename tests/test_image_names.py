@@ -164,8 +164,9 @@ def test_cli_errors_name_the_list_and_the_line(cli, tmp_path):
     assert res.returncode == 2
     assert "bad.txt line 3: image name 'q/img_0003.jpg' has fewer than two '@'" in res.stderr
     assert not (tmp_path / "gt.npy").exists()
-    res = run_cli(cli, "evaluate", "--similarity", tmp_path / "s.npy", "--db-images", tmp_path / "queries",
-                  "--query-images", tmp_path / "queries", "--cal-queries", 1, "--segment-size", 1)
+    res = run_cli(cli, "evaluate", "--format", "json", "--similarity", tmp_path / "s.npy",
+                  "--db-images", tmp_path / "queries", "--query-images", tmp_path / "queries",
+                  "--cal-queries", 1, "--segment-size", 1)
     assert res.returncode == 2
     assert res.stderr.count("\n") == 1
     assert "lists 2 images but the similarity matrix has 3 database images" in res.stderr
@@ -200,10 +201,10 @@ def test_vpr_methods_evaluation_folder_to_the_evaluate_table(cli, shared_data, t
     s = tmp_path / "S.npy"
     assert run_cli(cli, "similarity", "--db", tmp_path / "database_descriptors.npy",
                    "--queries", tmp_path / "queries_descriptors.npy", "-o", s).returncode == 0
-    by_names = run_cli(cli, "evaluate", "--similarity", s, "--db-images", tmp_path / "database",
+    by_names = run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--db-images", tmp_path / "database",
                        "--query-images", tmp_path / "queries")
     assert by_names.returncode == 0, by_names.stderr
-    by_tolerance = run_cli(cli, "evaluate", "--similarity", s, "--gt-tolerance", 1)
+    by_tolerance = run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--gt-tolerance", 1)
     assert json.loads(by_names.stdout) == json.loads(by_tolerance.stdout)
     # The wheel on the same matrix and names gives the CLI's numbers.
     wheel = qtvpr.evaluate(np.load(s), gt)
@@ -217,7 +218,7 @@ def test_vpr_methods_evaluation_folder_to_the_evaluate_table(cli, shared_data, t
 # similarity followed by evaluate --similarity with the dataset's truth.
 def test_vpr_methods_evaluation_folder_in_one_command(cli, shared_data, tmp_path):
     nordland_folder(shared_data, tmp_path)
-    one = run_cli(cli, "evaluate", "--db-descriptors", tmp_path / "database_descriptors.npy",
+    one = run_cli(cli, "evaluate", "--format", "json", "--db-descriptors", tmp_path / "database_descriptors.npy",
                   "--query-descriptors", tmp_path / "queries_descriptors.npy",
                   "--db-images", tmp_path / "database", "--query-images", tmp_path / "queries")
     assert one.returncode == 0, one.stderr
@@ -225,12 +226,13 @@ def test_vpr_methods_evaluation_folder_in_one_command(cli, shared_data, tmp_path
     run_cli(cli, "similarity", "--db", tmp_path / "database_descriptors.npy",
             "--queries", tmp_path / "queries_descriptors.npy", "-o", s)
     got = json.loads(one.stdout)
-    want = json.loads(run_cli(cli, "evaluate", "--similarity", s, "--gt-tolerance", 1).stdout)
+    want = json.loads(run_cli(cli, "evaluate", "--format", "json", "--similarity", s, "--gt-tolerance", 1).stdout)
     # The dataset line names the inputs (the two descriptor files, or S.npy); all else agrees.
     assert got.pop("dataset").endswith("database_descriptors.npy x " + str(tmp_path / "queries_descriptors.npy"))
     want.pop("dataset")
     # Only the matrix has an orientation to report (ground truth made for it: no evidence).
-    assert want.pop("orientation") == {"db": 3576, "queries": 3576, "query_major": False}
+    assert want.pop("orientation") == {"db": 3576, "queries": 3576, "query_major": False,
+                                       "layout": "assumed (no ground truth was read in the matrix's layout to tell)"}
     assert got == want
 
 

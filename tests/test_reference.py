@@ -78,7 +78,7 @@ def test_single_first_argmax_on_ties():
     # column [0.5, 0.5], GT [F, T]: b = row 0 (first maximum), which is wrong
     s, gt = col(0.5, 0.5), gcol(F, T)
     assert counts(s, gt, 0.5) == {
-        "tp": 0, "fp": 1, "positives": 1, "precision": 0.0, "recall": 0.0, "precision_lower95": 0.0
+        "tp": 0, "fp": 1, "accepted": 1, "positives": 1, "precision": 0.0, "recall": 0.0, "precision_lower95": 0.0
     }
     assert best_threshold(s, gt) == math.inf
 
@@ -98,7 +98,7 @@ def test_single_soft_only_best_match_makes_no_decision():
     c = counts(SINGLE_S, SINGLE_GT, 0.8, gt_soft=SINGLE_SOFT)
     # Beta(1, 1) is uniform: its 0.05 quantile is 0.05.
     assert c == {
-        "tp": 1, "fp": 0, "positives": 3, "precision": 1.0, "recall": 1 / 3,
+        "tp": 1, "fp": 0, "accepted": 1, "positives": 3, "precision": 1.0, "recall": 1 / 3,
         "precision_lower95": pytest.approx(0.05, abs=1e-12),
     }
     # at 0.5: 0.8 T and 0.7 F accepted -> precision 1/2
@@ -106,9 +106,10 @@ def test_single_soft_only_best_match_makes_no_decision():
     assert (c["tp"], c["fp"], c["precision"]) == (1, 1, 0.5)
     # without soft GT, column 0 decides 0.9 wrongly: 0.9 F invalid, 0.8 (1,1) invalid -> inf
     assert best_threshold(SINGLE_S, SINGLE_GT) == math.inf
-    # nothing accepted: precision 1 by convention, recall 0
+    # nothing accepted: no precision (semantics §2), recall 0
     c = counts(SINGLE_S, SINGLE_GT, math.inf, gt_soft=SINGLE_SOFT)
-    assert c == {"tp": 0, "fp": 0, "positives": 3, "precision": 1.0, "recall": 0.0, "precision_lower95": None}
+    assert c == {"tp": 0, "fp": 0, "accepted": 0, "positives": 3, "precision": None, "recall": 0.0,
+                 "precision_lower95": None}
 
 
 def test_multi_with_ignored_entries():
@@ -124,7 +125,7 @@ def test_multi_with_ignored_entries():
     c = counts(s, gt, 0.6, gt_soft=soft, matching="multi")
     # Beta(2, 2): its CDF is 3x^2 - 2x^3, which is 0.05 at x = 0.13535036...
     assert c == {
-        "tp": 2, "fp": 1, "positives": 2, "precision": 2 / 3, "recall": 1.0,
+        "tp": 2, "fp": 1, "accepted": 3, "positives": 2, "precision": 2 / 3, "recall": 1.0,
         "precision_lower95": pytest.approx(0.1353503621715837, abs=1e-12),
     }
     # without soft GT, 0.9 F heads the sweep: 0.9 (0,1), 0.8 (1,1), ... never valid at tau 1
@@ -471,7 +472,9 @@ def test_evaluate_tiny_matrix_with_skipped_segment():
     # positives; one correct decision bounds the precision by 0.05^(1/1) = 0.05.
     assert (o["pooled_tp"], o["pooled_fp"], o["pooled_positives"], o["pooled_recall"]) == (1, 0, 2, 0.5)
     assert o["pooled_precision_lower95"] == pytest.approx(0.05, abs=1e-12)
-    assert o["segments"][1]["precision_lower95"] is None
+    assert o["pooled_accepted"] == 1
+    # Segment 1 accepts nothing: no precision, no bound, and it meets by convention.
+    assert (o["segments"][1]["precision"], o["segments"][1]["precision_lower95"]) == (None, None)
     seg0 = o["segments"][0]
     assert (seg0["threshold"], seg0["tp"], seg0["fp"], seg0["precision"], seg0["recall"], seg0["meets"]) == (
         0.7, 1, 0, 1.0, 0.5, True

@@ -48,13 +48,14 @@ from typing import TYPE_CHECKING, Any
 
 # The paper's functions, and extensions that meet users where their data is
 # (cosine_similarity, sequence_match, ground_truth_*, utm_positions, image_paths:
-# descriptors, positions, tolerance, image names).
+# descriptors, positions, tolerance, image names, and a traverse's own order).
 from qtvpr._native import (
     Calibration,
     Descriptors,
     Online,
     OnlineDecision,
     OnlineDecisions,
+    SelfMotionLabels,
     TransferResult,
     __version__,
     ablation,
@@ -62,6 +63,7 @@ from qtvpr._native import (
     cosine_similarity,
     counts,
     evaluate,
+    ground_truth_from_sequence,
     ground_truth_positions,
     ground_truth_tolerance,
     image_paths,
@@ -80,6 +82,7 @@ __all__ = [
     "Online",
     "OnlineDecision",
     "OnlineDecisions",
+    "SelfMotionLabels",
     "TransferResult",
     "__version__",
     "ablation",
@@ -91,6 +94,7 @@ __all__ = [
     "ranked_correlation",
     # Extensions
     "cosine_similarity",
+    "ground_truth_from_sequence",
     "ground_truth_positions",
     "ground_truth_tolerance",
     "image_paths",

@@ -22,6 +22,7 @@ __all__ = [
     "sequence_match",
     "ground_truth_tolerance",
     "ground_truth_positions",
+    "ground_truth_from_sequence",
     "utm_positions",
     "image_paths",
     "evaluate",
@@ -31,6 +32,7 @@ __all__ = [
     "Calibration",
     "Descriptors",
     "TransferResult",
+    "SelfMotionLabels",
     "Online",
     "OnlineDecision",
     "OnlineDecisions",
@@ -64,8 +66,9 @@ _Matrix = ArrayLike | str | os.PathLike[str]
 class _Counts(TypedDict):
     tp: int
     fp: int
+    accepted: int
     positives: int
-    precision: float
+    precision: float | None
     recall: float
     precision_lower95: float | None
 
@@ -78,8 +81,9 @@ class _Segment(TypedDict):
     consistency_level: NotRequired[float]
     tp: int
     fp: int
+    accepted: int
     positives: int
-    precision: float
+    precision: float | None
     recall: float
     precision_lower95: float | None
     meets: bool
@@ -92,8 +96,9 @@ class _MethodResult(TypedDict):
     threshold_mse: float | None
     pooled_tp: int
     pooled_fp: int
+    pooled_accepted: int
     pooled_positives: int
-    pooled_precision: float
+    pooled_precision: float | None
     pooled_recall: float
     pooled_precision_lower95: float | None
     segments: list[_Segment]
@@ -212,6 +217,44 @@ class TransferResult:
         query_consistencies: NDArray[np.float64] | None = None,
     ) -> TransferResult: ...
 
+class _LabelCounts(TypedDict):
+    positive: int
+    negative: int
+    abstain: int
+
+# How self-motion labels were made (semantics §16): a ground-truth .npz's member
+# `labels`, a calibration file's meta["labels"].
+class _LabelRecord(TypedDict):
+    labels: Literal["self-motion"]
+    neighbours: int
+    positive_level: float
+    negative_level: float
+    speed: float
+    tolerance: float
+    drift: float
+    queries: int
+    positive: int
+    negative: int
+    abstain: int
+
+@final
+class SelfMotionLabels:
+    @property
+    def hard(self) -> NDArray[np.bool_]: ...
+    @property
+    def soft(self) -> NDArray[np.bool_]: ...
+    @property
+    def labels(self) -> NDArray[np.str_]: ...
+    @property
+    def agreement(self) -> NDArray[np.float64]: ...
+    @property
+    def best(self) -> NDArray[np.int64]: ...
+    @property
+    def counts(self) -> _LabelCounts: ...
+    @property
+    def record(self) -> _LabelRecord: ...
+    def __len__(self) -> int: ...
+
 @final
 class Descriptors:
     def __new__(
@@ -235,7 +278,7 @@ class Calibration:
     def __new__(
         cls,
         s_cal: _Matrix | Descriptors,
-        gt_cal: _Matrix,
+        gt_cal: _Matrix | SelfMotionLabels,
         *,
         gt_soft: _Matrix | None = None,
         matching: _Matching = "single",
@@ -324,6 +367,8 @@ class Calibration:
     def db_size(self) -> int: ...
     @property
     def sequence(self) -> int: ...
+    @property
+    def labels(self) -> _LabelRecord | None: ...
 
 class _Defaults(TypedDict):
     k: int
@@ -521,6 +566,17 @@ def sequence_match(
     s: _Matrix, length: int, *, causal: bool = False
 ) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def ground_truth_tolerance(n_db: int, n_queries: int, tolerance: int) -> NDArray[np.bool_]: ...
+def ground_truth_from_sequence(
+    s_cal: _Matrix,
+    *,
+    neighbours: int | None = None,
+    positive_level: float | None = None,
+    negative_level: float | None = None,
+    sequence_speed: float | None = None,
+    sequence_tolerance: float | None = None,
+    sequence_drift: float | None = None,
+    query_major: bool = False,
+) -> SelfMotionLabels: ...
 def ground_truth_positions(
     db_positions: _Matrix,
     query_positions: _Matrix,

@@ -42,12 +42,14 @@ __all__ = [
     "Online",
     "OnlineDecision",
     "OnlineDecisions",
+    "SelfMotionLabels",
     "TransferResult",
     "ablation",
     "best_threshold",
     "confidence_blocks",
     "counts",
     "evaluate",
+    "ground_truth_from_sequence",
     "margins",
     "precision_lower95",
     "quantile_transfer",
@@ -238,11 +240,18 @@ def _count_at(scores: np.ndarray, correct: np.ndarray, positives: int, threshold
 
 
 def _counts_of(tp: int, fp: int, positives: int) -> dict:
-    """The counts dict, with precision 1 when nothing is accepted and recall 0 without
-    positives."""
-    precision = tp / (tp + fp) if tp + fp > 0 else 1.0
+    """The counts dict, with precision None when nothing is accepted (semantics §2: a
+    precision that rests on no decision is undefined) and recall 0 without positives."""
+    precision = tp / (tp + fp) if tp + fp > 0 else None
     recall = tp / positives if positives > 0 else 0.0
-    return {"tp": tp, "fp": fp, "positives": positives, "precision": precision, "recall": recall}
+    return {"tp": tp, "fp": fp, "accepted": tp + fp, "positives": positives, "precision": precision,
+            "recall": recall}
+
+
+def _meets(c: dict, tau: float) -> bool:
+    """Semantics §8.3: precision >= tau - 1e-12, or nothing accepted (the paper's
+    convention, precision taken as 1)."""
+    return c["accepted"] == 0 or c["precision"] >= tau - EPS
 
 
 def _binomial_upper_tail(n: int, a: int, x: float, log_comb: np.ndarray) -> float:
@@ -284,9 +293,9 @@ def precision_lower95(tp: int, fp: int) -> float | None:
 def counts(s, gt, threshold, *, gt_soft=None, matching="single", query_major=False) -> dict:
     """Counts of one matrix's decisions at ``threshold`` (semantics §2).
 
-    Returns ``dict(tp=, fp=, positives=, precision=, recall=, precision_lower95=)``, the
-    keys of a segment of ``evaluate``. Precision is 1 when nothing is accepted; recall is
-    0 when there are no positives. ``threshold`` may be ``inf`` (accepts nothing) but
+    Returns ``dict(tp=, fp=, accepted=, positives=, precision=, recall=,
+    precision_lower95=)``, the keys of a segment of ``evaluate``. Precision is None when
+    nothing is accepted; recall is 0 when there are no positives. ``threshold`` may be ``inf`` (accepts nothing) but
     not NaN.
     """
     matching = _check_matching(matching)
@@ -1026,6 +1035,169 @@ def _confidence_signals(s_cal, gt_cal, ign_cal, s_dep, gt_dep, ign_dep, consiste
 
 
 # ---------------------------------------------------------------------------------------
+# Section 16: self-motion labels (with section 15's agreement)
+# ---------------------------------------------------------------------------------------
+
+#: The rule a record of self-motion labels names (``{"labels": "self-motion", ...}``).
+SELF_MOTION = "self-motion"
+
+#: Section 16's defaults, and section 15's for the agreement.
+SELF_MOTION_DEFAULTS = {
+    "neighbours": 5,
+    "positive_level": 0.7,
+    "negative_level": 0.3,
+    "sequence_speed": 1.0,
+    "sequence_tolerance": 2.0,
+    "sequence_drift": 0.2,
+}
+
+#: Section 15's slack, which makes the agreement's bound inclusive.
+AGREEMENT_SLACK = 1e-9
+
+
+@dataclass
+class SelfMotionLabels:
+    """Output of :func:`ground_truth_from_sequence`.
+
+    Per calibration query: ``labels`` (``"positive"``, ``"negative"`` or ``"abstain"``),
+    ``agreement`` (f_q) and ``best`` (b_q). ``hard`` and ``soft``: the labels as ground
+    truth, in the caller's layout. ``counts``: ``{"positive", "negative", "abstain"}``;
+    ``record``: the rule, its parameters and the counts.
+    """
+
+    hard: np.ndarray
+    soft: np.ndarray
+    labels: np.ndarray
+    agreement: np.ndarray
+    best: np.ndarray
+    counts: dict
+    record: dict
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+
+def _agrees(b_q: int, b_other: int, d: int, speed: float, tolerance: float, drift: float) -> bool:
+    """Section 15: the best match of the query ``d`` steps from query q lies on q's line."""
+    return abs(b_other - (b_q + speed * d)) <= tolerance + drift * abs(d) + AGREEMENT_SLACK
+
+
+def _num(x: float) -> str:
+    """``x`` as the core prints a float: its shortest form, without a trailing ``.0``."""
+    text = repr(float(x))
+    return text[:-2] if text.endswith(".0") else text
+
+
+def _check_real(name: str, value, low: float | None = None) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    v = float(value)
+    if not math.isfinite(v) or (low is not None and v < low):
+        rule = "finite" if low is None else f"finite and >= {low:g}"
+        raise ValueError(f"{name} must be {rule}, got {value}")
+    return v
+
+
+def ground_truth_from_sequence(
+    s_cal,
+    *,
+    neighbours=None,
+    positive_level=None,
+    negative_level=None,
+    sequence_speed=None,
+    sequence_tolerance=None,
+    sequence_drift=None,
+    query_major=False,
+) -> SelfMotionLabels:
+    """Section 16: each calibration query's best match labelled from its neighbours on
+    the traverse. Each argument ``None`` is its default (``SELF_MOTION_DEFAULTS``)."""
+    given = {
+        "neighbours": neighbours,
+        "positive_level": positive_level,
+        "negative_level": negative_level,
+        "sequence_speed": sequence_speed,
+        "sequence_tolerance": sequence_tolerance,
+        "sequence_drift": sequence_drift,
+    }
+    p = {key: SELF_MOTION_DEFAULTS[key] if value is None else value for key, value in given.items()}
+    n = _check_positive_int("neighbours", p["neighbours"])
+    positive = _check_real("positive_level", p["positive_level"])
+    if not 0.0 < positive <= 1.0:
+        raise ValueError(f"positive_level must be in (0, 1], got {p['positive_level']}")
+    negative = _check_real("negative_level", p["negative_level"])
+    if not 0.0 <= negative < positive:
+        raise ValueError(
+            f"negative_level must be at least 0 and below the positive level ({positive}), got {negative}"
+        )
+    v = _check_real("sequence_speed", p["sequence_speed"])
+    a = _check_real("sequence_tolerance", p["sequence_tolerance"], 0.0)
+    b = _check_real("sequence_drift", p["sequence_drift"], 0.0)
+    s = _scores("s_cal", s_cal, query_major)
+    n_db, n_cal = s.shape
+    if n_cal < n + 1:
+        raise ValueError(
+            f"s_cal: self-motion labels need at least {n + 1} calibration queries in the order they were "
+            f"taken (each best match is judged by its {n} neighbours on each side), got {n_cal}"
+        )
+    # The widest tolerance, N steps away, must cover fewer rows than the database has.
+    widest = a + b * n
+    covered = 2 * math.floor(widest + AGREEMENT_SLACK) + 1
+    if covered >= n_db:
+        raise ValueError(
+            f"s_cal: self-motion labels cannot tell a line from chance with |DB| = {n_db}: its widest "
+            f"tolerance, +-{_num(widest)} rows {n} steps away (sequence tolerance {_num(a)} and drift "
+            f"{_num(b)}), covers {covered} rows; it needs |DB| >= {covered + 1}"
+        )
+    best = [int(np.argmax(s[:, q])) for q in range(n_cal)]  # the first maximum
+    labels, agreement = [], []
+    for q in range(n_cal):
+        around = [d for d in range(-n, n + 1) if d != 0 and 0 <= q + d < n_cal]
+        agreeing = sum(_agrees(best[q], best[q + d], d, v, a, b) for d in around)
+        f = agreeing / len(around)
+        agreement.append(f)
+        if f >= positive - EPS:
+            labels.append("positive")
+        elif f <= negative + EPS:
+            labels.append("negative")
+        else:
+            labels.append("abstain")
+    counts = {label: labels.count(label) for label in ("positive", "negative", "abstain")}
+    if counts["positive"] == 0:
+        raise ValueError(
+            f"s_cal: self-motion labels found no pseudo-positive: no calibration query's best match agrees "
+            f"with {_num(positive * 100)}% of its neighbours ({n_cal} queries: {counts['negative']} negative, "
+            f"{counts['abstain']} abstained); the calibration traverse does not follow the database's route "
+            "(it is not a sequence, runs backwards: sequence speed -1, or at another spacing: sequence "
+            "speed), or its matcher is rarely right"
+        )
+    hard = np.zeros((n_db, n_cal), dtype=bool)
+    soft = np.zeros((n_db, n_cal), dtype=bool)
+    for q, label in enumerate(labels):
+        hard[best[q], q] = label == "positive"
+        soft[best[q], q] = label != "negative"
+    record = {
+        "labels": SELF_MOTION,
+        "neighbours": n,
+        "positive_level": positive,
+        "negative_level": negative,
+        "speed": v,
+        "tolerance": a,
+        "drift": b,
+        "queries": n_cal,
+        **counts,
+    }
+    return SelfMotionLabels(
+        hard=hard.T if query_major else hard,
+        soft=soft.T if query_major else soft,
+        labels=np.array(labels),
+        agreement=np.array(agreement, dtype=np.float64),
+        best=np.array(best, dtype=np.int64),
+        counts=counts,
+        record=record,
+    )
+
+
+# ---------------------------------------------------------------------------------------
 # Section 7: baselines
 # ---------------------------------------------------------------------------------------
 
@@ -1281,7 +1453,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout, sequence=None) -> di
                 row["gate"] = m_star
             if name in SEQUENCE_GATED:
                 row["consistency_level"] = sequence["level"]
-            rows.append({**row, **_counts_with_bound(c), "meets": c["precision"] >= tau - EPS})
+            rows.append({**row, **_counts_with_bound(c), "meets": _meets(c, tau)})
         counted = [r for r in rows if r["positives"] > 0]
         if counted:
             pct_segs = 100.0 * sum(r["meets"] for r in counted) / len(counted)
@@ -1294,14 +1466,7 @@ def _run(s, gt, ignored, methods, k, tau, matching, layout, sequence=None) -> di
             if math.isfinite(r["threshold"]) and math.isfinite(r["oracle_threshold"])
         ]
         # Pooled over every full segment, skipped ones included.
-        tp, fp, positives = (sum(r[key] for r in rows) for key in ("tp", "fp", "positives"))
-        pooled = {
-            "tp": tp,
-            "fp": fp,
-            "positives": positives,
-            "precision": tp / (tp + fp) if tp + fp > 0 else 1.0,
-            "recall": tp / positives if positives > 0 else 0.0,
-        }
+        pooled = _counts_of(*(sum(r[key] for r in rows) for key in ("tp", "fp", "positives")))
         report[name] = {
             "pct_segs": pct_segs,
             "avg_recall": avg_recall,
@@ -1378,9 +1543,11 @@ def orientation(shape: tuple[int, int], gt: np.ndarray | None, query_major: bool
     view) and, with hard ground truth ``gt`` given in the matrix's orientation, what its
     positives say: ``"contradicts"`` when every database image has a positive and at
     least 5% of the queries (and one) have none, ``"consistent"`` the other way round,
-    else ``"cannot-tell"``."""
+    else ``"cannot-tell"``; and ``layout``, whether the layout read was confirmed by the
+    ground truth, assumed or contradicted, in words."""
     out = {"db": shape[0], "queries": shape[1], "query_major": bool(query_major)}
     if gt is None or gt.shape[0] != shape[0]:
+        out["layout"] = "assumed (no ground truth was read in the matrix's layout to tell)"
         return out
     n_db, n_q = gt.shape
     q_without = int((~gt.any(axis=0)).sum())
@@ -1395,6 +1562,17 @@ def orientation(shape: tuple[int, int], gt: np.ndarray | None, query_major: bool
         verdict = "consistent"
     else:
         verdict = "cannot-tell"
+    if verdict == "consistent":
+        out["layout"] = (f"confirmed by the ground truth (every query has a positive; database images without "
+                         f"one: {db_without} of {n_db})")
+    elif verdict == "contradicts":
+        out["layout"] = (f"contradicted by the ground truth (queries without a positive: {q_without} of {n_q}, "
+                         "while every database image has one)")
+    elif q_without == db_without == 0:
+        out["layout"] = "assumed (the ground truth cannot tell: every query and every database image has a positive)"
+    else:
+        out["layout"] = (f"assumed (the ground truth cannot tell: queries without a positive: {q_without} of {n_q}; "
+                         f"database images without one: {db_without} of {n_db})")
     out["evidence"] = {"labelled_queries": n_q, "queries_without_positive": q_without,
                        "db_without_positive": db_without, "verdict": verdict}
     return out
@@ -1438,15 +1616,16 @@ def evaluate(
     ``queries``, ``calibration_queries``, ``deployment_start``, ``deployment_queries``,
     ``segment_size``, ``segments``), ``recall_at_1`` of the full segments' queries, and
     ``methods``: ``{name: {"pct_segs", "avg_recall", "segments_counted",
-    "segments_skipped", "threshold_mse", "pooled_tp", "pooled_fp", "pooled_positives",
-    "pooled_precision", "pooled_recall", "pooled_precision_lower95", "segments":
+    "segments_skipped", "threshold_mse", "pooled_tp", "pooled_fp", "pooled_accepted",
+    "pooled_positives", "pooled_precision", "pooled_recall", "pooled_precision_lower95", "segments":
     [...]}}``; each segment reports ``start``, ``end`` (indices into the deployment set,
     end exclusive: deployment query i is column ``|Q| - |Qdeploy| + i`` of ``s``),
-    ``threshold``, ``oracle_threshold``, ``tp``, ``fp``, ``positives``, ``precision``,
+    ``threshold``, ``oracle_threshold``, ``tp``, ``fp``, ``accepted``, ``positives``, ``precision``,
     ``recall``, ``precision_lower95`` (:func:`precision_lower95`) and ``meets``.
     Segments without positives are skipped in the summary figures, which are None when
     no segment is counted; ``threshold_mse`` is None when no counted segment has both
-    thresholds finite. The pooled counts are summed over every full segment.
+    thresholds finite. The pooled counts are summed over every full segment; a precision
+    (a segment's or the pooled one) is None when nothing was accepted.
 
     The sequence methods (section 15) gate on each deployment query's consistency over
     the whole matrix, one traverse in column order, with the sequence gate of

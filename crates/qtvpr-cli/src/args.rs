@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use clap::Args;
 use qtvpr::npy::{FloatMatrix, MatrixFile, read_float_matrix};
-use qtvpr::{Descriptors, Input, Sequence, Split};
+use qtvpr::{Descriptors, Input, QuerySplit, Sequence, Split};
 
 /// Attach to a core error the options and files of the matrices it is about:
 /// `sources` maps the [`Input`]s a command reads from files to `--option FILE`, looked
@@ -69,19 +69,37 @@ impl From<MatchingArg> for qtvpr::Matching {
     }
 }
 
-/// `--cal-queries` / `--cal-fraction`: the first queries of one matrix or of the query
-/// descriptors calibrate (the rule of `evaluate`, [`Split::calibration_size`]).
+/// `--cal-queries` / `--cal-fraction`: the first queries of one recorded traverse (a
+/// similarity matrix or the query descriptors) are its calibration queries, by the rule
+/// of `evaluate` ([`Split::calibration_size`]), the core's [`QuerySplit`]. `threshold`
+/// and `calibrate` calibrate on them; `stream` skips them. One group, so that every
+/// command that reads a traverse spells, explains and checks the split alike.
 #[derive(Debug, Args)]
 #[group(id = "split", multiple = false)]
 pub struct SplitArgs {
-    /// The first N queries calibrate (of the query descriptors, or of `threshold
-    /// --similarity`).
+    /// The first N queries of the traverse (--similarity, --val of `stream`, or the
+    /// query descriptors) are its calibration queries: they calibrate, and only the
+    /// later ones are thresholded or decided (`stream` skips them).
     #[arg(long, value_name = "N")]
     cal_queries: Option<usize>,
-    /// The first floor(F x |Q|) queries calibrate, as `evaluate --cal-fraction` counts
-    /// them.
+    /// The first floor(F x |Q|) queries are the calibration queries (instead of
+    /// --cal-queries), as `evaluate --cal-fraction` counts them.
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     cal_fraction: Option<f64>,
+}
+
+/// The split of a similarity matrix's queries by `asked` (a split and the option that
+/// asked for it, [`SplitArgs::split`]): `shape` is the |DB| x |Q| view read (oriented by
+/// `query_major`), `input` its `--option FILE`, which an error names with the option.
+pub fn query_split(
+    (split, flag): (Split, &'static str),
+    shape: (usize, usize),
+    query_major: bool,
+    input: &str,
+) -> Result<QuerySplit> {
+    QuerySplit::new(split, shape)
+        .map_err(|e| oriented(e, query_major))
+        .with_context(|| format!("{flag} of {input}"))
 }
 
 impl SplitArgs {

@@ -14,14 +14,25 @@ use qtvpr::npy::read_scores;
 
 /// Arguments of `calibrate`.
 #[derive(Debug, Args)]
-#[command(group(clap::ArgGroup::new("cal-input").args(["cal", "db_descriptors"]).required(true).multiple(false)))]
+#[command(group(
+    clap::ArgGroup::new("cal-input")
+        .args(["cal", "similarity", "db_descriptors"])
+        .required(true)
+        .multiple(false)
+))]
 pub struct CalibrateArgs {
     /// Calibration similarity matrix (.npy, float32/float64), |DB| x |Qcal|.
     #[arg(long, value_name = "S_cal.npy", conflicts_with = "split")]
     cal: Option<PathBuf>,
+    /// One recorded traverse's similarity matrix (.npy), |DB| x |Q|, in place of --cal:
+    /// its first queries (--cal-queries or --cal-fraction) calibrate, as `threshold
+    /// --similarity` splits it; `stream --val S.npy` with the same split then decides
+    /// the rest.
+    #[arg(long, value_name = "S.npy", requires = "split")]
+    similarity: Option<PathBuf>,
     /// Calibration ground truth: --cal-gt, --cal-gt-tolerance or --cal-gt-db-positions.
-    /// With descriptors it labels every query descriptor (|DB| x |Q|); only the
-    /// calibration queries' columns are used.
+    /// With --similarity or descriptors it labels every query (|DB| x |Q|, as
+    /// `evaluate`'s --gt); only the calibration queries' columns are used.
     #[command(flatten)]
     cal_gt: CalGtSource,
     /// Database descriptors (.npy, float32/float64), |DB| x D, in place of --cal: the
@@ -38,7 +49,8 @@ pub struct CalibrateArgs {
     /// unless --cal-queries or --cal-fraction says how many of the first ones do.
     #[arg(long, value_name = "Q.npy", requires = "db_descriptors")]
     query_descriptors: Option<PathBuf>,
-    /// With descriptors: how many of the first queries calibrate (default: all).
+    /// With --similarity (required) or descriptors (default: all): how many of the first
+    /// queries calibrate.
     #[command(flatten)]
     split: SplitArgs,
     /// single: one decision per query on its best match; multi: every entry is a candidate.
@@ -91,16 +103,21 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     let length = crate::args::sequence(args.sequence, true)?.map_or(1, |s| s.length);
     let gt_source = args.cal_gt.source().expect("clap requires one ground-truth source");
     let matching = Matching::from(args.matching);
-    let (cal, orientation) = match (
-        &args.cal,
-        args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref()),
-    ) {
-        (Some(path), _) => {
+    let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
+    let (cal, orientation) = match (&args.cal, &args.similarity, split, descriptors) {
+        (Some(path), ..) => {
             let (cal, orientation) = from_matrix(path, gt_source, matching, args.query_major, length)?;
             (cal, Some(orientation))
         }
-        (None, Some((db, q))) => (from_descriptors(db, q, split, gt_source, matching, length)?, None),
-        (None, None) => bail!("give --cal, or --db-descriptors and --query-descriptors"),
+        (None, Some(path), Some(split), _) => {
+            let (cal, orientation) = from_split(path, split, gt_source, matching, args.query_major, length)?;
+            (cal, Some(orientation))
+        }
+        (None, None, split, Some((db, q))) => (from_descriptors(db, q, split, gt_source, matching, length)?, None),
+        _ => bail!(
+            "give --cal, --similarity with --cal-queries or --cal-fraction, or --db-descriptors and \
+             --query-descriptors"
+        ),
     };
     // The gate is checked against the calibration (its matching) before the file is
     // touched, so that the error names the option, not the output.
@@ -136,6 +153,34 @@ fn from_descriptors(
     let gt = gt_source.load_split(&split, false, &files.describe())?;
     Calibration::new_sequence(ScoreSource::Descriptors(&d, split.calibration()), &gt, matching, length)
         .with_context(|| format!("{} / {}", files.describe(), gt_source.describe()))
+}
+
+/// The calibration of the first queries (`split`) of similarity matrix `--similarity
+/// PATH`, with ground truth of every query from `gt_source`, and the matrix's
+/// orientation with what ground truth read from a file says of it (as `threshold
+/// --similarity` splits it: the core's [`QuerySplit`]).
+fn from_split(
+    path: &Path,
+    split: (Split, &'static str),
+    gt_source: GtSource<'_>,
+    matching: Matching,
+    query_major: bool,
+    length: usize,
+) -> Result<(Calibration, Orientation)> {
+    let file = read_scores(path).context("--similarity")?;
+    let s = file.view().oriented(query_major);
+    let input = format!("--similarity {}", path.display());
+    let split = crate::args::query_split(split, s.dim(), query_major, &input)?;
+    let (gt_cal, gt) = gt_source.load_split_read(&split, query_major, &input)?;
+    let cal = Calibration::new_sequence(
+        ScoreSource::from(s).columns(split.calibration()),
+        &gt_cal,
+        matching,
+        length,
+    )
+    .map_err(|e| crate::args::oriented(e, query_major))
+    .with_context(|| format!("{input} / {}", gt_source.describe()))?;
+    Ok((cal, Orientation::of(s.dim(), gt.as_ref(), query_major)))
 }
 
 /// The calibration of similarity matrix `--cal PATH` with its ground truth from

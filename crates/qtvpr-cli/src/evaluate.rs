@@ -29,7 +29,7 @@ use qtvpr::npy::read_scores;
 pub struct EvaluateArgs {
     /// Similarity matrix (.npy, float32/float64), |DB| x |Q|, with ground truth for
     /// every query. Default: the embedded demo data (VPR-Bench Corridor, AMOSNet,
-    /// 111 x 111), printed as a table.
+    /// 111 x 111).
     #[arg(long, value_name = "S.npy", requires = "gt-source", group = "scores")]
     similarity: Option<PathBuf>,
     /// Database descriptors (.npy, float32/float64), |DB| x D, in place of
@@ -116,15 +116,18 @@ pub struct EvaluateArgs {
     /// paper's Fig. 5 protocol), while the calibration set is the first queries.
     #[arg(long, allow_negative_numbers = true, value_name = "F")]
     deploy_fraction: Option<f64>,
-    /// Output format [default: json, or table for the embedded demo data].
-    #[arg(long, value_enum)]
-    format: Option<EvalFormat>,
+    /// Output format: `table`, what a person reads (the summary of every method, the
+    /// same in a terminal, a pipe and a file); `json` for every figure (each segment's
+    /// counts and thresholds, the reliability bins) to a program; `csv`, one row per
+    /// method.
+    #[arg(long, value_enum, default_value_t = EvalFormat::Table)]
+    format: EvalFormat,
     /// Write to this file (atomically) instead of stdout.
     #[arg(long, short, value_name = "FILE")]
     output: Option<PathBuf>,
     /// Write SVG figures into this directory (created if need be): thresholds.svg,
-    /// precision_recall.svg and (single matching) reliability.svg for one setting;
-    /// ablation_k.svg / ablation_cal.svg for an ablation.
+    /// precision_recall.svg, scores.svg and (single matching) reliability.svg for one
+    /// setting; ablation_k.svg / ablation_cal.svg for an ablation.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
 }
@@ -132,11 +135,11 @@ pub struct EvaluateArgs {
 /// Output formats of `evaluate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum EvalFormat {
-    /// One JSON object (keys: docs/cli.md and semantics §9); a reject-all threshold is
-    /// `null`.
-    Json,
-    /// A Markdown table.
+    /// A Markdown table per run, what a person reads (the default).
     Table,
+    /// One JSON object with every figure (keys: docs/cli.md and semantics §9); a
+    /// reject-all threshold is `null`.
+    Json,
     /// One CSV row per method (and per ablation setting).
     Csv,
 }
@@ -195,7 +198,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
     // Embedded data is |DB| x |Q| whatever --query-major says.
     let query_major = args.query_major && args.similarity.is_some();
     let descriptors = args.db_descriptors.as_ref().zip(args.query_descriptors.as_ref());
-    let (dataset, scores, gt, default_format) = match (&args.similarity, descriptors, args.gt.source()) {
+    let (dataset, scores, gt) = match (&args.similarity, descriptors, args.gt.source()) {
         (None, Some((db, q)), Some(source)) => {
             computed = similarity_of(db, q, sequence)?;
             let gt = source.load(computed.dim(), false)?;
@@ -203,24 +206,18 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
                 format!("{} x {}", db.display(), q.display()),
                 ScoresView::F32(computed.view()),
                 gt,
-                EvalFormat::Json,
             )
         }
         (Some(s_path), _, Some(source)) => {
             file = read_scores(s_path).context("--similarity")?;
             let s = file.view().oriented(query_major);
             let gt = source.load(s.dim(), query_major)?;
-            (s_path.display().to_string(), s, gt, EvalFormat::Json)
+            (s_path.display().to_string(), s, gt)
         }
         _ => {
             let (s, gt) = embedded::corridor()?;
             embedded_scores = s;
-            (
-                embedded::NAME.to_string(),
-                ScoresView::F64(embedded_scores.view()),
-                gt,
-                EvalFormat::Table,
-            )
+            (embedded::NAME.to_string(), ScoresView::F64(embedded_scores.view()), gt)
         }
     };
     // What was assumed of a matrix file's orientation, and what its ground truth says
@@ -276,7 +273,7 @@ pub fn run(args: &EvaluateArgs, global: &crate::Global) -> Result<()> {
         plot::write_all(dir, &ctx, &runs, args.k.len() > 1, calibrations.len() > 1)
             .with_context(|| format!("--plot {}", dir.display()))?;
     }
-    let text = match args.format.unwrap_or(default_format) {
+    let text = match args.format {
         EvalFormat::Json => json(&ctx, runs, ablation)?,
         EvalFormat::Table => table(&ctx, &runs, ablation),
         EvalFormat::Csv => csv(&runs),
@@ -365,24 +362,23 @@ fn table(ctx: &RunContext, runs: &[Run], ablation: bool) -> String {
         writeln!(
             t,
             "| method | %Segs | {avg} | segments counted | skipped (no positives) | threshold MSE vs oracle \
-             | pooled precision | its 95% lower bound |"
+             | matches accepted | pooled precision | its 95% lower bound |"
         )
         .unwrap();
-        writeln!(t, "|:--|--:|--:|--:|--:|--:|--:|--:|").unwrap();
+        writeln!(t, "|:--|--:|--:|--:|--:|--:|--:|--:|--:|").unwrap();
         for m in &run.eval.methods {
             let pooled = m.pooled();
-            // Without an accepted decision the pooled precision is a convention, not a figure.
-            let accepted = pooled.tp + pooled.fp > 0;
             writeln!(
                 t,
-                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 m.method,
                 pct(m.pct_segs),
                 recall(m.avg_recall),
                 m.segments_counted,
                 m.segments_skipped,
                 mse(m.threshold_mse),
-                precision(accepted.then(|| pooled.precision())),
+                pooled.accepted(),
+                precision(pooled.measured_precision()),
                 precision(pooled.precision_lower95())
             )
             .unwrap();
@@ -445,7 +441,8 @@ fn signals(c: Option<&qtvpr::Signals>) -> String {
 fn csv(runs: &[Run]) -> String {
     let mut t = String::from(
         "k,calibration_queries,deployment_start,deployment_queries,segment_size,segments,method,\
-         pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_precision,pooled_recall,\
+         pct_segs,avg_recall,segments_counted,segments_skipped,threshold_mse,pooled_accepted,pooled_precision,\
+         pooled_recall,\
          pooled_precision_lower95,recall_at_1,",
     );
     t += &qtvpr::Signals::FIGURES.join(",");
@@ -465,7 +462,7 @@ fn csv(runs: &[Run]) -> String {
             let pooled = m.pooled();
             writeln!(
                 t,
-                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{method},{},{},{segments_counted},{segments_skipped},{},{},{},{},{},{},{}",
                 run.k,
                 l.calibration_queries,
                 l.deployment_start,
@@ -475,7 +472,8 @@ fn csv(runs: &[Run]) -> String {
                 opt(*pct_segs),
                 opt(*avg_recall),
                 opt(*threshold_mse),
-                pooled.precision(),
+                pooled.accepted(),
+                opt(pooled.measured_precision()),
                 pooled.recall(),
                 opt(pooled.precision_lower95()),
                 opt(run.eval.recall_at_1),

@@ -74,8 +74,9 @@ enum Command {
     /// Similarity matrix from descriptor files (cosine of L2-normalised rows), optionally
     /// sequence-matched; writes |DB| x |Q| float32 .npy.
     Similarity(similarity::SimilarityArgs),
-    /// Ground-truth matrix from a frame tolerance or from positions; writes bool .npy or
-    /// a VPR_Tutorial .npz.
+    /// Ground-truth matrix from a frame tolerance or from positions, or for calibration
+    /// queries without any, from their order on the traverse (--from-sequence); writes
+    /// bool .npy or a VPR_Tutorial .npz.
     GroundTruth(ground_truth::GroundTruthArgs),
 }
 

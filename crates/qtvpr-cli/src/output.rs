@@ -1,14 +1,13 @@
 //! Where results go: stdout, or a file written atomically (temp file + rename), so an
 //! error never leaves a half-written output behind. Matrices (`similarity`,
 //! `ground-truth`) are written by the core's atomic writers
-//! ([`qtvpr::npy::write_npy`], [`qtvpr::npy::write_npz`]) with the option that named the
+//! ([`qtvpr::npy::write_npy`], [`qtvpr::npy::write_ground_truth`]) with the option that named the
 //! file in their errors; every file the CLI reads goes through the core's checked reader.
 
 use std::io::{self, Write};
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use ndarray::ArrayView2;
 use qtvpr::npy::NpyArray;
 
 /// Output formats of `threshold`.
@@ -82,11 +81,4 @@ pub fn emit(text: &str, path: Option<&Path>) -> Result<()> {
 /// names the option in errors.
 pub fn write_npy<'a>(path: &Path, flag: &str, m: impl Into<NpyArray<'a>>) -> Result<()> {
     qtvpr::npy::write_npy(path, m).with_context(|| flag.to_string())
-}
-
-/// Write bool matrices into one `.npz` archive (a VPR_Tutorial `GThard`/`GTsoft` file),
-/// atomically.
-pub fn write_npz(path: &Path, flag: &str, arrays: &[(&str, ArrayView2<'_, bool>)]) -> Result<()> {
-    let arrays: Vec<(&str, NpyArray<'_>)> = arrays.iter().map(|&(n, m)| (n, NpyArray::Bool(m))).collect();
-    qtvpr::npy::write_npz(path, &arrays).with_context(|| flag.to_string())
 }

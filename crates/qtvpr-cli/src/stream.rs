@@ -12,7 +12,7 @@ use clap::Args;
 use ndarray::ArrayView2;
 use qtvpr::{Calibration, Decision, Input, Online, OnlineParams, Score};
 
-use crate::args::{SequenceGateArgs, gate_parser};
+use crate::args::{SequenceGateArgs, SplitArgs, gate_parser};
 use crate::output::{self, emit};
 use crate::{Global, progress};
 use qtvpr::npy::{MatrixFile, read_scores};
@@ -27,6 +27,11 @@ pub struct StreamArgs {
     /// Deployment similarity matrix (.npy), |DB| x |Qval|, its columns in arrival order.
     #[arg(long, value_name = "S_val.npy")]
     val: PathBuf,
+    /// A --val that is the whole recorded traverse the calibration was made on
+    /// (`calibrate --similarity` with the same split): its calibration queries are
+    /// skipped, and the first line is the first query after them (`query` 0).
+    #[command(flatten)]
+    split: SplitArgs,
     /// Calibration queries sampled per deployment query [default: the file's].
     #[arg(long)]
     k: Option<usize>,
@@ -99,9 +104,11 @@ const STEP: usize = 256;
 
 /// Run `stream`.
 pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
+    let split = args.split.split()?;
     let cal = Calibration::load(&args.calibration).context("--calibration")?;
     cal.check_sequence(args.sequence)
         .with_context(|| format!("--sequence: --calibration {}", args.calibration.display()))?;
+    let calibration_queries = cal.len();
     let params = OnlineParams::resolve(
         cal.defaults(),
         args.k,
@@ -114,8 +121,20 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
     let mut online = Online::new(Arc::new(cal), params)?;
     let file = read_scores(&args.val).context("--val")?;
     let s_val = file.view().oriented(args.query_major);
-    qtvpr::check_nonempty(Input::DeploymentSimilarity, s_val.dim())
-        .with_context(|| format!("--val {}", args.val.display()))?;
+    let input = format!("--val {}", args.val.display());
+    qtvpr::check_nonempty(Input::DeploymentSimilarity, s_val.dim()).context(input.clone())?;
+    // Only the queries after the calibration queries are decided (every query without
+    // a split).
+    let split = split
+        .map(|asked| {
+            let split = crate::args::query_split(asked, s_val.dim(), args.query_major, &input)?;
+            split
+                .check_calibration(calibration_queries)
+                .with_context(|| format!("{} of {input} / --calibration {}", asked.1, args.calibration.display()))?;
+            anyhow::Ok(split)
+        })
+        .transpose()?;
+    let decided = split.as_ref().map_or(0..s_val.dim().1, qtvpr::QuerySplit::deployment);
 
     // Lines go to stdout as queries are decided, or to memory for an atomic --output.
     let mut buffer = Vec::new();
@@ -123,7 +142,7 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         None => Box::new(BufWriter::new(output::stdout()?)),
         Some(_) => Box::new(&mut buffer),
     };
-    let n_val = s_val.dim().1;
+    let n_val = decided.len();
     let bar = progress::bar(global.quiet, n_val, "deployment queries");
     let replayed = (|| {
         if args.format == StreamFormat::Csv {
@@ -133,7 +152,7 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         let progress = |done| bar.set_position(done as u64);
         with_scores!(s_val, |v| replay(
             &mut online,
-            v,
+            v.slice_move(ndarray::s![.., decided.clone()]),
             &file,
             args.format,
             &mut out,
@@ -147,8 +166,12 @@ pub fn run(args: &StreamArgs, global: &Global) -> Result<()> {
         // Memory does not fail to write: an output error is standard output's.
         Err(Failure::Output(e)) => return Err(anyhow::Error::new(e).context(output::STDOUT)),
         Err(Failure::Input(e)) => {
-            return Err(anyhow::Error::new(e.oriented(args.query_major)))
-                .with_context(|| format!("--val {}", args.val.display()));
+            // A position among the decided columns, in the whole matrix's.
+            let e = match &split {
+                Some(split) => split.deployment_error(e),
+                None => e,
+            };
+            return Err(anyhow::Error::new(e.oriented(args.query_major))).context(input);
         }
         Ok(()) => {}
     }

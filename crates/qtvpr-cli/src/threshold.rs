@@ -20,8 +20,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use qtvpr::npy::{MatrixFile, read_scores};
 use qtvpr::{
-    Calibration, Defaults, Descriptors, Matching, Options, Orientation, Params, QuerySplit, ScoreSource, Split,
-    SplitError, ThresholdReport, Transfer,
+    Calibration, Defaults, Descriptors, Matching, Options, Orientation, Params, ScoreSource, Split, SplitError,
+    ThresholdReport, Transfer,
 };
 
 use crate::args::{DescriptorFiles, MatchingArg, SequenceGateArgs, SplitArgs};
@@ -261,9 +261,7 @@ impl<'a> Request<'a> {
         let mut evidence = None;
         let (cal, params, transfer) = match &self.calibration {
             CalibrationInput::Split(split, flag, gt_source) => {
-                let split = QuerySplit::new(*split, (n_db, n_q))
-                    .map_err(|e| crate::args::oriented(e, args.query_major))
-                    .with_context(|| format!("{flag} of {input}"))?;
+                let split = crate::args::query_split((*split, *flag), (n_db, n_q), args.query_major, &input)?;
                 let (gt_cal, gt) = gt_source.load_split_read(&split, args.query_major, &input)?;
                 evidence = gt.as_ref().map(qtvpr::Evidence::of);
                 // Nothing here saves it: a calibration of the split's own defaults.

@@ -169,7 +169,17 @@ fn evaluate_from_descriptors_equals_the_matrix_path() {
         return;
     };
     let d = dir.path();
-    let opts = ["--cal-queries", "137", "--segment-size", "20", "--gt", "gt.npy", "-q"];
+    let opts = [
+        "--cal-queries",
+        "137",
+        "--segment-size",
+        "20",
+        "--gt",
+        "gt.npy",
+        "-q",
+        "--format",
+        "json",
+    ];
     let want = ok_in(d, &args(&["evaluate", "--similarity", "S.npy"], &opts));
     let got = ok_in(d, &args(&args(&["evaluate"], &DESCRIPTORS), &opts));
     assert!(got.contains("\"dataset\": \"db.npy x q.npy\""), "{got}");

@@ -17,7 +17,13 @@ fn console_examples_run_as_written() {
     let cases = trycmd::TestCases::new();
     cases.register_bin("qtvpr-cli", Path::new(env!("CARGO_BIN_EXE_qtvpr-cli")));
     // The documents with `console` blocks.
-    for doc in ["README.md", "docs/cli.md", "docs/margin-gate.md", "docs/deployment.md"] {
+    for doc in [
+        "README.md",
+        "docs/cli.md",
+        "docs/margin-gate.md",
+        "docs/deployment.md",
+        "docs/self-motion-labels.md",
+    ] {
         let name = doc.replace('/', "-");
         let case = work.path().join(&name);
         std::fs::copy(root.join(doc), &case).unwrap();

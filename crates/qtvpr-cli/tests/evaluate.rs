@@ -50,7 +50,7 @@ impl Case {
     }
 
     /// `evaluate --similarity S.npy --gt GT.npy` with the tiny protocol (2 calibration
-    /// queries, segments of 2, tau = 0.5) and `extra` arguments.
+    /// queries, segments of 2, tau = 0.5), as JSON, and `extra` arguments.
     /// Each default is left out when `extra` gives that flag itself.
     fn run(&self, extra: &[&str]) -> Output {
         let (s, gt) = (self.path("S.npy"), self.path("GT.npy"));
@@ -60,6 +60,7 @@ impl Case {
             ("--cal-queries", "2"),
             ("--segment-size", "2"),
             ("--precision", "0.5"),
+            ("--format", "json"),
         ];
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
         cmd.arg("evaluate");
@@ -163,13 +164,23 @@ fn hand_computed_json() {
     assert_eq!(
         seg,
         json!({"start": 0, "end": 2, "threshold": 0.7, "oracle_threshold": 0.7, "tp": 1, "fp": 0,
-               "positives": 2, "precision": 1.0, "recall": 0.5, "precision_lower95": 0.05, "meets": true})
+               "accepted": 1, "positives": 2, "precision": 1.0, "recall": 0.5, "precision_lower95": 0.05,
+               "meets": true})
     );
-    // Segment 1 accepts nothing at inf: no bound. Pooled: TP 1, FP 0, positives 2.
-    assert_eq!(o["segments"][1]["precision_lower95"], Value::Null);
+    // Segment 1 accepts nothing at inf: no precision, no bound. Pooled: TP 1, FP 0,
+    // 1 accepted, positives 2.
     assert_eq!(
-        (&o["pooled_tp"], &o["pooled_fp"], &o["pooled_positives"]),
-        (&json!(1), &json!(0), &json!(2))
+        (&o["segments"][1]["precision"], &o["segments"][1]["precision_lower95"]),
+        (&Value::Null, &Value::Null)
+    );
+    assert_eq!(
+        (
+            &o["pooled_tp"],
+            &o["pooled_fp"],
+            &o["pooled_accepted"],
+            &o["pooled_positives"]
+        ),
+        (&json!(1), &json!(0), &json!(1), &json!(2))
     );
     assert_eq!(
         (&o["pooled_precision"], &o["pooled_recall"]),
@@ -224,6 +235,17 @@ fn hand_computed_json() {
         &methods["schubert-calibrated"]["segments"][1]["threshold"],
         0.35 + 0.2 / 0.675 * Z
     ));
+    // Both Schubert fits lie above every deployment score (1.81 and 1.41 on segments 0
+    // and 1; 1.76 calibrated): nothing accepted, so segment 0 meets by convention and
+    // %Segs is 100 on no decision; the count and the undefined precision say so.
+    for name in ["schubert", "schubert-calibrated"] {
+        let m = &methods[name];
+        assert_eq!(
+            (&m["pct_segs"], &m["pooled_accepted"], &m["pooled_precision"]),
+            (&json!(100.0), &json!(0), &Value::Null),
+            "{name}"
+        );
+    }
     // Semantics §14's reliability bins (the decisions of table_and_csv below):
     // confidences 0.2712 (d0, right), 0.1005 (d1), 0.0874 (d2) and 0.4856 (d3, wrong),
     // one in each of bins 2, 1, 0 and 4; the ECE, the mean of their |p - c|,
@@ -261,28 +283,39 @@ fn hand_computed_json() {
 #[test]
 fn table_and_csv() {
     let case = Case::new();
-    let table = case.ok(&["--format", "table", "--method", "oracle,calibration-threshold"]);
+    let table = case.ok(&["--format", "table", "--method", "oracle,calibration-threshold,schubert"]);
     let lines: Vec<&str> = table.lines().collect();
     assert!(lines[0].contains("queries 0..2 calibrate; 2 segments of 2"), "{table}");
     // The orientation assumed: the tiny ground truth cannot tell (queries d2..d4 and
-    // database image 1 have no positive), so no warning.
+    // database image 1 have no positive), so no warning, and the line says it is assumed.
     assert_eq!(
         lines[2],
-        "orientation: |DB| 3 x |Q| 7 (DB-major; pass --query-major for VPR-Bench files)"
+        "orientation: |DB| 3 x |Q| 7 (DB-major; pass --query-major for VPR-Bench files), assumed (the ground \
+         truth cannot tell: queries without a positive: 3 of 7; database images without one: 1 of 3)"
     );
     let lines = &lines[2..];
     assert_eq!(
         lines[2],
         "| method | %Segs | AvgR@50P | segments counted | skipped (no positives) | threshold MSE vs oracle \
-         | pooled precision | its 95% lower bound |"
+         | matches accepted | pooled precision | its 95% lower bound |"
     );
     // Pooled: the oracle accepts one correct decision (bound 0.05^1); the calibration
-    // threshold one wrong one (precision 0, bound 0).
-    assert_eq!(lines[4], "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 | 1.000 | 0.050 |");
+    // threshold one wrong one (precision 0, bound 0); Schubert none (its %Segs of 100
+    // rests on nothing: no precision). Schubert's MSE: segment 0 only (segment 1 is
+    // skipped), (0.4 + 0.2 / 0.675 z - 0.7)^2 = 1.10842^2 = 1.2286.
+    assert_eq!(
+        lines[4],
+        "| oracle | 100.0 | 0.500 | 1 | 1 | 0.00e0 | 1 | 1.000 | 0.050 |"
+    );
     assert_eq!(
         lines[5],
-        "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 0.000 | 0.000 |"
+        "| calibration-threshold | 100.0 | 0.000 | 1 | 1 | 4.00e-2 | 1 | 0.000 | 0.000 |"
     );
+    assert_eq!(
+        lines[6],
+        "| schubert | 100.0 | 0.000 | 1 | 1 | 1.23e0 | 0 | n/a | n/a |"
+    );
+    let lines = &lines[1..];
     // Semantics §14's signals. The calibration's best matches: query 0 right (PA-score
     // sqrt(0.2 / 1.4) = 0.37796), query 1 wrong (sqrt(0.1 / 1.2) = 0.28868): a
     // violator, one block of 1 of 2, centre 0.33332, value 2/4, from its lower bound
@@ -307,7 +340,13 @@ fn table_and_csv() {
     // Two settings (an ablation): the deployment set becomes the last floor(0.5 x 7) = 3
     // queries, one segment of 2 (d2, d3 in the original numbering: no positives).
     assert_eq!(rows.len(), 3, "{csv}");
-    assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,"), "{csv}");
+    // No segment counted: no %Segs, AvgR or MSE; nothing accepted: 0, no precision,
+    // recall 0, no bound.
+    assert!(
+        rows[0].contains(",threshold_mse,pooled_accepted,pooled_precision,pooled_recall,"),
+        "{csv}"
+    );
+    assert!(rows[1].starts_with("1,2,4,3,2,1,oracle,,,0,1,,0,,0,,"), "{csv}");
     assert!(rows[2].starts_with("2,2,4,3,2,1,oracle,"), "{csv}");
     // Nothing accepted (the oracle of a segment without positives is reject-all): no
     // bound; no deployment query with a hard match: no R@1.
@@ -392,7 +431,7 @@ fn query_major_and_soft_ground_truth() {
     );
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_qtvpr-cli"));
     let out = cmd
-        .args(["evaluate", "--query-major", "--method", "oracle"])
+        .args(["evaluate", "--format", "json", "--query-major", "--method", "oracle"])
         .args(["--cal-queries", "2", "--segment-size", "2", "--precision", "0.5"])
         .arg("--similarity")
         .arg(case.path("S_t.npy"))
@@ -469,13 +508,24 @@ fn plots_are_written() {
     let case = Case::new();
     let dir = case.path("figs");
     case.ok(&["--plot", dir.to_str().unwrap()]);
-    for name in ["thresholds.svg", "precision_recall.svg"] {
+    for name in ["thresholds.svg", "precision_recall.svg", "scores.svg"] {
         let svg = std::fs::read_to_string(dir.join(name)).unwrap();
         assert!(svg.starts_with("<svg"), "{name}");
         // Text is real SVG text, with the legend's method names.
         assert!(svg.contains("<text") && svg.contains("quantile-transfer"), "{name}");
         assert!(svg.contains("quantile-transfer-online"), "{name}");
     }
+    // The Schubert fits accept nothing (hand_computed_json): no operating point, and a
+    // legend that says why, where the others give their precision and count.
+    let svg = std::fs::read_to_string(dir.join("precision_recall.svg")).unwrap();
+    assert!(
+        svg.contains("schubert: no match accepted, so no precision (not drawn)"),
+        "{svg}"
+    );
+    assert!(
+        svg.contains("oracle: precision 1.000, recall 0.500 (1 accepted: TP 1, FP 0)"),
+        "{svg}"
+    );
     case.ok(&["--plot", dir.to_str().unwrap(), "--k", "1,2,3"]);
     let svg = std::fs::read_to_string(dir.join("ablation_k.svg")).unwrap();
     assert!(svg.contains("Sensitivity to k"));
@@ -642,18 +692,32 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     // one of the 100 (the real queries) has a positive, and 9 of the 111 (database
     // images 0..=8, before the first deployment query's matches) have none:
     // 9 >= 0.05 * 111, so the ground truth contradicts the layout.
-    let out = cli(dir.path(), &["evaluate", "--similarity", "S_t.npy", "--gt", "GT_t.npy"]);
+    let out = cli(
+        dir.path(),
+        &[
+            "evaluate",
+            "--format",
+            "json",
+            "--similarity",
+            "S_t.npy",
+            "--gt",
+            "GT_t.npy",
+        ],
+    );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
-        "warning: 9 of the 111 queries have no positive in the ground truth while every one of the 100 database \
-         images has one; a VPR traverse is usually the other way round, so the matrices may be query-major \
-         (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major\n"
+        "warning: the layout is contradicted by the ground truth: 9 of the 111 queries have no positive in it \
+         while every one of the 100 database images has one; a VPR traverse is usually the other way round, so \
+         the matrices may be query-major (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major\n"
     );
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(
         v["orientation"],
-        json!({"db": 100, "queries": 111, "query_major": false, "evidence": {
+        json!({"db": 100, "queries": 111, "query_major": false,
+            "layout": "contradicted by the ground truth (queries without a positive: 9 of 111, while every \
+                       database image has one)",
+            "evidence": {
             "labelled_queries": 111, "queries_without_positive": 9, "db_without_positive": 0,
             "verdict": "contradicts"}})
     );
@@ -665,6 +729,8 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
         dir.path(),
         &[
             "evaluate",
+            "--format",
+            "json",
             "--similarity",
             "S_t.npy",
             "--gt",
@@ -679,7 +745,10 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
                             "verdict": "consistent"});
     assert_eq!(
         v["orientation"],
-        json!({"db": 111, "queries": 100, "query_major": true, "evidence": consistent})
+        json!({"db": 111, "queries": 100, "query_major": true,
+               "layout": "confirmed by the ground truth (every query has a positive; database images without \
+                          one: 9 of 111)",
+               "evidence": consistent})
     );
     let out = cli(
         dir.path(),
@@ -697,7 +766,10 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(
         text.lines().nth(2),
-        Some("orientation: |DB| 111 x |Q| 100 (DB-major; pass --query-major for VPR-Bench files)"),
+        Some(
+            "orientation: |DB| 111 x |Q| 100 (DB-major; pass --query-major for VPR-Bench files), confirmed by \
+             the ground truth (every query has a positive; database images without one: 9 of 111)"
+        ),
         "{text}"
     );
 
@@ -716,7 +788,8 @@ fn a_transposed_pair_read_without_query_major_is_warned_about() {
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(
-        String::from_utf8_lossy(&out.stderr).starts_with("warning: 9 of the 111 queries have no positive"),
+        String::from_utf8_lossy(&out.stderr)
+            .starts_with("warning: the layout is contradicted by the ground truth: 9 of the 111 queries"),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
@@ -891,4 +964,153 @@ fn gated_threshold_lines_are_dashed_and_the_others_solid() {
         let l = lines(name);
         assert!(l.iter().any(|&n| n > 10), "{name}: {l:?}");
     }
+}
+
+/// The value of attribute `name` in one line of an SVG written by plotters.
+fn svg_attr(line: &str, name: &str) -> Option<String> {
+    let start = line.find(&format!(" {name}=\""))? + name.len() + 3;
+    Some(line[start..start + line[start..].find('"')?].to_string())
+}
+
+/// The texts of an SVG written by plotters with the `x` of each (the text is on the
+/// line after its `<text` element).
+fn svg_texts(svg: &str) -> Vec<(f64, String)> {
+    let lines: Vec<&str> = svg.lines().collect();
+    lines
+        .windows(2)
+        .filter(|w| w[0].starts_with("<text"))
+        .map(|w| (svg_attr(w[0], "x").unwrap().parse().unwrap(), w[1].trim().to_string()))
+        .collect()
+}
+
+#[test]
+fn the_three_quantile_transfer_lines_all_show() {
+    // The embedded data: quantile-transfer-online's segment thresholds (its last
+    // query's, whose window is the segment) and quantile-transfer-margin's are
+    // quantile transfer's. Each line must leave the one beneath it visible: quantile
+    // transfer's is drawn first and wider than the two drawn over it, online's is solid
+    // and the gated one dashed on top of it (many short polylines).
+    let dir = tempfile::tempdir().unwrap();
+    let out = cli(dir.path(), &["evaluate", "--plot", "figs"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("figs/thresholds.svg")).unwrap();
+    // (colour, stroke width, points) of every polyline, in drawing order.
+    let lines: Vec<(String, u32, usize)> = svg
+        .lines()
+        .filter(|l| l.starts_with("<polyline"))
+        .map(|l| {
+            (
+                svg_attr(l, "stroke").unwrap(),
+                svg_attr(l, "stroke-width").unwrap().parse().unwrap(),
+                svg_attr(l, "points").unwrap().split_whitespace().count(),
+            )
+        })
+        .collect();
+    // The colours of crates/qtvpr-cli/src/plot/mod.rs: #1F77B4 quantile-transfer,
+    // #17BECF online, #2CA02C margin. A plotted line has more than 2 points, or is one
+    // of many dashes; a legend swatch is the last polyline of its colour.
+    let first = |c: &str| lines.iter().position(|l| l.0 == c).unwrap();
+    let widths = |c: &str| -> Vec<u32> { lines.iter().filter(|l| l.0 == c).map(|l| l.1).collect() };
+    let (qt, online, gated) = ("#1F77B4", "#17BECF", "#2CA02C");
+    assert!(
+        first(qt) < first(online) && first(online) < first(gated),
+        "drawing order"
+    );
+    let (w_qt, w_online, w_gated) = (widths(qt), widths(online), widths(gated));
+    assert!(
+        w_qt.iter().all(|&w| w > w_online[0] && w > w_gated[0]),
+        "{w_qt:?} {w_online:?} {w_gated:?}"
+    );
+    let long = |c: &str| lines.iter().filter(|l| l.0 == c && l.2 > 10).count();
+    assert!(long(online) >= 1, "online is solid");
+    assert_eq!(long(gated), 0, "the gated line is dashed");
+}
+
+#[test]
+fn ablation_points_sit_at_their_k() {
+    // The embedded data, k = 1, 2, 3: each of quantile transfer's points (circles,
+    // #1F77B4) of the %Segs panel is at the x of its k's tick label, and the axis is
+    // log k: the label of 2 sits ln 2 / ln 3 = 0.631 of the way from 1 to 3.
+    let dir = tempfile::tempdir().unwrap();
+    let out = cli(dir.path(), &["evaluate", "--plot", "figs", "--k", "1,2,3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("figs/ablation_k.svg")).unwrap();
+    let texts = svg_texts(&svg);
+    let tick = |k: &str| {
+        texts
+            .iter()
+            .find(|t| t.1 == k)
+            .unwrap_or_else(|| panic!("no tick {k}"))
+            .0
+    };
+    let (x1, x2, x3) = (tick("1"), tick("2"), tick("3"));
+    let ratio = (x2 - x1) / (x3 - x1);
+    assert!((ratio - 2f64.ln() / 3f64.ln()).abs() < 0.01, "{x1} {x2} {x3}");
+    // The chart's circles (the legend's are below y = 500), left panel (x < 600).
+    let xs: Vec<f64> = svg
+        .lines()
+        .filter(|l| l.starts_with("<circle") && svg_attr(l, "fill").as_deref() == Some("#1F77B4"))
+        .filter(|l| svg_attr(l, "cy").unwrap().parse::<f64>().unwrap() < 500.0)
+        .map(|l| svg_attr(l, "cx").unwrap().parse().unwrap())
+        .filter(|&x: &f64| x < 600.0)
+        .collect();
+    assert_eq!(xs.len(), 3, "{xs:?}");
+    for (x, k) in xs.iter().zip([x1, x2, x3]) {
+        assert!((x - k).abs() <= 1.0, "a point at {x}, its k at {k}");
+    }
+}
+
+#[test]
+fn scores_figure_shows_right_and_wrong_and_each_threshold() {
+    // Full segments d0..d3 (single): best matches 0.7 T, 0.6 F, 0.5 F, 0.9 F, in 40
+    // bins of 0.5..0.9 (0.01 wide): one right bar, three wrong ones (bins 0, 10, 39).
+    // Legend, 3 decimals (the axis's 1 plus 2): Schubert's segment thresholds 1.808 and
+    // 1.406, lower median 1.406; the oracle's 0.7 (segment 0: 0.7 T then 0.6 F at tau
+    // 0.5) and reject-all (segment 1 has no positive), lower median 0.7.
+    let case = Case::new();
+    let dir = case.path("figs");
+    case.ok(&["--plot", dir.to_str().unwrap()]);
+    let svg = std::fs::read_to_string(dir.join("scores.svg")).unwrap();
+    let bars = |fill: &str| {
+        svg.lines()
+            .filter(|l| l.starts_with("<rect") && svg_attr(l, "fill").as_deref() == Some(fill))
+            .filter(|l| svg_attr(l, "opacity").as_deref() == Some("0.85"))
+            .count()
+    };
+    assert_eq!((bars("#4DAF4A"), bars("#E41A1C")), (1, 3), "{svg}");
+    let texts: Vec<String> = svg_texts(&svg).into_iter().map(|t| t.1).collect();
+    for want in [
+        "schubert: 1.406 (median of its 2 segments)",
+        "oracle: 0.700 (median of its 2 segments)",
+        "margin: no score threshold (the gate alone)",
+        "right best matches (up)",
+    ] {
+        assert!(texts.iter().any(|t| t == want), "no {want:?} in {texts:?}");
+    }
+    // Segments of one: the oracle's thresholds are 0.7 (d0), then reject-all (d1's
+    // best match is wrong; d2, d3 and d4 have no positive): median reject-all, no line.
+    case.ok(&[
+        "--plot",
+        dir.to_str().unwrap(),
+        "--segment-size",
+        "1",
+        "--method",
+        "oracle",
+    ]);
+    let svg = std::fs::read_to_string(dir.join("scores.svg")).unwrap();
+    assert!(
+        svg.contains("oracle: reject-all in most of its 5 segments (not drawn)"),
+        "{svg}"
+    );
+    // No dashed black line: the only black polylines are the axes and the zero line.
+    let black = svg
+        .lines()
+        .filter(|l| l.starts_with("<polyline") && svg_attr(l, "stroke").as_deref() == Some("#000000"))
+        .filter(|l| svg_attr(l, "stroke-width").as_deref() == Some("2"))
+        .count();
+    assert_eq!(black, 0, "{svg}");
+    // Multi matching: every candidate, named as such.
+    case.ok(&["--plot", dir.to_str().unwrap(), "--matching", "multi"]);
+    let svg = std::fs::read_to_string(dir.join("scores.svg")).unwrap();
+    assert!(svg.contains("right candidates (up)"), "{svg}");
 }

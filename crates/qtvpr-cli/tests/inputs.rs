@@ -201,6 +201,8 @@ fn evaluate_takes_every_ground_truth_source() {
     );
     let common = [
         "evaluate",
+        "--format",
+        "json",
         "--similarity",
         "S.npy",
         "--cal-queries",
@@ -218,9 +220,11 @@ fn evaluate_takes_every_ground_truth_source() {
     // transposed traverse looks like, and also a frame-aligned one whose queries run past
     // the database (a warning the evidence cannot avoid).
     let evidence = "  \"orientation\": {\n    \"db\": 3,\n    \"queries\": 7,\n    \"query_major\": false,\n    \
-                    \"evidence\": {\n      \"labelled_queries\": 7,\n      \"queries_without_positive\": 4,\n      \
+                    \"layout\": \"contradicted by the ground truth (queries without a positive: 4 of 7, while \
+                    every database image has one)\",\n    \"evidence\": {\n      \"labelled_queries\": 7,\n      \"queries_without_positive\": 4,\n      \
                     \"db_without_positive\": 0,\n      \"verdict\": \"contradicts\"\n    }\n  },\n";
-    let without = "  \"orientation\": {\n    \"db\": 3,\n    \"queries\": 7,\n    \"query_major\": false\n  },\n";
+    let without = "  \"orientation\": {\n    \"db\": 3,\n    \"queries\": 7,\n    \"query_major\": false,\n    \
+                   \"layout\": \"assumed (no ground truth was read in the matrix's layout to tell)\"\n  },\n";
     assert!(file.contains(evidence), "{file}");
     let file = file.replace(evidence, without);
     assert_eq!(file, tolerance);
@@ -252,7 +256,7 @@ fn evaluate_takes_every_ground_truth_source() {
     .concat();
     npy_raw(&dir.path("S_t.npy"), "<f8", true, &[7, 3], &f64s(&s));
     let mut args = common.to_vec();
-    args[2] = "S_t.npy";
+    args[4] = "S_t.npy";
     args.extend(["--query-major", "--gt-tolerance", "0", "--gt-soft-tolerance", "1"]);
     // (Read query-major: the orientation says so.)
     let query_major = dir.ok(&args).replace("S_t.npy", "S.npy");

@@ -18,3 +18,5 @@ mod online;
 mod outputs;
 mod progress;
 mod readme;
+mod self_motion;
+mod split;

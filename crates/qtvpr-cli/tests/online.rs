@@ -713,6 +713,8 @@ fn evaluate_reports_the_online_method() {
     write_npy(&case.path("GT.npy"), case.gt.view()).unwrap();
     let base = [
         "evaluate",
+        "--format",
+        "json",
         "--similarity",
         "S.npy",
         "--gt",
@@ -934,6 +936,8 @@ fn the_margin_gate_in_calibrate_stream_threshold_and_evaluate() {
     write_npy(&case.path("GT.npy"), case.gt.view()).unwrap();
     let eval = [
         "evaluate",
+        "--format",
+        "json",
         "--similarity",
         "S.npy",
         "--gt",

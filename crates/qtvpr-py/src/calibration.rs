@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use qtvpr::{Matching, Params, QuerySplit, ScoreSource, Split, SplitError};
 
-use crate::convert::{self, GroundTruthArgs, Int, count, non_negative, sequence_gate};
+use crate::convert::{self, GroundTruthArgs, Int, Real, count, non_negative, real, sequence_gate};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -37,6 +37,12 @@ const _: () = assert!(qtvpr::DEFAULT_K == 10);
 /// ``GTsoft``; an explicit ``gt_soft`` takes precedence over ``GTsoft``), read by the
 /// same reader as ``qtvpr-cli``. Similarity files are memory-mapped: a path is the
 /// zero-copy way to pass a matrix too large to load.
+///
+/// Without ground truth, ``gt_cal`` may be the :class:`SelfMotionLabels` of
+/// :func:`ground_truth_from_sequence` (with no ``gt_soft``): the calibration keeps their
+/// record (:attr:`labels`, and its file's ``meta["labels"]``), and, since they judge one
+/// entry per column, ``matching="multi"`` is a ``ValueError``, as with a ground-truth
+/// ``.npz`` that holds such a record.
 ///
 /// Everything that depends on the calibration traverse alone (ranked profiles,
 /// candidates) is computed here, once; each :meth:`transfer` reuses it. Arrays are read
@@ -72,7 +78,8 @@ impl PyCalibration {
     }
 
     /// `precision`, or the calibration's default when `None`, checked by the core.
-    fn precision(&self, precision: Option<f64>) -> PyResult<f64> {
+    fn precision(&self, precision: Option<Real>) -> PyResult<f64> {
+        let precision = real("precision", precision)?;
         let defaults = self
             .inner
             .defaults()
@@ -153,7 +160,7 @@ impl PyCalibration {
     fn params(
         &self,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         sequence: SequenceGateArgs,
@@ -163,6 +170,7 @@ impl PyCalibration {
             k.map(|k| count("k", k)).transpose()?,
             segment_size.map(|m| count("segment_size", m)).transpose()?,
         );
+        let precision = real("precision", precision)?;
         let sequence = sequence.overrides()?;
         convert::gate(gate)
             .and_then(|gate| Params::resolve(self.inner.defaults(), k, precision, segment_size, gate, sequence))
@@ -174,10 +182,10 @@ impl PyCalibration {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct SequenceGateArgs {
     pub(crate) window: Option<Int>,
-    pub(crate) level: Option<f64>,
-    pub(crate) speed: Option<f64>,
-    pub(crate) tolerance: Option<f64>,
-    pub(crate) drift: Option<f64>,
+    pub(crate) level: Option<Real>,
+    pub(crate) speed: Option<Real>,
+    pub(crate) tolerance: Option<Real>,
+    pub(crate) drift: Option<Real>,
 }
 
 impl SequenceGateArgs {
@@ -190,11 +198,11 @@ impl SequenceGateArgs {
 /// ``cal_queries`` / ``cal_fraction``: how many of the first queries calibrate, as a
 /// [`Split`] (checked by the core once the number of queries is known); `None` for
 /// neither.
-pub(crate) fn split_arg(cal_queries: Option<Int>, cal_fraction: Option<f64>) -> PyResult<Option<Split>> {
+pub(crate) fn split_arg(cal_queries: Option<Int>, cal_fraction: Option<Real>) -> PyResult<Option<Split>> {
     match (cal_queries, cal_fraction) {
         (Some(_), Some(_)) => Err(PyValueError::new_err("give cal_queries or cal_fraction, not both")),
         (Some(n), None) => Ok(Some(Split::Count(count("cal_queries", n)?))),
-        (None, Some(f)) => Ok(Some(Split::Fraction(f))),
+        (None, Some(f)) => Ok(Some(Split::Fraction(f.get("cal_fraction")?))),
         (None, None) => Ok(None),
     }
 }
@@ -227,7 +235,7 @@ impl PyCalibration {
         matching: &str,
         query_major: bool,
         cal_queries: Option<Int>,
-        cal_fraction: Option<f64>,
+        cal_fraction: Option<Real>,
         sequence: Option<Int>,
     ) -> PyResult<Self> {
         let split = split_arg(cal_queries, cal_fraction)?;
@@ -275,19 +283,20 @@ impl PyCalibration {
         py: Python<'_>,
         path: PathBuf,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         window: Option<Int>,
         gate: Option<&str>,
         sequence_window: Option<Int>,
-        sequence_level: Option<f64>,
-        sequence_speed: Option<f64>,
-        sequence_tolerance: Option<f64>,
-        sequence_drift: Option<f64>,
+        sequence_level: Option<Real>,
+        sequence_speed: Option<Real>,
+        sequence_tolerance: Option<Real>,
+        sequence_drift: Option<Real>,
     ) -> PyResult<()> {
         let (k, window) = (
             k.map(|k| count("k", k)).transpose()?,
             window.map(|m| count("window", m)).transpose()?,
         );
+        let precision = real("precision", precision)?;
         let sequence = sequence_gate(
             sequence_window,
             sequence_level,
@@ -350,6 +359,16 @@ impl PyCalibration {
         Ok(pythonize::pythonize(py, self.inner.defaults())?)
     }
 
+    /// How the calibration's ground truth was labelled when it came from self-motion
+    /// labels (:func:`ground_truth_from_sequence`, or a ground-truth ``.npz`` of
+    /// ``qtvpr-cli ground-truth --from-sequence``): their record, a dict (``{"labels":
+    /// "self-motion", "neighbours": 5, ...}``), which its calibration file keeps in
+    /// ``meta["labels"]``; ``None`` for other ground truth.
+    #[getter]
+    fn labels<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        crate::self_motion::record_dict(py, self.inner.labels())
+    }
+
     /// |DB|, the number of database images (rows) of the calibration.
     #[getter]
     fn db_size(&self) -> usize {
@@ -407,15 +426,15 @@ impl PyCalibration {
         py: Python<'_>,
         s_val: &Bound<'_, PyAny>,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
         sequence_window: Option<Int>,
-        sequence_level: Option<f64>,
-        sequence_speed: Option<f64>,
-        sequence_tolerance: Option<f64>,
-        sequence_drift: Option<f64>,
+        sequence_level: Option<Real>,
+        sequence_speed: Option<Real>,
+        sequence_tolerance: Option<Real>,
+        sequence_drift: Option<Real>,
     ) -> PyResult<TransferResult> {
         let args = Args {
             gt: "gt_cal",
@@ -455,15 +474,15 @@ impl PyCalibration {
         &self,
         shape: (usize, usize),
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
         sequence_window: Option<Int>,
-        sequence_level: Option<f64>,
-        sequence_speed: Option<f64>,
-        sequence_tolerance: Option<f64>,
-        sequence_drift: Option<f64>,
+        sequence_level: Option<Real>,
+        sequence_speed: Option<Real>,
+        sequence_tolerance: Option<Real>,
+        sequence_drift: Option<Real>,
     ) -> PyResult<usize> {
         let args = Args {
             gt: "gt_cal",
@@ -500,15 +519,15 @@ impl PyCalibration {
         first_query: Int,
         before: Int,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         segment_size: Option<Int>,
         gate: Option<&str>,
         query_major: bool,
         sequence_window: Option<Int>,
-        sequence_level: Option<f64>,
-        sequence_speed: Option<f64>,
-        sequence_tolerance: Option<f64>,
-        sequence_drift: Option<f64>,
+        sequence_level: Option<Real>,
+        sequence_speed: Option<Real>,
+        sequence_tolerance: Option<Real>,
+        sequence_drift: Option<Real>,
     ) -> PyResult<TransferResult> {
         let args = Args {
             gt: "gt_cal",
@@ -538,7 +557,7 @@ impl PyCalibration {
     /// This is the threshold tuned once offline and kept fixed, as practised today.
     /// ``precision=None`` is the calibration's default (:attr:`defaults`).
     #[pyo3(signature = (precision = None))]
-    fn threshold(&self, py: Python<'_>, precision: Option<f64>) -> PyResult<f64> {
+    fn threshold(&self, py: Python<'_>, precision: Option<Real>) -> PyResult<f64> {
         let precision = self.precision(precision)?;
         py.detach(|| self.inner.threshold(precision))
             .map_err(|e| CAL_ARGS.error(e))
@@ -550,7 +569,7 @@ impl PyCalibration {
     /// ``math.inf`` means reject all. Raises ``ValueError`` for a multi-matching
     /// calibration, which has no gate.
     #[pyo3(signature = (precision = None))]
-    fn gate(&self, precision: Option<f64>) -> PyResult<f64> {
+    fn gate(&self, precision: Option<Real>) -> PyResult<f64> {
         let precision = self.precision(precision)?;
         self.inner.gate(precision).map_err(|e| CAL_ARGS.error(e))
     }
@@ -705,7 +724,7 @@ impl TransferResult {
         query_thresholds: Bound<'_, PyArray1<f64>>,
         query_weights: Bound<'_, PyArray1<f64>>,
         neighbours: Bound<'_, PyArray2<i64>>,
-        gate: Option<f64>,
+        gate: Option<Real>,
         query_margins: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences_lower95: Option<Bound<'_, PyArray1<f64>>>,
@@ -740,7 +759,7 @@ impl TransferResult {
             query_thresholds: query_thresholds.unbind(),
             query_weights: query_weights.unbind(),
             neighbours: neighbours.unbind(),
-            gate,
+            gate: real("gate", gate)?,
             query_margins: query_margins.map(Bound::unbind),
             query_confidences: query_confidences.map(Bound::unbind),
             query_confidences_lower95: query_confidences_lower95.map(Bound::unbind),

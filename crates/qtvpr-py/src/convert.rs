@@ -40,6 +40,7 @@ use qtvpr::ScoresView;
 use qtvpr::npy::FloatMatrix;
 
 use crate::error::input_error;
+use crate::self_motion::SelfMotionLabels;
 
 /// `numpy.asarray`, looked up once.
 fn asarray(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
@@ -289,17 +290,22 @@ labels! {
     U64(u64) = (b'u', 8),
 }
 
-/// One ground-truth argument: an array, or the path of a file.
+/// One ground-truth argument: an array, the path of a file, or self-motion labels.
 pub(crate) enum LabelArg<'py> {
     /// A bool or integer array, borrowed.
     Array(Labels<'py>),
     /// A `.npy` file (or, for hard ground truth, a VPR_Tutorial `.npz`), read when the
     /// ground truth is built.
     File(PathBuf),
+    /// A `SelfMotionLabels` (semantics §16): hard and soft ground truth with their record.
+    SelfMotion(Py<SelfMotionLabels>),
 }
 
 impl<'py> LabelArg<'py> {
     fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Ok(labels) = obj.cast::<SelfMotionLabels>() {
+            return Ok(Self::SelfMotion(labels.clone().unbind()));
+        }
         match path_of(obj)? {
             Some(path) => Ok(Self::File(path)),
             None => Ok(Self::Array(Labels::extract(name, obj)?)),
@@ -310,6 +316,7 @@ impl<'py> LabelArg<'py> {
         match self {
             Self::Array(labels) => LabelSource::Array(labels.view()),
             Self::File(path) => LabelSource::File(path),
+            Self::SelfMotion(labels) => LabelSource::Truth(labels.get().truth()),
         }
     }
 }
@@ -355,6 +362,7 @@ impl<'py> GroundTruthArgs<'py> {
 enum LabelSource<'a> {
     Array(LabelView<'a>),
     File(&'a Path),
+    Truth(&'a qtvpr::GroundTruth),
 }
 
 /// Hard and optional soft ground truth, as views or paths the core reads.
@@ -383,12 +391,25 @@ impl GroundTruthView<'_> {
             LabelSource::Array(labels) => labels.hard(),
             LabelSource::File(path) if self.soft.is_some() => read_hard_ground_truth(path),
             LabelSource::File(path) => read_ground_truth(path, None),
+            LabelSource::Truth(_) if self.soft.is_some() => {
+                return Err(PyValueError::new_err(format!(
+                    "gt_soft: {} is self-motion labels, which hold their own soft ground truth; give no gt_soft",
+                    self.name
+                )));
+            }
+            LabelSource::Truth(gt) => Ok(gt.clone()),
         }
         .map_err(|e| input_error(self.name, e))?;
         let gt = match self.soft {
             None => Ok(gt),
             Some(LabelSource::Array(labels)) => labels.soft(gt),
             Some(LabelSource::File(path)) => add_soft_ground_truth(gt, path),
+            Some(LabelSource::Truth(_)) => {
+                return Err(PyValueError::new_err(format!(
+                    "gt_soft: self-motion labels are hard and soft ground truth at once; give them as {}",
+                    self.name
+                )));
+            }
         }
         .map_err(|e| input_error("gt_soft", e))?;
         Ok(gt.oriented(self.query_major))
@@ -406,17 +427,17 @@ pub(crate) fn gate(gate: Option<&str>) -> qtvpr::Result<Option<qtvpr::Gate>> {
 /// core checks them.
 pub(crate) fn sequence_gate(
     window: Option<Int>,
-    level: Option<f64>,
-    speed: Option<f64>,
-    tolerance: Option<f64>,
-    drift: Option<f64>,
+    level: Option<Real>,
+    speed: Option<Real>,
+    tolerance: Option<Real>,
+    drift: Option<Real>,
 ) -> PyResult<qtvpr::SequenceOverrides> {
     Ok(qtvpr::SequenceOverrides {
         window: window.map(|w| count("sequence_window", w)).transpose()?,
-        level,
-        speed,
-        tolerance,
-        drift,
+        level: real("sequence_level", level)?,
+        speed: real("sequence_speed", speed)?,
+        tolerance: real("sequence_tolerance", tolerance)?,
+        drift: real("sequence_drift", drift)?,
     })
 }
 
@@ -479,6 +500,52 @@ impl Int {
             ))),
         }
     }
+}
+
+/// A float argument as Python gave it. pyo3 converts a bool to a float (`True` is 1.0,
+/// a subclass of `int`), so that `precision=True` would silently be 1.0; taken as this,
+/// every float argument keeps a bool apart, and [`Real::get`] (or [`real`]) refuses it
+/// with a `TypeError` naming the argument, as [`Int::at_least`] does for an integer.
+/// Anything else is as `f64` extracts it (a float, an int, a NumPy scalar, an object
+/// with `__float__`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Real {
+    /// A number.
+    Value(f64),
+    /// A bool, refused by [`Real::get`].
+    Bool(bool),
+}
+
+impl FromPyObject<'_, '_> for Real {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'_, '_, PyAny>) -> PyResult<Self> {
+        if let Ok(flag) = obj.cast::<PyBool>() {
+            return Ok(Real::Bool(flag.is_true()));
+        }
+        obj.extract::<f64>().map(Real::Value)
+    }
+}
+
+impl Real {
+    /// The number, or a `TypeError` naming `name` for a bool.
+    pub(crate) fn get(self, name: &str) -> PyResult<f64> {
+        match self {
+            Real::Value(x) => Ok(x),
+            Real::Bool(flag) => Err(PyTypeError::new_err(format!(
+                "{name} must be a float, got a bool ({})",
+                if flag { "True" } else { "False" }
+            ))),
+        }
+    }
+}
+
+/// An optional float argument `name` as an `f64`: [`Real::get`] of it when given.
+///
+/// # Errors
+/// `TypeError` naming the argument for a bool.
+pub(crate) fn real(name: &str, value: Option<Real>) -> PyResult<Option<f64>> {
+    value.map(|x| x.get(name)).transpose()
 }
 
 /// A count argument (`k`, `window`, `segment_size`) as the core's `usize`.

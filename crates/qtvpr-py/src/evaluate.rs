@@ -11,7 +11,7 @@ use qtvpr::Report;
 use qtvpr::{GroundTruth, Matching, Method, Protocol, Split};
 
 use crate::calibration::SequenceGateArgs;
-use crate::convert::{GroundTruthArgs, Int, count};
+use crate::convert::{GroundTruthArgs, Int, Real, count, real};
 use crate::descriptors::SourceArg;
 use crate::error::Args;
 
@@ -55,15 +55,18 @@ fn methods_for(methods: Option<Vec<Method>>, protocol: &Protocol, n_db: usize) -
 fn setup(
     methods: Option<Vec<String>>,
     k: Option<usize>,
-    precision: Option<f64>,
+    precision: Option<Real>,
     matching: &str,
     calibration: Option<Split>,
-    segment_fraction: Option<f64>,
+    segment_fraction: Option<Real>,
     segment_size: Option<Int>,
-    deploy_fraction: Option<f64>,
+    deploy_fraction: Option<Real>,
     sequence: SequenceGateArgs,
     query_major: bool,
 ) -> PyResult<Setup> {
+    let precision = real("precision", precision)?;
+    let segment_fraction = real("segment_fraction", segment_fraction)?;
+    let deploy_fraction = real("deploy_fraction", deploy_fraction)?;
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     // None, every method that applies, is resolved on the input ([`methods_for`]).
@@ -94,10 +97,10 @@ fn setup(
 }
 
 /// ``cal_queries`` or ``cal_fraction``, `None` for neither.
-fn calibration(cal_fraction: Option<f64>, cal_queries: Option<Int>) -> PyResult<Option<Split>> {
+fn calibration(cal_fraction: Option<Real>, cal_queries: Option<Int>) -> PyResult<Option<Split>> {
     Ok(match cal_queries {
         Some(n) => Some(Split::Count(count("cal_queries", n)?)),
-        None => cal_fraction.map(Split::Fraction),
+        None => real("cal_fraction", cal_fraction)?.map(Split::Fraction),
     })
 }
 
@@ -160,14 +163,18 @@ fn build_ground_truth(py: Python<'_>, gt: &GroundTruthArgs<'_>, query_major: boo
 /// ``segments``, ...), ``recall_at_1`` (R@1 of the deployment set: queries whose best
 /// match is a hard match over queries with a hard match) and ``methods``: ``{name:
 /// {"pct_segs", "avg_recall", "segments_counted", "segments_skipped", "threshold_mse",
-/// "pooled_tp", "pooled_fp", "pooled_positives", "pooled_precision", "pooled_recall",
-/// "pooled_precision_lower95", "segments": [...]}}``. A segment meets the target when
-/// its precision is at least ``precision``; segments without positives are skipped;
+/// "pooled_tp", "pooled_fp", "pooled_accepted", "pooled_positives", "pooled_precision",
+/// "pooled_recall", "pooled_precision_lower95", "segments": [...]}}``: ``pooled_accepted``
+/// is how many matches the method accepted over every full segment, and
+/// ``pooled_precision`` is ``None`` when it accepted none. A segment meets the target when
+/// its precision is at least ``precision``, or when it accepts nothing (the paper's
+/// convention: a %Segs of 100 may rest on no decision); segments without positives are skipped;
 /// ``pct_segs`` is the percentage of counted segments that meet, ``avg_recall`` the
 /// mean of their recall (0 for those that miss), both ``None`` when no segment is
 /// counted. Each segment has ``start``, ``end`` (indices into the deployment set),
 /// ``threshold``, ``oracle_threshold`` (``inf`` is reject-all), ``tp``, ``fp``,
-/// ``positives``, ``precision``, ``recall``, ``precision_lower95`` and ``meets``.
+/// ``accepted``, ``positives``, ``precision`` (``None`` when nothing is accepted),
+/// ``recall``, ``precision_lower95`` and ``meets``.
 /// ``precision_lower95`` is the one-sided 95% Clopper-Pearson lower bound on the
 /// precision (the 0.05 quantile of Beta(TP, FP + 1); 0 when TP = 0, ``None`` when
 /// nothing is accepted). ``threshold_mse`` is the mean squared difference from the
@@ -187,19 +194,19 @@ pub(crate) fn evaluate<'py>(
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
     k: Option<Int>,
-    precision: Option<f64>,
+    precision: Option<Real>,
     matching: &str,
-    cal_fraction: Option<f64>,
+    cal_fraction: Option<Real>,
     cal_queries: Option<Int>,
-    segment_fraction: Option<f64>,
+    segment_fraction: Option<Real>,
     segment_size: Option<Int>,
-    deploy_fraction: Option<f64>,
+    deploy_fraction: Option<Real>,
     query_major: bool,
     sequence_window: Option<Int>,
-    sequence_level: Option<f64>,
-    sequence_speed: Option<f64>,
-    sequence_tolerance: Option<f64>,
-    sequence_drift: Option<f64>,
+    sequence_level: Option<Real>,
+    sequence_speed: Option<Real>,
+    sequence_tolerance: Option<Real>,
+    sequence_drift: Option<Real>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let sequence = SequenceGateArgs {
         window: sequence_window,
@@ -278,19 +285,19 @@ pub(crate) fn ablation<'py>(
     gt_soft: Option<&Bound<'py, PyAny>>,
     methods: Option<Vec<String>>,
     k: Option<OneOrMany<Int>>,
-    precision: Option<f64>,
+    precision: Option<Real>,
     matching: &str,
-    cal_fraction: Option<OneOrMany<f64>>,
+    cal_fraction: Option<OneOrMany<Real>>,
     cal_queries: Option<OneOrMany<Int>>,
-    segment_fraction: Option<f64>,
+    segment_fraction: Option<Real>,
     segment_size: Option<Int>,
-    deploy_fraction: Option<f64>,
+    deploy_fraction: Option<Real>,
     query_major: bool,
     sequence_window: Option<Int>,
-    sequence_level: Option<f64>,
-    sequence_speed: Option<f64>,
-    sequence_tolerance: Option<f64>,
-    sequence_drift: Option<f64>,
+    sequence_level: Option<Real>,
+    sequence_speed: Option<Real>,
+    sequence_tolerance: Option<Real>,
+    sequence_drift: Option<Real>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let sequence = SequenceGateArgs {
         window: sequence_window,
@@ -312,7 +319,10 @@ pub(crate) fn ablation<'py>(
             .into_iter()
             .map(|n| count("cal_queries", n).map(Split::Count))
             .collect::<PyResult<_>>()?,
-        (None, Some(f)) => nonempty("cal_fraction", f)?.into_iter().map(Split::Fraction).collect(),
+        (None, Some(f)) => nonempty("cal_fraction", f)?
+            .into_iter()
+            .map(|f| f.get("cal_fraction").map(Split::Fraction))
+            .collect::<PyResult<_>>()?,
         (None, None) => vec![],
     };
     let Setup {

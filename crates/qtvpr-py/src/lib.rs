@@ -22,13 +22,14 @@ mod evaluate;
 mod ground_truth;
 mod image_names;
 mod online;
+mod self_motion;
 mod similarity;
 
 use pyo3::prelude::*;
 use qtvpr::Matching;
 
 use crate::calibration::{CalibrationArgs, PyCalibration, SequenceGateArgs, TransferResult};
-use crate::convert::{GroundTruthArgs, Int, MatrixArg};
+use crate::convert::{GroundTruthArgs, Int, MatrixArg, Real};
 use crate::error::Args;
 use qtvpr::with_scores;
 
@@ -63,7 +64,7 @@ use qtvpr::with_scores;
 /// :meth:`Calibration.transfer`.
 #[pyfunction]
 #[pyo3(signature = (
-    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = Int::Small(10), precision = 1.0, matching = "single",
+    s_cal, gt_cal, s_val = None, *, gt_soft = None, k = Int::Small(10), precision = Real::Value(1.0), matching = "single",
     segment_size = None, gate = "none", query_major = false, cal_queries = None, cal_fraction = None,
     sequence_window = None, sequence_level = None, sequence_speed = None, sequence_tolerance = None,
     sequence_drift = None,
@@ -79,20 +80,20 @@ fn quantile_transfer(
     s_val: Option<&Bound<'_, PyAny>>,
     gt_soft: Option<&Bound<'_, PyAny>>,
     k: Int,
-    precision: f64,
+    precision: Real,
     matching: &str,
     segment_size: Option<Int>,
     gate: &str,
     query_major: bool,
     cal_queries: Option<Int>,
-    cal_fraction: Option<f64>,
+    cal_fraction: Option<Real>,
     sequence_window: Option<Int>,
-    sequence_level: Option<f64>,
-    sequence_speed: Option<f64>,
-    sequence_tolerance: Option<f64>,
-    sequence_drift: Option<f64>,
+    sequence_level: Option<Real>,
+    sequence_speed: Option<Real>,
+    sequence_tolerance: Option<Real>,
+    sequence_drift: Option<Real>,
 ) -> PyResult<TransferResult> {
-    let (k, precision) = (Some(convert::count("k", k)?), Some(precision));
+    let (k, precision) = (Some(convert::count("k", k)?), Some(precision.get("precision")?));
     let sequence = SequenceGateArgs {
         window: sequence_window,
         level: sequence_level,
@@ -120,7 +121,7 @@ fn quantile_transfer(
                 py,
                 s_val,
                 k.map(Int::from),
-                precision,
+                precision.map(Real::Value),
                 segment_size.map(Int::from),
                 gate.map(qtvpr::Gate::as_str),
                 query_major,
@@ -181,16 +182,20 @@ fn margins<'py>(
 /// ``ValueError`` for bad input or a bad file, ``OSError`` (``FileNotFoundError``,
 /// ...) for a file that cannot be read.
 #[pyfunction]
-#[pyo3(signature = (s, gt, *, gt_soft = None, precision = 1.0, matching = "single", query_major = false))]
+#[pyo3(
+    signature = (s, gt, *, gt_soft = None, precision = Real::Value(1.0), matching = "single", query_major = false),
+    text_signature = "(s, gt, *, gt_soft=None, precision=1.0, matching='single', query_major=False)"
+)]
 fn best_threshold(
     py: Python<'_>,
     s: &Bound<'_, PyAny>,
     gt: &Bound<'_, PyAny>,
     gt_soft: Option<&Bound<'_, PyAny>>,
-    precision: f64,
+    precision: Real,
     matching: &str,
     query_major: bool,
 ) -> PyResult<f64> {
+    let precision = precision.get("precision")?;
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let s = MatrixArg::extract("s", s)?;
@@ -204,9 +209,10 @@ fn best_threshold(
 /// The decisions of a similarity matrix at one threshold.
 ///
 /// A candidate (per ``matching``, as in :func:`best_threshold`) is accepted when its
-/// score is ``>= threshold``. Returns ``{"tp", "fp", "positives", "precision",
+/// score is ``>= threshold``. Returns ``{"tp", "fp", "accepted", "positives", "precision",
 /// "recall", "precision_lower95"}``, the keys of a segment of :func:`evaluate`:
-/// precision is 1 when nothing is accepted, recall 0 when there are no positives
+/// ``accepted`` is TP + FP, precision ``None`` when nothing is accepted (it would rest on
+/// no decision), recall 0 when there are no positives
 /// (queries with a hard match in ``"single"`` mode, hard matches in ``"multi"``), and
 /// ``precision_lower95`` the one-sided 95% Clopper-Pearson lower bound on the precision
 /// (``None`` when nothing is accepted). ``threshold`` may be ``inf`` (accepts nothing) but not NaN. Matrices
@@ -217,11 +223,12 @@ fn counts<'py>(
     py: Python<'py>,
     s: &Bound<'py, PyAny>,
     gt: &Bound<'py, PyAny>,
-    threshold: f64,
+    threshold: Real,
     gt_soft: Option<&Bound<'py, PyAny>>,
     matching: &str,
     query_major: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let threshold = threshold.get("threshold")?;
     let args = Args { gt: "gt", query_major };
     let matching: Matching = matching.parse().map_err(|e| args.error(e))?;
     let s = MatrixArg::extract("s", s)?;
@@ -313,6 +320,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(similarity::sequence_match, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_tolerance, m)?)?;
     m.add_function(wrap_pyfunction!(ground_truth::ground_truth_positions, m)?)?;
+    m.add_function(wrap_pyfunction!(ground_truth::ground_truth_from_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(image_names::utm_positions, m)?)?;
     m.add_function(wrap_pyfunction!(image_names::image_paths, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
@@ -321,6 +329,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<descriptors::PyDescriptors>()?;
     m.add_class::<PyCalibration>()?;
     m.add_class::<TransferResult>()?;
+    m.add_class::<self_motion::SelfMotionLabels>()?;
     m.add_class::<online::PyOnline>()?;
     m.add_class::<online::OnlineDecision>()?;
     m.add_class::<online::OnlineDecisions>()?;

@@ -10,7 +10,7 @@ use pyo3::types::{PyCFunction, PyTuple};
 use qtvpr::{Decision, Error, Kind, OnlineParams, Value};
 
 use crate::calibration::PyCalibration;
-use crate::convert::{self, Column, Int, MatrixArg, count, non_negative, sequence_gate};
+use crate::convert::{self, Column, Int, MatrixArg, Real, count, non_negative, real, sequence_gate};
 use crate::error::{Args, input_error};
 use qtvpr::with_scores;
 
@@ -89,17 +89,18 @@ impl PyOnline {
     fn new(
         calibration: Bound<'_, PyCalibration>,
         k: Option<Int>,
-        precision: Option<f64>,
+        precision: Option<Real>,
         window: Option<Int>,
         min_window: Option<Int>,
         gate: Option<&str>,
         sequence_window: Option<Int>,
-        sequence_level: Option<f64>,
-        sequence_speed: Option<f64>,
-        sequence_tolerance: Option<f64>,
-        sequence_drift: Option<f64>,
+        sequence_level: Option<Real>,
+        sequence_speed: Option<Real>,
+        sequence_tolerance: Option<Real>,
+        sequence_drift: Option<Real>,
         sequence: Option<Int>,
     ) -> PyResult<Self> {
+        let precision = real("precision", precision)?;
         let cal: &Arc<qtvpr::Calibration> = calibration.get().inner();
         let (k, window, min_window) = (
             k.map(|k| count("k", k)).transpose()?,

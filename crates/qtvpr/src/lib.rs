@@ -103,11 +103,11 @@ pub use input::params::{
     DEFAULT_SPEED, DEFAULT_TOLERANCE, Defaults, Gate, Line, OnlineParams, Options, Params, SequenceOverrides,
     SequenceParams,
 };
-pub use input::{GroundTruth, Label, Score, Truth};
+pub use input::{GroundTruth, Label, LabelRecord, Score, Truth};
 pub use operations::calibration::Calibration;
 pub use operations::evaluate::{
     ABLATION_DEPLOY_FRACTION, Ablation, DEFAULT_CAL_FRACTION, DEFAULT_SEGMENT_FRACTION, Evaluation, Layout, Method,
-    MethodResult, PrPoint, Protocol, SegmentResult, Split, ablation, evaluate,
+    MethodResult, PrPoint, Protocol, SCORE_HISTOGRAM_BINS, ScoreHistogram, SegmentResult, Split, ablation, evaluate,
 };
 pub use operations::online::{Decision, Online};
 pub use operations::source::ScoreSource;
@@ -120,8 +120,8 @@ pub use rules::deployment::deployment_threshold;
 pub use rules::ranked_correlation::ranked_correlation;
 pub use signals::confidence::{Block as ConfidenceBlock, ConfidenceMap, Signal, Signals, pa_score};
 pub use signals::self_motion::{
-    DEFAULT_NEGATIVE_LEVEL, DEFAULT_NEIGHBOURS, DEFAULT_POSITIVE_LEVEL, LabelParams, SelfMotionLabel, SelfMotionLabels,
-    self_motion_labels,
+    DEFAULT_NEGATIVE_LEVEL, DEFAULT_NEIGHBOURS, DEFAULT_POSITIVE_LEVEL, LabelCounts, LabelParams, SELF_MOTION,
+    SelfMotionLabel, SelfMotionLabels, self_motion_labels,
 };
 
 // Front-end plumbing (the crate docs' heading of that name): reading, dispatching on the

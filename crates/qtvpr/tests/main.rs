@@ -12,5 +12,6 @@ mod online;
 mod properties;
 mod regressions;
 mod screen;
+mod self_motion;
 mod semantics;
 mod sequence_gate;

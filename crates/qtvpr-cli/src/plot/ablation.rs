@@ -19,25 +19,34 @@ fn setting_label(run: &Run, axis: Axis) -> String {
     }
 }
 
-/// The horizontal offset of series `i` of `n` from its category, in categories.
-///
-/// Series that reach the same value (several methods at 100 %Segs, say) would hide one
-/// another; side by side they all stay visible. The x axis is categorical (one slot per
-/// setting), so the offset changes no value that can be read off the figure, as a
-/// vertical one would.
-/// Offsets are 0.12 apart (10 pixels at 6 settings, two markers' width), or less when
-/// there are more than 7 series, so that a slot's series stay within 0.7 of it.
-fn dodge(i: usize, n: usize) -> f64 {
-    let step = if n > 1 { (0.7 / (n - 1) as f64).min(0.12) } else { 0.0 };
-    (i as f64 - (n as f64 - 1.0) / 2.0) * step
+/// Where a run sits on the x axis: the value of its setting (k, or the calibration
+/// fraction or count as given), on a log scale (the settings run from 1 to 40 or from
+/// 0.01 to 0.5). Every point is drawn at its own setting.
+fn position(run: &Run, axis: Axis) -> f64 {
+    match axis {
+        Axis::K => run.k as f64,
+        Axis::Calibration => match run.calibration {
+            qtvpr::Split::Fraction(f) => f,
+            qtvpr::Split::Count(n) => n as f64,
+        },
+    }
+    .ln()
+}
+
+/// Marker half-width of series `i` of `n`: the first drawn the largest, 2 pixels more
+/// than the next, so that series at the same point show as nested markers (at most 11
+/// pixels, at least 4).
+fn marker_size(i: usize, n: usize) -> i32 {
+    let step = if n > 1 { (7 / (n as i32 - 1)).min(2) } else { 0 };
+    4 + step * (n - 1 - i) as i32
 }
 
 pub(super) fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Axis) -> Result<()> {
     // The values along the axis, in the order given, and the series: one per method
     // when only this parameter varies, else quantile transfer once per other setting.
-    let mut xs: Vec<String> = vec![];
+    let mut xs: Vec<(String, f64)> = vec![];
     for r in runs {
-        let x = setting_label(r, axis);
+        let x = (setting_label(r, axis), position(r, axis));
         if !xs.contains(&x) {
             xs.push(x);
         }
@@ -52,10 +61,10 @@ pub(super) fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Ax
             others.push(other(r));
         }
     }
-    // (label, colour, marker, points of (x index, %Segs, AvgR))
-    type Series = (String, RGBColor, Shape, Vec<(usize, Option<f64>, Option<f64>)>);
+    // (label, colour, marker, points of (x, %Segs, AvgR))
+    type Series = (String, RGBColor, Shape, Vec<(f64, Option<f64>, Option<f64>)>);
     let mut series: Vec<Series> = vec![];
-    let x_of = |r: &Run| xs.iter().position(|x| *x == setting_label(r, axis)).unwrap();
+    let x_of = |r: &Run| position(r, axis);
     if others.len() == 1 {
         // The oracle first, so that the methods that reach it are drawn over it.
         let mut methods: Vec<Method> = runs[0].eval.methods.iter().map(|m| m.method).collect();
@@ -131,17 +140,23 @@ pub(super) fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Ax
         (&left, "%Segs (segments that meet the target)", pct_min, 102.0, true),
         (&right, avg.as_str(), 0.0, (max_recall * 1.1).clamp(0.05, 1.0), false),
     ];
-    let n = xs.len();
+    let (lo, hi) = xs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x.1), b.max(x.1)));
+    let pad = if hi > lo { 0.07 * (hi - lo) } else { 0.5 };
     for (area, y_desc, y_min, y_max, first) in panels {
         let (ticks, decimals) = nice_ticks(y_min, y_max.min(if first { 100.0 } else { 1.0 }), 8);
-        let categories: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let at: Vec<f64> = xs.iter().map(|x| x.1).collect();
         let mut chart = ChartBuilder::on(area)
             .margin(15)
             .x_label_area_size(50)
             .y_label_area_size(60)
-            .build_cartesian_2d(ticked(-0.7..n as f64 - 0.3, categories), ticked(y_min..y_max, ticks))
+            .build_cartesian_2d(ticked(lo - pad..hi + pad, at), ticked(y_min..y_max, ticks))
             .map_err(err)?;
-        let fmt = |x: &f64| xs.get(x.round() as usize).cloned().unwrap_or_default();
+        let fmt = |x: &f64| {
+            let nearest = xs.iter().min_by(|a, b| (a.1 - x).abs().total_cmp(&(b.1 - x).abs()));
+            nearest.map(|n| n.0.clone()).unwrap_or_default()
+        };
         chart
             .configure_mesh()
             .x_desc(x_desc)
@@ -155,17 +170,16 @@ pub(super) fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Ax
             .draw()
             .map_err(err)?;
         for (i, (label, c, s, pts)) in series.iter().enumerate() {
-            let offset = dodge(i, series.len());
             let pts: Vec<(f64, f64)> = pts
                 .iter()
-                .filter_map(|&(x, p, r)| if first { p } else { r }.map(|y| (x as f64 + offset, y)))
+                .filter_map(|&(x, p, r)| if first { p } else { r }.map(|y| (x, y)))
                 .collect();
             let width = if label == "oracle" { 3 } else { 2 };
             chart
                 .draw_series(LineSeries::new(pts.clone(), c.stroke_width(width)))
                 .map_err(err)?;
             for p in pts {
-                draw_marker(chart.plotting_area(), *s, p, 5, *c)?;
+                draw_marker(chart.plotting_area(), *s, p, marker_size(i, series.len()), *c)?;
             }
         }
     }
@@ -180,7 +194,8 @@ pub(super) fn ablation(root: &Area<'_>, ctx: &RunContext, runs: &[Run], axis: Ax
     let rows = legend(&legend_area, &entries, 80, 1180, None)?;
     legend_area
         .draw(&Text::new(
-            "Series are set side by side around each setting, so that equal values stay visible.",
+            "Each point is at its own setting (a log scale). Equal values share a point: each series' marker is \
+             smaller than the one drawn before it.",
             (80, 22 * rows + 14),
             (FONT, 13).into_font().color(&NOTE_COLOUR),
         ))
@@ -193,12 +208,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn dodge_centres_the_series() {
-        // 5 series: offsets -0.24, -0.12, 0, 0.12, 0.24 of a category; 1 series: none.
-        assert_eq!(dodge(0, 1), 0.0);
-        assert!((dodge(0, 5) + 0.24).abs() < 1e-15 && dodge(2, 5) == 0.0);
-        assert!((dodge(4, 5) - 0.24).abs() < 1e-15);
-        // 11 series: 0.7 / 10 = 0.07 apart, from -0.35 to 0.35: clear of the next slot.
-        assert!((dodge(0, 11) + 0.35).abs() < 1e-12 && (dodge(10, 11) - 0.35).abs() < 1e-12);
+    fn markers_nest() {
+        // 8 series: 7 / 7 = 1 -> min(1, 2) = 1 pixel apart, 11 down to 4; 3 series: 2
+        // apart, 8, 6, 4; one series: 4.
+        assert_eq!((marker_size(0, 8), marker_size(7, 8)), (11, 4));
+        assert_eq!((0..3).map(|i| marker_size(i, 3)).collect::<Vec<_>>(), [8, 6, 4]);
+        assert_eq!(marker_size(0, 1), 4);
     }
 }

@@ -7,6 +7,9 @@
 //! - `precision_recall.svg` (Fig. 4, right): the precision-recall curve of the
 //!   deployment set under one global threshold, with each method's operating point
 //!   (its per-segment decisions pooled over the deployment set).
+//! - `scores.svg`: the deployment set's best-match scores (every candidate's in multi
+//!   matching), right ones up and wrong ones down over the same bins, each method's
+//!   threshold (the median of its segments') a vertical line on them.
 //! - `reliability.svg` (single matching): the reliability diagram of the confidence
 //!   (semantics §14), the hit rate against the mean confidence of each bin of the ECE
 //!   that holds a decision, with its count, and the diagonal of perfect calibration.
@@ -20,6 +23,7 @@
 mod ablation;
 mod precision_recall;
 mod reliability;
+mod scores;
 mod thresholds;
 
 use std::fmt::Debug;
@@ -42,6 +46,7 @@ use crate::output::emit;
 use crate::summary::{Run, RunContext, ablation_setting, fmt_num};
 use precision_recall::PR_HEIGHT;
 use reliability::{RELIABILITY_BELOW, RELIABILITY_HEIGHT};
+use scores::{SCORES_BELOW, SCORES_HEIGHT};
 use thresholds::{LEGEND_HEIGHT, STRIP_HEIGHT, THRESHOLD_HEIGHT};
 
 const FONT: &str = "sans-serif";
@@ -65,6 +70,60 @@ fn gated_dash(m: Method) -> Option<(u32, u32)> {
         (true, true) => Some((2, 10)),
     }
 }
+/// Width of quantile transfer's threshold line: wider than the lines drawn over it.
+const WIDE: u32 = 6;
+
+/// How a method's threshold line is drawn (in `thresholds.svg` and `scores.svg`).
+///
+/// The three quantile-transfer lines often coincide: quantile-transfer-margin's
+/// thresholds are quantile transfer's (its gate acts on the margin), and online's
+/// segment threshold is that of the segment's last query, whose window is the segment.
+/// So quantile transfer's is wide and drawn first, online's is thin and solid on it,
+/// and the gated one is dashed on top: where all three lie together, the wide line shows
+/// at both sides of the thin one, and the thin one between the dashes.
+fn line_style(m: Method) -> Swatch {
+    let c = colour(m);
+    if m == Method::QuantileTransfer {
+        Swatch::Line(c, WIDE)
+    } else if let Some(dash) = gated_dash(m) {
+        Swatch::Dashed(c, 2, dash)
+    } else {
+        Swatch::Line(c, 2)
+    }
+}
+
+/// Methods in the order their threshold lines are drawn: by [`line_style`], the wide
+/// line first and the dashed ones last, else in the order given.
+fn drawing_order<'m>(methods: impl IntoIterator<Item = &'m MethodResult>) -> Vec<&'m MethodResult> {
+    let mut v: Vec<&MethodResult> = methods.into_iter().collect();
+    v.sort_by_key(|m| match line_style(m.method) {
+        Swatch::Line(_, WIDE) => 0,
+        Swatch::Dashed(..) => 2,
+        _ => 1,
+    });
+    v
+}
+
+/// Draw a polyline as `style` says (a solid or dashed [`Swatch`]), in any coordinates.
+fn draw_line<X: CoordTranslate>(
+    area: &DrawingArea<SVGBackend<'_>, X>,
+    style: Swatch,
+    points: Vec<X::From>,
+) -> Result<()>
+where
+    X::From: Clone,
+{
+    match style {
+        Swatch::Dashed(c, w, (dash, gap)) | Swatch::DashedMarker(c, w, (dash, gap), _) => area
+            .draw(&DashedPathElement::new(points, dash, gap, c.stroke_width(w)))
+            .map_err(err),
+        Swatch::Line(c, w) | Swatch::LineMarker(c, w, _) => {
+            area.draw(&PathElement::new(points, c.stroke_width(w))).map_err(err)
+        }
+        Swatch::Marker(..) | Swatch::Block(_) | Swatch::Empty => Ok(()),
+    }
+}
+
 /// Dash and gap of the target-precision line of the precision-recall figure.
 const TARGET_DASH: (u32, u32) = (6, 5);
 
@@ -198,8 +257,23 @@ enum Swatch {
     Marker(Shape, RGBColor),
     /// A line of this width with a marker on it.
     LineMarker(RGBColor, u32, Shape),
+    /// A dashed line with a marker on it: width, (dash, gap).
+    DashedMarker(RGBColor, u32, (u32, u32), Shape),
     /// A filled block (a bar).
     Block(RGBColor),
+    /// Nothing: an entry for a series that is not drawn.
+    Empty,
+}
+
+impl Swatch {
+    /// The same line with `shape` on it (a marker or nothing as it is).
+    fn with_marker(self, shape: Shape) -> Self {
+        match self {
+            Swatch::Line(c, w) => Swatch::LineMarker(c, w, shape),
+            Swatch::Dashed(c, w, d) => Swatch::DashedMarker(c, w, d, shape),
+            other => other,
+        }
+    }
 }
 
 /// Width of a swatch in pixels.
@@ -222,9 +296,14 @@ fn draw_swatch(area: &Area<'_>, swatch: Swatch, (x, y): (i32, i32)) -> Result<()
             line(c, w).map_err(err)?;
             draw_marker(area, s, (x + SWATCH / 2, y), 5, c)
         }
+        Swatch::DashedMarker(c, w, d, s) => {
+            draw_swatch(area, Swatch::Dashed(c, w, d), (x, y))?;
+            draw_marker(area, s, (x + SWATCH / 2, y), 5, c)
+        }
         Swatch::Block(c) => area
             .draw(&Rectangle::new([(x + 6, y - 7), (x + 24, y + 7)], c.filled()))
             .map_err(err),
+        Swatch::Empty => Ok(()),
     }
 }
 
@@ -324,6 +403,15 @@ pub fn write_all(dir: &Path, ctx: &RunContext, runs: &[Run], k_varies: bool, cal
         svg(dir, "precision_recall.svg", (900, PR_HEIGHT + 30 + 22 * rows), |root| {
             precision_recall::precision_recall(root, ctx, run)
         })?;
+        if let Some(h) = run.eval.score_histogram(qtvpr::SCORE_HISTOGRAM_BINS) {
+            let rows = (run.eval.methods.len() as u32).div_ceil(2);
+            svg(
+                dir,
+                "scores.svg",
+                (1200, SCORES_HEIGHT + SCORES_BELOW + 22 * rows),
+                |root| scores::scores(root, ctx, run, &h),
+            )?;
+        }
         // Semantics §14's signals exist in single matching only.
         if let Some(signals) = &run.eval.confidence {
             svg(
@@ -393,6 +481,24 @@ fn count_axis(max: usize) -> (usize, usize) {
         }
         p *= 10;
     }
+}
+
+/// A two-sided count axis: counts up to `up_max` above 0 and up to `down_max` below
+/// it, each half on its own [`count_axis`] scaled to 1 (so that a few of one show next to
+/// a hundred of the other). Returns the ticks (in -1..=1) and the two halves' tops: a
+/// count `n` is drawn at `n / up` or `-n / down`.
+fn mirrored_counts(up_max: usize, down_max: usize) -> (Vec<f64>, f64, f64) {
+    let ((up_step, up), (down_step, down)) = (count_axis(up_max), count_axis(down_max));
+    let mut ticks: Vec<f64> = (1..=up / up_step).map(|k| (k * up_step) as f64 / up as f64).collect();
+    ticks.extend((0..=down / down_step).map(|k| -((k * down_step) as f64) / down as f64));
+    (ticks, up as f64, down as f64)
+}
+
+/// The label of tick `v` of [`mirrored_counts`]: the count it stands for. The ticks are
+/// k * step / top, so these products are integers up to rounding (`abs` so that the tick
+/// at 0 of the lower half is not "-0").
+fn mirrored_label(v: f64, up: f64, down: f64) -> String {
+    format!("{:.0}", if v >= 0.0 { v * up } else { v * down }.abs())
 }
 
 #[cfg(test)]

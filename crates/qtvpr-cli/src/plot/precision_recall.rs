@@ -27,7 +27,7 @@ pub(super) fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> 
     let lowest = eval
         .methods
         .iter()
-        .map(|m| m.pooled().precision())
+        .filter_map(|m| m.pooled().measured_precision())
         .chain(curve.iter().filter(|p| p.recall <= x_max).map(|p| p.precision))
         .fold(ctx.precision, f64::min);
     let y_min = ((lowest - 0.05) * 10.0).floor().max(0.0) / 10.0;
@@ -92,15 +92,21 @@ pub(super) fn precision_recall(root: &Area<'_>, ctx: &RunContext, run: &Run) -> 
     for m in &eval.methods {
         let p = m.pooled();
         let (c, s) = (colour(m.method), shape(m.method));
-        draw_marker(chart.plotting_area(), s, (p.recall(), p.precision()), 8, c)?;
-        let label = format!(
-            "{}: precision {:.3}, recall {:.3} (TP {}, FP {})",
-            m.method,
-            p.precision(),
-            p.recall(),
-            p.tp,
-            p.fp
-        );
+        // A method that accepted nothing has no precision, hence no point to draw.
+        let label = match p.measured_precision() {
+            Some(precision) => {
+                draw_marker(chart.plotting_area(), s, (p.recall(), precision), 8, c)?;
+                format!(
+                    "{}: precision {precision:.3}, recall {:.3} ({} accepted: TP {}, FP {})",
+                    m.method,
+                    p.recall(),
+                    p.accepted(),
+                    p.tp,
+                    p.fp
+                )
+            }
+            None => format!("{}: no match accepted, so no precision (not drawn)", m.method),
+        };
         entries.push((Swatch::Marker(s, c), label));
     }
     // Under the chart, one entry a row: a legend inside would cover points or the curve.

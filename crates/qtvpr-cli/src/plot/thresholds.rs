@@ -126,31 +126,15 @@ pub(super) fn thresholds(root: &Area<'_>, ctx: &RunContext, run: &Run) -> Result
     }
 
     // The oracle last, so that it is drawn on top; dashed.
-    let mut entries: Vec<(Swatch, String)> = vec![];
-    for m in &methods {
-        let c = colour(m.method);
-        // A gated method's thresholds are quantile transfer's (the gates act on the
-        // margin and the consistency, not the score): dashed, each set of gates its own
-        // dash, so that the lines beneath stay visible.
-        let dash = gated_dash(m.method);
+    for m in drawing_order(methods.iter().copied()) {
         for pts in finite_runs(m.segments.iter().map(|g| (g.start as f64, g.end as f64, g.threshold))) {
-            if let Some((on, off)) = dash {
-                let style = ShapeStyle::from(&c).stroke_width(2);
-                chart
-                    .draw_series(DashedLineSeries::new(pts, on, off, style))
-                    .map_err(err)?;
-            } else {
-                chart
-                    .draw_series(LineSeries::new(pts, c.stroke_width(2)))
-                    .map_err(err)?;
-            }
+            draw_line(chart.plotting_area(), line_style(m.method), pts)?;
         }
-        let swatch = match dash {
-            Some(dash) => Swatch::Dashed(c, 2, dash),
-            None => Swatch::Line(c, 2),
-        };
-        entries.push((swatch, m.method.as_str().to_string()));
     }
+    let mut entries: Vec<(Swatch, String)> = methods
+        .iter()
+        .map(|m| (line_style(m.method), m.method.as_str().to_string()))
+        .collect();
     if let Some(first) = oracle_of {
         let style = ShapeStyle::from(&BLACK).stroke_width(2);
         let runs = finite_runs(
@@ -234,20 +218,18 @@ fn counts_strip(area: &Area<'_>, m: &MethodResult, end: f64, size: f64, tau: f64
         .map(|g| g.counts.positives - g.counts.tp.min(g.counts.positives))
         .max()
         .unwrap_or(0);
-    // Each half has its own scale, so that a few FPs show next to a hundred FNs; both
-    // are counts, so their ticks are integers (up to `top` of each, at -1 and 1).
-    let ((up_step, up), (down_step, down)) = (count_axis(up_max), count_axis(down_max));
-    let mut ticks: Vec<f64> = (1..=up / up_step).map(|k| (k * up_step) as f64 / up as f64).collect();
-    ticks.extend((0..=down / down_step).map(|k| -((k * down_step) as f64) / down as f64));
+    // Each half has its own scale, so that a few FPs show next to a hundred FNs.
+    let (ticks, up, down) = mirrored_counts(up_max, down_max);
     let failed = m.segments.iter().filter(|g| g.counts.positives > 0 && !g.meets).count();
     let caption = format!(
-        "{}: %Segs {}, AvgR {}, {} of {} counted segments below precision {}",
+        "{}: %Segs {}, AvgR {}, {} of {} counted segments below precision {}; {} matches accepted",
         m.method,
         m.pct_segs.map_or("n/a".into(), |v| format!("{v:.1}")),
         m.avg_recall.map_or("n/a".into(), |v| format!("{v:.3}")),
         failed,
         m.segments_counted,
-        fmt_num(tau)
+        fmt_num(tau),
+        m.pooled().accepted()
     );
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (FONT, 15).into_font().color(&colour(m.method)))
@@ -257,16 +239,12 @@ fn counts_strip(area: &Area<'_>, m: &MethodResult, end: f64, size: f64, tau: f64
         .y_label_area_size(75)
         .build_cartesian_2d(0.0..end, ticked(-1.1..1.1, ticks))
         .map_err(err)?;
-    let (up, down) = (up as f64, down as f64);
-    // The ticks are k * step / top, so these products are integers up to rounding.
-    // (`abs` so that the tick at 0 of the lower half is not "-0".)
-    let tick = |v: &f64| format!("{:.0}", if *v >= 0.0 { v * up } else { v * down }.abs());
     chart
         .configure_mesh()
         .y_desc("FN | TP+FP")
         .axis_desc_style((FONT, 12))
         .label_style((FONT, 12))
-        .y_label_formatter(&tick)
+        .y_label_formatter(&|v| mirrored_label(*v, up, down))
         .x_label_formatter(&|x| format!("{x:.0}"))
         .light_line_style(WHITE.mix(0.0))
         .draw()

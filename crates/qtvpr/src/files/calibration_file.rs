@@ -22,8 +22,10 @@
 //! not its default, and each key left out is its default); each can be overridden
 //! there. `sequence` is the calibration's sequence length `L` (semantics §15: not a
 //! default but what `s` was matched over), written when it is above 1 and 1 when left
-//! out. `qtvpr` is the version of the crate that wrote it. Keys beyond these are
-//! ignored on load.
+//! out. `qtvpr` is the version of the crate that wrote it. `labels`, only when the
+//! ground truth came from self-motion labels (semantics §16), is their record
+//! ([`LabelRecord`](crate::input::LabelRecord)), checked on load; such a calibration is
+//! single matching. Keys beyond these are ignored on load.
 //!
 //! Loading checks everything the same arrays are checked for as input (finite, non-empty
 //! scores; bool ground truth of the same shape), the `format` and `version`, the
@@ -49,9 +51,10 @@ mod file {
     use crate::extensions::sequence::Sequence;
     use crate::files::npy::{self, NpyArray};
     use crate::input::params::{Defaults, Gate, Line, SequenceParams};
-    use crate::input::{GroundTruth, ScoreMatrix, Truth};
+    use crate::input::{GroundTruth, LabelRecord, ScoreMatrix, Truth};
     use crate::operations::calibration::Calibration;
     use crate::rules::decisions::Matching;
+    use crate::signals::self_motion::check_record;
 
     /// The `meta` JSON.
     #[derive(Serialize, Deserialize)]
@@ -64,6 +67,10 @@ mod file {
         /// by another tool may leave it out.
         #[serde(default)]
         qtvpr: String,
+        /// The record of self-motion labels (semantics §16), when the ground truth is
+        /// theirs.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        labels: Option<serde_json::Value>,
     }
 
     #[derive(Serialize, Deserialize)]
@@ -209,6 +216,9 @@ mod file {
                     sequence: (self.sequence() > 1).then_some(self.sequence()),
                 },
                 qtvpr: env!("CARGO_PKG_VERSION").into(),
+                labels: self
+                    .labels()
+                    .map(|r| serde_json::from_str(r.json()).expect("a record is checked JSON")),
             };
             let meta = serde_json::to_string(&meta).expect("meta serialises");
             let labels = labels.view();
@@ -281,10 +291,12 @@ mod file {
                 ));
             }
         }
-        let (matching, defaults, sequence) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
+        let (matching, defaults, sequence, record) = read_meta(&npy::read_string(meta.npy, &meta.label)?, path)?;
         let scores = npy::read_owned_scores(s.npy, &s.label)?;
         let hard_gt = npy::read_bool_matrix(hard.npy, &hard.label)?;
-        let mut gt = GroundTruth::new(hard_gt.view()).map_err(|e| in_file(path, e))?;
+        let mut gt = GroundTruth::new(hard_gt.view())
+            .map_err(|e| in_file(path, e))?
+            .with_record(record);
         if let Some(soft) = soft {
             let soft_gt = npy::read_bool_matrix(soft.npy, &soft.label)?;
             gt = gt.with_soft(soft_gt.view()).map_err(|e| in_file(path, e))?;
@@ -299,8 +311,9 @@ mod file {
             .map_err(|e| in_file(path, e))
     }
 
-    /// The matching mode, defaults and sequence length of a `meta` JSON text.
-    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults, usize)> {
+    /// The matching mode, defaults, sequence length and record of self-motion labels of a
+    /// `meta` JSON text.
+    fn read_meta(text: &str, path: &Path) -> Result<(Matching, Defaults, usize, Option<LabelRecord>)> {
         let bad = |message: String| file_error(path, message);
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| bad(format!("has a meta that is not JSON: {e}")))?;
@@ -346,6 +359,16 @@ mod file {
         defaults.validate().map_err(bad_params)?;
         let sequence = meta.params.sequence.unwrap_or(1);
         Sequence::causal(sequence).validate().map_err(bad_params)?;
-        Ok((matching, defaults, sequence))
+        let record = meta
+            .labels
+            .map(|labels| {
+                check_record(labels).map_err(|why| {
+                    bad(format!(
+                        "has meta labels that are not a record of self-motion labels: it {why}"
+                    ))
+                })
+            })
+            .transpose()?;
+        Ok((matching, defaults, sequence, record))
     }
 }

@@ -48,9 +48,11 @@
 //!     segment is counted);
 //!   - `threshold_mse`: the mean squared difference from the oracle's threshold over
 //!     the counted segments where both are finite (`null` if none);
-//!   - `pooled_tp`, `pooled_fp`, `pooled_positives`: the counts summed over every full
-//!     segment (skipped ones included), the method's operating point on the whole
-//!     deployment set, and from them `pooled_precision`, `pooled_recall` and
+//!   - `pooled_tp`, `pooled_fp`, `pooled_accepted` (TP + FP: the matches the method
+//!     accepted), `pooled_positives`: the counts summed over every full segment
+//!     (skipped ones included), the method's operating point on the whole deployment
+//!     set, and from them `pooled_precision` (`null` when nothing was accepted: a
+//!     %Segs of 100 then rests on no decision), `pooled_recall` and
 //!     `pooled_precision_lower95` (as for a segment, below);
 //!   - `segments`: every full segment in order ([`SegmentResult`]): `start`, `end`
 //!     (deployment-query indices, end exclusive: deployment query i is column
@@ -59,9 +61,10 @@
 //!     every score and its gate decides, as the `sequence` method's), `oracle_threshold`,
 //!     `gate` (the methods with the margin gate only, semantics §13: `m*`; reject-all
 //!     is `null` / `inf`), `consistency_level` (the methods with the sequence gate
-//!     only, semantics §15: its level), `tp`, `fp`,
-//!     `positives`, `precision` (1 when nothing is accepted), `recall` (0 without
-//!     positives), `precision_lower95` and `meets` (precision >= tau - 1e-12).
+//!     only, semantics §15: its level), `tp`, `fp`, `accepted`, `positives`,
+//!     `precision` (`null` when nothing is accepted), `recall` (0 without positives),
+//!     `precision_lower95` and `meets` (precision >= tau - 1e-12, or nothing accepted:
+//!     the paper's convention, semantics §8.3).
 //! - `confidence` (single matching with |DB| >= 2 only, semantics §14): `{"signals":
 //!   {"score": {"auroc"}, "margin": {"auroc"}, "pa_score": {"auroc"}, "consistency":
 //!   {"auroc"}, "confidence": {"auroc", "brier", "ece", "bins"}}}` over the full
@@ -97,11 +100,11 @@
 //!
 //! # `qtvpr.counts` and `Calibration.defaults`
 //!
-//! [`Counts`] at one threshold: `tp`, `fp`, `positives`, `precision`, `recall` and
-//! `precision_lower95`, the keys of a segment of `evaluate`. A calibration's
-//! [`Defaults`]: `k`, `precision`, `window` (`None` when the file sets none), `gate`
-//! and `sequence_gate` (`window`, `level`, `speed`, `tolerance`, `drift`), the `params`
-//! of its file.
+//! [`Counts`] at one threshold: `tp`, `fp`, `accepted`, `positives`, `precision`
+//! (`null` when nothing is accepted), `recall` and `precision_lower95`, the keys of a
+//! segment of `evaluate`. A calibration's [`Defaults`]: `k`, `precision`, `window`
+//! (`None` when the file sets none), `gate` and `sequence_gate` (`window`, `level`,
+//! `speed`, `tolerance`, `drift`), the `params` of its file.
 //!
 //! [`Evaluation`]: crate::operations::evaluate::Evaluation
 //! [`Layout`]: crate::operations::evaluate::Layout
@@ -278,8 +281,21 @@ mod tests {
         };
         let text = serde_json::to_string(&c).unwrap();
         assert!(
-            text.starts_with(r#"{"tp":3,"fp":1,"positives":5,"precision":0.75,"recall":0.6,"precision_lower95":0."#),
+            text.starts_with(
+                r#"{"tp":3,"fp":1,"accepted":4,"positives":5,"precision":0.75,"recall":0.6,"precision_lower95":0."#
+            ),
             "{text}"
+        );
+        // Nothing accepted: no precision, no bound.
+        let none = Counts {
+            tp: 0,
+            fp: 0,
+            positives: 5,
+        };
+        assert_eq!(
+            serde_json::to_value(none).unwrap(),
+            json!({"tp": 0, "fp": 0, "accepted": 0, "positives": 5, "precision": null, "recall": 0.0,
+                   "precision_lower95": null})
         );
         assert_eq!(
             serde_json::to_value(Defaults::default()).unwrap(),

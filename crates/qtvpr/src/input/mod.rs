@@ -220,10 +220,39 @@ pub enum Truth {
     Ignored = 2,
 }
 
-/// Hard ground truth with optional soft ground truth, as one |DB| x |Q| matrix of [`Truth`].
+/// Hard ground truth with optional soft ground truth, as one |DB| x |Q| matrix of [`Truth`],
+/// and, when its labels are not places' but were inferred, the record of how
+/// ([`LabelRecord`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroundTruth {
     labels: Array2<Truth>,
+    record: Option<LabelRecord>,
+}
+
+/// How ground truth was labelled when not from places: the JSON object of semantics §16's
+/// self-motion labels (`{"labels": "self-motion", "neighbours": 5, ...}`: the rule, its
+/// parameters, its counts). It travels with the labels, from the ground-truth `.npz`
+/// that holds it (its `labels` member) to the calibration file made from them (`meta`'s
+/// `"labels"`), so that a calibration says that its labels are self-supervised. Made by
+/// [`crate::SelfMotionLabels::record`] and checked wherever it is read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LabelRecord {
+    /// The object, as compact JSON.
+    json: String,
+}
+
+impl LabelRecord {
+    /// A record from its JSON text, which the caller has checked (made and read with
+    /// the `npy` feature's JSON).
+    #[cfg_attr(not(feature = "npy"), allow(dead_code))]
+    pub(crate) fn new(json: String) -> Self {
+        Self { json }
+    }
+
+    /// The record as compact JSON.
+    pub fn json(&self) -> &str {
+        &self.json
+    }
 }
 
 impl GroundTruth {
@@ -244,7 +273,7 @@ impl GroundTruth {
                 .map(|h| if h.to_i128() == 1 { Truth::True } else { Truth::False }),
         );
         let labels = Array2::from_shape_vec(hard.dim(), labels).expect("one label per entry, in logical order");
-        Ok(Self { labels })
+        Ok(Self { labels, record: None })
     }
 
     /// Add soft ground truth (`GTsoft`): entries soft but not hard become [`Truth::Ignored`].
@@ -271,7 +300,18 @@ impl GroundTruth {
 
     /// Build directly from a [`Truth`] matrix.
     pub fn from_truth(labels: Array2<Truth>) -> Self {
-        Self { labels }
+        Self { labels, record: None }
+    }
+
+    /// The same labels with the record of how they were made (semantics §16).
+    #[must_use]
+    pub fn with_record(self, record: Option<LabelRecord>) -> Self {
+        Self { record, ..self }
+    }
+
+    /// How the labels were made, when they are self-motion labels (semantics §16).
+    pub fn record(&self) -> Option<&LabelRecord> {
+        self.record.as_ref()
     }
 
     /// The |DB| x |Q| matrix of [`Truth`].
@@ -288,6 +328,7 @@ impl GroundTruth {
     pub fn reversed_axes(self) -> Self {
         Self {
             labels: self.labels.reversed_axes(),
+            record: self.record,
         }
     }
 

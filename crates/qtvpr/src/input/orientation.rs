@@ -20,7 +20,9 @@
 //!   positions whose counts fit both ways): then nothing distinguishes the two layouts.
 //!
 //! Every front end reports the [`Orientation`] it assumed (the `orientation` key of
-//! `evaluate` and `threshold`) and prints its messages, naming its own switch.
+//! `evaluate` and `threshold`, with its `layout` in words: confirmed by the ground truth,
+//! assumed, or contradicted: [`Orientation::layout`]) and prints its messages, naming its
+//! own switch.
 
 use crate::error::Error;
 use crate::error::names::Input;
@@ -33,10 +35,11 @@ pub const CONTRADICTION_SHARE: f64 = 0.05;
 /// What a front end assumed of a similarity matrix's orientation, and what its ground
 /// truth says of it.
 ///
-/// Serialised (feature `serde`) as `{"db": 111, "queries": 100, "query_major": false}`,
-/// with `"evidence"` when ground truth read in the matrix's orientation was given.
+/// Serialised (feature `serde`) as `{"db": 111, "queries": 100, "query_major": false,
+/// "layout": "assumed (...)"}` ([`Orientation::layout`]), with `"evidence"` when ground
+/// truth read in the matrix's orientation was given.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(into = "serialize::Document"))]
 pub struct Orientation {
     /// |DB|: rows of the |DB| x |Q| view computed on.
     pub db: usize,
@@ -46,7 +49,6 @@ pub struct Orientation {
     pub query_major: bool,
     /// What the ground truth's positives say ([`Evidence::of`]); `None` (left out of
     /// the JSON) without ground truth read in the matrix's orientation.
-    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub evidence: Option<Evidence>,
 }
 
@@ -130,15 +132,51 @@ impl Orientation {
         }
     }
 
-    /// One line for a table, naming the front end's `switch`:
-    /// `|DB| 111 x |Q| 100 (DB-major; pass --query-major for VPR-Bench files)`.
+    /// One line for a table, naming the front end's `switch`: `|DB| 111 x |Q| 100
+    /// (DB-major; pass --query-major for VPR-Bench files), confirmed by the ground truth
+    /// (...)`, the layout as [`Orientation::layout`] says it.
     pub fn describe(&self, switch: &str) -> String {
         let how = if self.query_major {
             format!("read transposed: {switch}, VPR-Bench's layout")
         } else {
             format!("DB-major; pass {switch} for VPR-Bench files")
         };
-        format!("|DB| {} x |Q| {} ({how})", self.db, self.queries)
+        format!("|DB| {} x |Q| {} ({how}), {}", self.db, self.queries, self.layout())
+    }
+
+    /// Whether the layout read was confirmed by the ground truth or assumed, in words a
+    /// user reads, with what the ground truth showed: "confirmed by the ground truth
+    /// (...)", "assumed (the ground truth cannot tell: ...)", "assumed (no ground truth
+    /// was read in the matrix's layout to tell)" or "contradicted by the ground truth
+    /// (...)" (the `layout` key of the JSON).
+    pub fn layout(&self) -> String {
+        let Some(e) = self.evidence else {
+            return "assumed (no ground truth was read in the matrix's layout to tell)".to_string();
+        };
+        let (q, n_q, d, n_db) = (
+            e.queries_without_positive,
+            e.labelled_queries,
+            e.db_without_positive,
+            self.db,
+        );
+        match e.verdict {
+            Verdict::Consistent => format!(
+                "confirmed by the ground truth (every query has a positive; database images without one: {d} \
+                 of {n_db})"
+            ),
+            Verdict::CannotTell if q == 0 && d == 0 => {
+                "assumed (the ground truth cannot tell: every query and every database image has a positive)"
+                    .to_string()
+            }
+            Verdict::CannotTell => format!(
+                "assumed (the ground truth cannot tell: queries without a positive: {q} of {n_q}; database \
+                 images without one: {d} of {n_db})"
+            ),
+            Verdict::Contradicts => format!(
+                "contradicted by the ground truth (queries without a positive: {q} of {n_q}, while every \
+                 database image has one)"
+            ),
+        }
     }
 
     /// The warning to print when the evidence contradicts the layout read, naming the
@@ -152,10 +190,40 @@ impl Orientation {
             format!("the matrices may be query-major (|Q| x |DB|, as VPR-Bench stores them); if so, pass {switch}")
         };
         Some(format!(
-            "{read}{} of the {} queries have no positive in the ground truth while every one of the {} database \
-             images has one; a VPR traverse is usually the other way round, so {advice}",
+            "{read}the layout is contradicted by the ground truth: {} of the {} queries have no positive in it \
+             while every one of the {} database images has one; a VPR traverse is usually the other way round, \
+             so {advice}",
             e.queries_without_positive, e.labelled_queries, self.db
         ))
+    }
+}
+
+/// The serialisation of [`Orientation`]: its fields and its [`Orientation::layout`].
+#[cfg(feature = "serde")]
+mod serialize {
+    use super::{Evidence, Orientation};
+
+    /// What an [`Orientation`] serialises as.
+    #[derive(serde::Serialize)]
+    pub(super) struct Document {
+        db: usize,
+        queries: usize,
+        query_major: bool,
+        layout: String,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        evidence: Option<Evidence>,
+    }
+
+    impl From<Orientation> for Document {
+        fn from(o: Orientation) -> Self {
+            Self {
+                db: o.db,
+                queries: o.queries,
+                query_major: o.query_major,
+                layout: o.layout(),
+                evidence: o.evidence,
+            }
+        }
     }
 }
 
@@ -252,7 +320,8 @@ mod tests {
         assert_eq!(o.warning("--query-major"), None);
         assert_eq!(
             o.describe("--query-major"),
-            "|DB| 30 x |Q| 20 (DB-major; pass --query-major for VPR-Bench files)"
+            "|DB| 30 x |Q| 20 (DB-major; pass --query-major for VPR-Bench files), confirmed by the ground truth \
+             (every query has a positive; database images without one: 9 of 30)"
         );
     }
 
@@ -273,9 +342,14 @@ mod tests {
         );
         assert_eq!(
             o.warning("--query-major").unwrap(),
-            "9 of the 30 queries have no positive in the ground truth while every one of the 20 database images \
-             has one; a VPR traverse is usually the other way round, so the matrices may be query-major \
-             (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major"
+            "the layout is contradicted by the ground truth: 9 of the 30 queries have no positive in it while \
+             every one of the 20 database images has one; a VPR traverse is usually the other way round, so the \
+             matrices may be query-major (|Q| x |DB|, as VPR-Bench stores them); if so, pass --query-major"
+        );
+        assert_eq!(
+            o.layout(),
+            "contradicted by the ground truth (queries without a positive: 9 of 30, while every database image \
+             has one)"
         );
         // The same layout reached by a wrong switch: the advice is to leave it out.
         let o = Orientation::of((20, 30), Some(&gt), true);
@@ -284,16 +358,31 @@ mod tests {
                 .unwrap()
                 .ends_with("the matrices may be |DB| x |Q| already; if so, leave out query_major=True")
         );
-        assert_eq!(
-            o.describe("query_major=True"),
-            "|DB| 20 x |Q| 30 (read transposed: query_major=True, VPR-Bench's layout)"
+        assert!(
+            o.describe("query_major=True")
+                .starts_with("|DB| 20 x |Q| 30 (read transposed: query_major=True, VPR-Bench's layout), contradicted")
         );
     }
 
     #[test]
     fn symmetric_ground_truth_cannot_tell() {
-        // A square band and an identity: every row and column has a positive.
+        // A square band and an identity: every row and column has a positive. The layout
+        // read is then assumed, and every output says so and why (the same words for
+        // the transposed copy, which the ground truth cannot tell apart either).
         assert_eq!(Evidence::of(&band(5, 5)).verdict, Verdict::CannotTell);
+        for query_major in [false, true] {
+            let o = Orientation::of((5, 5), Some(&band(5, 5)), query_major);
+            assert_eq!(
+                o.layout(),
+                "assumed (the ground truth cannot tell: every query and every database image has a positive)"
+            );
+            assert!(o.describe("--query-major").ends_with(&format!("), {}", o.layout())));
+        }
+        // Without ground truth read in the matrix's layout (a frame tolerance, none).
+        assert_eq!(
+            Orientation::new((5, 5), false).layout(),
+            "assumed (no ground truth was read in the matrix's layout to tell)"
+        );
         let identity = GroundTruth::new(Array2::from_shape_fn((4, 4), |(i, j)| i == j).view()).unwrap();
         assert_eq!(Evidence::of(&identity).verdict, Verdict::CannotTell);
         // Gaps on both axes: query 2 and database image 0 have no positive.
@@ -301,6 +390,11 @@ mod tests {
         let e = Evidence::of(&gt);
         assert_eq!((e.queries_without_positive, e.db_without_positive), (1, 1));
         assert_eq!(e.verdict, Verdict::CannotTell);
+        assert_eq!(
+            Orientation::of((3, 3), Some(&gt), false).layout(),
+            "assumed (the ground truth cannot tell: queries without a positive: 1 of 3; database images \
+             without one: 1 of 3)"
+        );
     }
 
     #[test]

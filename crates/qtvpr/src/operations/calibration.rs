@@ -23,7 +23,9 @@ use crate::gates::sequence::SequenceGate;
 use crate::gates::{self, GateSignals, Gates};
 use crate::input::params::Defaults;
 use crate::input::params::{Gate, SequenceParams};
-use crate::input::{GroundTruth, Score, ScoreMatrix, Truth, check_gt_shape, check_precision, validate_scores};
+use crate::input::{
+    GroundTruth, LabelRecord, Score, ScoreMatrix, Truth, check_gt_shape, check_precision, validate_scores,
+};
 use crate::operations::chunks::{CHUNK_SCORES, column_major};
 use crate::operations::source::ScoreSource;
 use crate::platform::threads;
@@ -32,6 +34,7 @@ use crate::rules::decisions::{Candidates, Matching};
 use crate::rules::ranked_correlation::{Ranked, Screen};
 use crate::rules::subset_quantile::subset_quantile;
 use crate::signals::confidence::{self, ConfidenceMap};
+use crate::signals::self_motion;
 
 /// A calibration traverse with ground truth, ready to transfer thresholds.
 ///
@@ -140,12 +143,14 @@ impl Calibration {
     ///
     /// # Errors
     /// Empty or non-finite scores, a range of descriptor queries that is empty or
-    /// beyond |Q|, or ground truth of another shape.
+    /// beyond |Q|, ground truth of another shape, or self-motion labels (semantics §16:
+    /// ground truth with a [`GroundTruth::record`]) with multi matching.
     pub fn new<'s, 'd: 's>(
         scores: impl Into<ScoreSource<'s, 'd>>,
         gt: &GroundTruth,
         matching: Matching,
     ) -> Result<Self> {
+        self_motion::check_matching(gt, matching)?;
         match scores.into() {
             ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
                 let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
@@ -248,6 +253,7 @@ impl Calibration {
         gt: GroundTruth,
         matching: Matching,
     ) -> Result<Self> {
+        self_motion::check_matching(&gt, matching)?;
         match scores.into() {
             ScoreSource::Matrix(s) => with_scores!(s, |s| threads::install(|| {
                 let ranked = Ranked::new(Input::CalSimilarity, s, 0)?;
@@ -396,6 +402,13 @@ impl Calibration {
     /// for [`Calibration::for_transfer`], which does not keep it).
     pub fn ground_truth(&self) -> Option<&GroundTruth> {
         self.input.as_ref().map(|(_, gt)| gt)
+    }
+
+    /// How the calibration's labels were made, when they are self-motion labels
+    /// (semantics §16: a calibration file's `meta.labels`); `None` for other ground truth
+    /// and for [`Calibration::for_transfer`], which does not keep it.
+    pub fn labels(&self) -> Option<&LabelRecord> {
+        self.ground_truth().and_then(GroundTruth::record)
     }
 
     /// Gather, check, sort and standardise the deployment columns `s` into `ranked`.

@@ -96,9 +96,29 @@ impl QuerySplit {
                 calibration: self.calibration_queries,
             });
         }
-        Ok(GroundTruth::from_truth(
-            gt.view().slice(s![.., ..self.calibration_queries]).to_owned(),
-        ))
+        Ok(
+            GroundTruth::from_truth(gt.view().slice(s![.., ..self.calibration_queries]).to_owned())
+                .with_record(gt.record().cloned()),
+        )
+    }
+
+    /// Check that a calibration of `calibration_queries` queries (a calibration file's)
+    /// can be that of this split's calibration queries, as when a stream of a recorded
+    /// traverse skips the queries its calibration was made on (`qtvpr-cli stream --val
+    /// S.npy --cal-queries N` after `calibrate --similarity S.npy --cal-queries N`):
+    /// skipping fewer would decide queries that calibrated, more would drop queries.
+    ///
+    /// # Errors
+    /// [`Error::Protocol`] when the counts differ, naming both.
+    pub fn check_calibration(&self, calibration_queries: usize) -> Result<()> {
+        if calibration_queries == self.calibration_queries {
+            return Ok(());
+        }
+        Err(Error::Protocol(format!(
+            "the split makes the first {} queries the calibration queries, but the calibration holds {}: \
+             skip the queries it was calibrated on",
+            self.calibration_queries, calibration_queries
+        )))
     }
 
     /// An error of the transfer of the deployment columns alone (a view of
@@ -249,6 +269,18 @@ mod tests {
             err.transposed().to_string(),
             "ground truth shape 2x2 does not match similarity shape 4x2; the ground truth of a split \
              labels every query, of which the first 2 calibrate"
+        );
+    }
+
+    #[test]
+    fn a_calibration_of_the_split_has_its_number_of_queries() {
+        // floor(0.1 * 111) = 11 calibration queries: a calibration of 11 is theirs.
+        let split = QuerySplit::new(Split::Fraction(0.1), (111, 111)).unwrap();
+        assert_eq!(split.check_calibration(11), Ok(()));
+        assert_eq!(
+            split.check_calibration(10).unwrap_err().to_string(),
+            "the split makes the first 11 queries the calibration queries, but the calibration holds 10: skip \
+             the queries it was calibrated on"
         );
     }
 

@@ -195,8 +195,9 @@ fn column_candidates<T: Score>(
 
 /// Decision counts of a set of queries at one threshold (semantics §2).
 ///
-/// Serialised (feature `serde`) as `tp`, `fp`, `positives` and the figures derived
-/// from them: `precision`, `recall` and `precision_lower95` (semantics §9).
+/// Serialised (feature `serde`) as `tp`, `fp`, `accepted` (TP + FP), `positives` and
+/// the figures derived from them: `precision` ([`Counts::measured_precision`]: `null`
+/// when nothing is accepted), `recall` and `precision_lower95` (semantics §9).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Counts {
     /// Accepted and correct.
@@ -226,7 +227,20 @@ impl std::iter::Sum for Counts {
 }
 
 impl Counts {
-    /// `TP / (TP + FP)`, 1 when nothing is accepted.
+    /// The decisions accepted: TP + FP.
+    pub fn accepted(&self) -> usize {
+        self.tp + self.fp
+    }
+
+    /// `TP / (TP + FP)`; `None` when nothing is accepted, as every output reports it: a
+    /// precision that rests on no decision is undefined, not 1 (semantics §2).
+    pub fn measured_precision(&self) -> Option<f64> {
+        (self.accepted() > 0).then(|| self.precision())
+    }
+
+    /// `TP / (TP + FP)`, taken as 1 when nothing is accepted: the paper's convention,
+    /// by which a segment that accepts nothing meets any target (semantics §8.3). What
+    /// is reported is [`Counts::measured_precision`].
     pub fn precision(&self) -> f64 {
         if self.tp + self.fp == 0 {
             1.0
@@ -314,26 +328,36 @@ pub(crate) mod serialize {
     use super::Counts;
 
     /// The keys of [`Counts`] and the figures derived from it.
-    const COUNTS: [&str; 6] = ["tp", "fp", "positives", "precision", "recall", "precision_lower95"];
+    const COUNTS: [&str; 7] = [
+        "tp",
+        "fp",
+        "accepted",
+        "positives",
+        "precision",
+        "recall",
+        "precision_lower95",
+    ];
 
     /// The same, for counts pooled over a deployment set.
-    const POOLED: [&str; 6] = [
+    const POOLED: [&str; 7] = [
         "pooled_tp",
         "pooled_fp",
+        "pooled_accepted",
         "pooled_positives",
         "pooled_precision",
         "pooled_recall",
         "pooled_precision_lower95",
     ];
 
-    fn counts<S: Serializer>(c: &Counts, keys: &[&'static str; 6], serializer: S) -> Result<S::Ok, S::Error> {
+    fn counts<S: Serializer>(c: &Counts, keys: &[&'static str; 7], serializer: S) -> Result<S::Ok, S::Error> {
         let mut map = serializer.serialize_map(Some(keys.len()))?;
         map.serialize_entry(keys[0], &c.tp)?;
         map.serialize_entry(keys[1], &c.fp)?;
-        map.serialize_entry(keys[2], &c.positives)?;
-        map.serialize_entry(keys[3], &c.precision())?;
-        map.serialize_entry(keys[4], &c.recall())?;
-        map.serialize_entry(keys[5], &c.precision_lower95())?;
+        map.serialize_entry(keys[2], &c.accepted())?;
+        map.serialize_entry(keys[3], &c.positives)?;
+        map.serialize_entry(keys[4], &c.measured_precision())?;
+        map.serialize_entry(keys[5], &c.recall())?;
+        map.serialize_entry(keys[6], &c.precision_lower95())?;
         map.end()
     }
 
@@ -406,12 +430,16 @@ mod tests {
                 .to_string(),
             "threshold must be a real number other than NaN, got nan"
         );
-        // +inf accepts nothing: precision 1 by convention, recall 0.
+        // +inf accepts nothing: precision 1 by the paper's convention (what `meets`
+        // reads), undefined as reported; recall 0.
         let c = counts(s.view(), &gt, Matching::Multi, f64::INFINITY).unwrap();
         assert_eq!((c.tp, c.fp, c.precision(), c.recall()), (0, 0, 1.0, 0.0));
+        assert_eq!((c.accepted(), c.measured_precision()), (0, None));
         let c = counts(s.view(), &gt, Matching::Single, 0.5).unwrap();
         assert_eq!((c.tp, c.fp, c.positives), (1, 2, 2));
         assert_eq!(c.precision(), 1.0 / 3.0);
+        // 1 + 2 accepted, 1 of them right: 1/3 measured.
+        assert_eq!((c.accepted(), c.measured_precision()), (3, Some(1.0 / 3.0)));
         assert_eq!(c.recall(), 0.5);
         // Single at t = 0.8 (inclusive): 0.9 T and 0.8 F accepted, 0.6 not.
         let c = counts(s.view(), &gt, Matching::Single, 0.8).unwrap();

@@ -9,16 +9,23 @@
 //! column, the best match, so they serve single matching only; as ground truth they make
 //! the pseudo-positive best match the column's one hard positive, a pseudo-negative
 //! column one without a positive, and an abstaining best match a soft-only (ignored)
-//! entry. The levels were chosen by measurement (`docs/sequence.md`).
+//! entry. The levels were chosen by measurement (`docs/self-motion-labels.md`).
+
+use std::fmt;
 
 use ndarray::{Array2, ArrayView2};
 
 use crate::error::names::Input;
 use crate::error::{Error, Result};
 use crate::extensions::ground_truth::HardSoft;
-use crate::input::{Score, validate_scores};
+#[cfg(feature = "npy")]
+use crate::input::LabelRecord;
+use crate::input::{GroundTruth, Score, validate_scores};
 use crate::rules::agreement::Line;
-use crate::rules::decisions::best_match;
+use crate::rules::decisions::{Matching, best_match};
+
+/// The rule a [`LabelRecord`] of self-motion labels names: `{"labels": "self-motion", ...}`.
+pub const SELF_MOTION: &str = "self-motion";
 
 /// Neighbours on each side when none is given.
 pub const DEFAULT_NEIGHBOURS: usize = 5;
@@ -59,6 +66,35 @@ impl Default for LabelParams {
 }
 
 impl LabelParams {
+    /// The parameters given, each `None` its default (5 neighbours, levels 0.7 and 0.3,
+    /// and the agreement's speed 1, tolerance 2 and drift 0.2), checked
+    /// ([`LabelParams::validate`]): what every front end hands over as the user gave it.
+    ///
+    /// # Errors
+    /// As [`LabelParams::validate`].
+    pub fn resolve(
+        neighbours: Option<usize>,
+        positive_level: Option<f64>,
+        negative_level: Option<f64>,
+        speed: Option<f64>,
+        tolerance: Option<f64>,
+        drift: Option<f64>,
+    ) -> Result<Self> {
+        let (default, line) = (Self::default(), Line::default());
+        let params = Self {
+            neighbours: neighbours.unwrap_or(default.neighbours),
+            positive_level: positive_level.unwrap_or(default.positive_level),
+            negative_level: negative_level.unwrap_or(default.negative_level),
+            line: Line {
+                speed: speed.unwrap_or(line.speed),
+                tolerance: tolerance.unwrap_or(line.tolerance),
+                drift: drift.unwrap_or(line.drift),
+            },
+        };
+        params.validate()?;
+        Ok(params)
+    }
+
     /// Check `neighbours >= 1`, `0 <= negative_level < positive_level <= 1` and the line
     /// ([`Line::validate`]).
     ///
@@ -125,10 +161,84 @@ pub struct SelfMotionLabels {
     pub labels: Vec<SelfMotionLabel>,
 }
 
+/// How many calibration queries each label has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct LabelCounts {
+    /// Pseudo-positives.
+    pub positive: usize,
+    /// Pseudo-negatives.
+    pub negative: usize,
+    /// Queries that abstain.
+    pub abstain: usize,
+}
+
 impl SelfMotionLabels {
     /// How many queries have `label`.
     pub fn count(&self, label: SelfMotionLabel) -> usize {
         self.labels.iter().filter(|&&l| l == label).count()
+    }
+
+    /// How many queries have each label.
+    pub fn counts(&self) -> LabelCounts {
+        LabelCounts {
+            positive: self.count(SelfMotionLabel::Positive),
+            negative: self.count(SelfMotionLabel::Negative),
+            abstain: self.count(SelfMotionLabel::Abstain),
+        }
+    }
+
+    /// The record of these labels (semantics §16): the rule, its parameters and the
+    /// counts, one JSON object, e.g. `{"labels": "self-motion", "neighbours": 5,
+    /// "positive_level": 0.7, "negative_level": 0.3, "speed": 1.0, "tolerance": 2.0,
+    /// "drift": 0.2, "queries": 11, "positive": 9, "negative": 0, "abstain": 2}`: what a
+    /// ground-truth `.npz` holds in its `labels` member, a calibration file in `meta`'s
+    /// `"labels"`, and `qtvpr-cli ground-truth --from-sequence --format json` prints.
+    #[cfg(feature = "npy")]
+    pub fn record(&self) -> LabelRecord {
+        /// The record's keys, in this order (a struct: `serde_json::json!` sorts them).
+        #[derive(serde::Serialize)]
+        struct Record {
+            labels: &'static str,
+            neighbours: usize,
+            positive_level: f64,
+            negative_level: f64,
+            speed: f64,
+            tolerance: f64,
+            drift: f64,
+            queries: usize,
+            positive: usize,
+            negative: usize,
+            abstain: usize,
+        }
+        let (p, counts) = (&self.params, self.counts());
+        let record = Record {
+            labels: SELF_MOTION,
+            neighbours: p.neighbours,
+            positive_level: p.positive_level,
+            negative_level: p.negative_level,
+            speed: p.line.speed,
+            tolerance: p.line.tolerance,
+            drift: p.line.drift,
+            queries: self.labels.len(),
+            positive: counts.positive,
+            negative: counts.negative,
+            abstain: counts.abstain,
+        };
+        LabelRecord::new(serde_json::to_string(&record).expect("a record serialises"))
+    }
+
+    /// The labels as the core's ground truth (as [`SelfMotionLabels::ground_truth`]:
+    /// a pseudo-positive's best match true, an abstaining query's ignored), carrying
+    /// their [`record`](SelfMotionLabels::record), so that a calibration on them says so.
+    #[cfg(feature = "npy")]
+    pub fn truth(&self) -> GroundTruth {
+        let HardSoft { hard, soft } = self.ground_truth();
+        let soft = soft.expect("self-motion labels have a soft ground truth");
+        GroundTruth::new(hard.view())
+            .and_then(|gt| gt.with_soft(soft.view()))
+            .expect("two non-empty bool matrices of one shape")
+            .with_record(Some(self.record()))
     }
 
     /// The labels as ground truth, |DB| x |Qcal|: a pseudo-positive's best match is the
@@ -143,6 +253,54 @@ impl SelfMotionLabels {
             soft[[b, q]] = label != SelfMotionLabel::Negative;
         }
         HardSoft { hard, soft: Some(soft) }
+    }
+}
+
+/// One line for a person: `self-motion labels of 11 calibration queries: 9 positive, 0
+/// negative, 2 abstained`.
+impl fmt::Display for SelfMotionLabels {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let c = self.counts();
+        write!(
+            f,
+            "self-motion labels of {} calibration queries: {} positive, {} negative, {} abstained",
+            self.labels.len(),
+            c.positive,
+            c.negative,
+            c.abstain
+        )
+    }
+}
+
+/// Check a record read from a file (a ground truth's `labels` member, a calibration's
+/// `meta.labels`): a JSON object that names the self-motion rule. Its other keys are kept
+/// as they are. `Err` says what is wrong, for the caller to name the file and member.
+#[cfg(feature = "npy")]
+pub(crate) fn check_record(value: serde_json::Value) -> std::result::Result<LabelRecord, String> {
+    match value.get("labels") {
+        _ if !value.is_object() => Err(format!("is not a JSON object but {value}")),
+        Some(serde_json::Value::String(rule)) if rule == SELF_MOTION => Ok(LabelRecord::new(value.to_string())),
+        Some(rule) => Err(format!("names the rule {rule}; qtvpr knows \"{SELF_MOTION}\"")),
+        None => Err(format!(
+            "names no rule: it has no \"labels\" key (\"labels\": \"{SELF_MOTION}\")"
+        )),
+    }
+}
+
+/// Self-motion labels judge one entry per column, the best match: a calibration on them
+/// is single matching (semantics §16).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `matching` when `gt` carries a record and
+/// `matching` is multi.
+pub(crate) fn check_matching(gt: &GroundTruth, matching: Matching) -> Result<()> {
+    match (gt.record(), matching) {
+        (Some(_), Matching::Multi) => Err(Error::param(
+            "matching",
+            "multi does not apply to self-motion labels (semantics §16), which judge one entry per column, the best \
+             match: in multi matching the right neighbours of a right match would count as wrong; use single matching",
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -299,6 +457,105 @@ mod tests {
             ..LabelParams::default()
         };
         assert_eq!(signs(&labels_of(200, &best, &back).unwrap()), "+".repeat(40));
+    }
+
+    #[test]
+    #[cfg(feature = "npy")]
+    fn the_record_says_the_rule_its_parameters_and_the_counts() {
+        // The wrong match of the test above: query 10 negative, the other 19 positive
+        // (each has at most one wrong neighbour of its 9 or 10: f >= 8 / 9), none abstains.
+        let mut best: Vec<usize> = (100..120).collect();
+        best[10] = 50;
+        let l = labels_of(200, &best, &LabelParams::default()).unwrap();
+        assert_eq!(
+            l.counts(),
+            LabelCounts {
+                positive: 19,
+                negative: 1,
+                abstain: 0
+            }
+        );
+        assert_eq!(
+            l.to_string(),
+            "self-motion labels of 20 calibration queries: 19 positive, 1 negative, 0 abstained"
+        );
+        assert_eq!(
+            l.record().json(),
+            r#"{"labels":"self-motion","neighbours":5,"positive_level":0.7,"negative_level":0.3,"speed":1.0,"#
+                .to_owned()
+                + r#""tolerance":2.0,"drift":0.2,"queries":20,"positive":19,"negative":1,"abstain":0}"#
+        );
+        // A record read back is checked, and kept as it is.
+        let record = check_record(serde_json::from_str(l.record().json()).unwrap()).unwrap();
+        assert_eq!(
+            serde_json::from_str::<serde_json::Value>(record.json()).unwrap(),
+            serde_json::from_str::<serde_json::Value>(l.record().json()).unwrap()
+        );
+    }
+
+    #[test]
+    #[cfg(feature = "npy")]
+    fn a_record_must_be_an_object_naming_the_rule() {
+        let check = |text: &str| check_record(serde_json::from_str(text).unwrap()).map(|r| r.json().to_owned());
+        assert_eq!(
+            check(r#"{"labels": "self-motion", "note": 1}"#).unwrap(),
+            r#"{"labels":"self-motion","note":1}"#
+        );
+        assert_eq!(check("[1]").unwrap_err(), "is not a JSON object but [1]");
+        assert_eq!(
+            check(r#"{"labels": "gnss"}"#).unwrap_err(),
+            r#"names the rule "gnss"; qtvpr knows "self-motion""#
+        );
+        assert_eq!(
+            check(r#"{"neighbours": 5}"#).unwrap_err(),
+            r#"names no rule: it has no "labels" key ("labels": "self-motion")"#
+        );
+    }
+
+    #[test]
+    #[cfg(feature = "npy")]
+    fn as_the_cores_ground_truth_an_abstaining_match_is_ignored_and_the_record_rides_along() {
+        use crate::input::Truth;
+        // The stop of `a_stop_abstains_and_a_wrong_match_is_negative`: query 20 abstains at
+        // row 110; query 0 (f = 1) is positive at row 100.
+        let best: Vec<usize> = (100..=110).chain([110; 19]).chain(111..=120).collect();
+        let l = labels_of(200, &best, &LabelParams::default()).unwrap();
+        let truth = l.truth();
+        assert_eq!(truth.view()[[110, 20]], Truth::Ignored);
+        assert_eq!(truth.view()[[100, 0]], Truth::True);
+        // One entry per column is not false: 40 in all.
+        assert_eq!(truth.view().iter().filter(|&&t| t != Truth::False).count(), 40);
+        assert_eq!(truth.record(), Some(&l.record()));
+        // The same entries as the hard and soft matrices.
+        let HardSoft { hard, soft } = l.ground_truth();
+        let again = GroundTruth::new(hard.view())
+            .unwrap()
+            .with_soft(soft.unwrap().view())
+            .unwrap();
+        assert_eq!(again.view(), truth.view());
+    }
+
+    #[test]
+    fn parameters_not_given_are_the_defaults() {
+        assert_eq!(
+            LabelParams::resolve(None, None, None, None, None, None).unwrap(),
+            LabelParams::default()
+        );
+        let back = LabelParams::resolve(Some(3), None, Some(0.2), Some(-1.0), None, None).unwrap();
+        assert_eq!((back.neighbours, back.negative_level, back.line.speed), (3, 0.2, -1.0));
+        let err = |r: Result<LabelParams>| r.unwrap_err().to_string();
+        assert_eq!(
+            err(LabelParams::resolve(Some(0), None, None, None, None, None)),
+            "neighbours must be >= 1, got 0"
+        );
+        assert_eq!(
+            err(LabelParams::resolve(None, Some(1.5), None, None, None, None)),
+            "positive level must be in (0, 1], got 1.5"
+        );
+        assert_eq!(
+            err(LabelParams::resolve(None, None, None, None, Some(-1.0), None)),
+            "sequence tolerance must be finite and >= 0, got -1"
+        );
     }
 
     #[test]

@@ -1,5 +1,8 @@
 //! Ground truth files: bool or integer 0/1 `.npy` files, and `.npz` archives in the
-//! VPR_Tutorial convention (`GThard`, optional `GTsoft`).
+//! VPR_Tutorial convention (`GThard`, optional `GTsoft`), which qtvpr's self-motion
+//! labels (semantics §16) extend with a member `labels`: the record of how they were
+//! made, a 0-d string of JSON that VPR_Tutorial code, reading `GThard` and `GTsoft`
+//! only, never sees.
 
 use std::io::{self, Read};
 use std::path::Path;
@@ -8,14 +11,25 @@ use npyz::{NpyFile, TypeChar};
 
 use rawzip::ReaderAt;
 
+use ndarray::ArrayView2;
+
 use super::archive::{Archive, open_npz_file};
 use super::guard::guarded;
 use super::header::{MATRIX, dtype_name, parse, plain_dtype};
-use super::npz::{Kind, npz_array};
+use super::npz::{Kind, npz_array, read_string};
 use super::open::{ZIP_LOCAL_HEADER, file_error, open_file};
 use super::read::read_matrix;
+use super::write::{NpyArray, write_npz};
 use crate::error::{Error, Result};
-use crate::input::GroundTruth;
+use crate::input::{GroundTruth, LabelRecord};
+use crate::signals::self_motion::check_record;
+
+/// The archive's member of the hard ground truth (VPR_Tutorial's name).
+const HARD: &str = "GThard";
+/// The soft ground truth's.
+const SOFT: &str = "GTsoft";
+/// The record of self-motion labels (semantics §16), qtvpr's own.
+const LABELS: &str = "labels";
 
 /// Read ground truth from the bytes of a `.npy` file (hard ground truth), or of an
 /// `.npz` archive in the VPR_Tutorial convention (`GThard`, and `GTsoft` if it has one),
@@ -124,13 +138,15 @@ fn is_npz(path: &Path) -> bool {
 }
 
 /// The ground truth of a VPR_Tutorial archive: `GThard`, with `GTsoft` added if
-/// `with_soft` and the archive has it. Both arrays' headers are read, and their shapes
-/// compared, before either's data is decompressed.
+/// `with_soft` and the archive has it, and the record of its `labels` member if it has
+/// one. Every array's header is read, and the matrices' shapes compared, before any data
+/// is decompressed.
 fn archive_ground_truth<R: ReaderAt>(npz: &Archive<R>, with_soft: bool) -> Result<GroundTruth> {
     let path = npz.path();
-    let hard = npz_array(npz, "GThard", Kind::Labels)?
+    let hard = npz_array(npz, HARD, Kind::Labels)?
         .ok_or_else(|| file_error(path, "has no array GThard (VPR_Tutorial convention: GThard, GTsoft)"))?;
-    let soft = npz_array(npz, "GTsoft", Kind::Labels)?;
+    let soft = npz_array(npz, SOFT, Kind::Labels)?;
+    let record = npz_array(npz, LABELS, Kind::Text)?;
     if let Some(soft) = &soft
         && soft.dims() != hard.dims()
     {
@@ -149,6 +165,39 @@ fn archive_ground_truth<R: ReaderAt>(npz: &Archive<R>, with_soft: bool) -> Resul
         Some(soft) if with_soft => ground_truth_of(soft.npy, &soft.label, Some(gt))?,
         _ => gt,
     };
+    let record = match record {
+        Some(member) => {
+            let text = read_string(member.npy, &member.label)?;
+            let value =
+                serde_json::from_str(&text).map_err(|e| file_error(&member.label, format!("is not JSON: {e}")))?;
+            let record = check_record(value).map_err(|why| {
+                file_error(
+                    &member.label,
+                    format!("is not a record of self-motion labels: it {why}"),
+                )
+            })?;
+            Some(record)
+        }
+        None => None,
+    };
     npz.check_unread_members()?;
-    Ok(gt)
+    Ok(gt.with_record(record))
+}
+
+/// Write ground truth as a VPR_Tutorial `.npz`, atomically: `GThard`, `GTsoft` if
+/// given, and with a `record` of self-motion labels its member `labels` (semantics §16),
+/// which [`read_ground_truth`] gives back with the labels. `np.load` reads every member.
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+pub fn write_ground_truth(
+    path: &Path,
+    hard: ArrayView2<'_, bool>,
+    soft: Option<ArrayView2<'_, bool>>,
+    record: Option<&LabelRecord>,
+) -> Result<()> {
+    let mut arrays = vec![(HARD, NpyArray::Bool(hard))];
+    arrays.extend(soft.map(|soft| (SOFT, NpyArray::Bool(soft))));
+    arrays.extend(record.map(|r| (LABELS, NpyArray::Str(r.json()))));
+    write_npz(path, &arrays)
 }

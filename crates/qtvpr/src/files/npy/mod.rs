@@ -29,7 +29,9 @@ mod open;
 mod read;
 mod write;
 
-pub use ground_truth::{add_soft_ground_truth, ground_truth_from_bytes, read_ground_truth, read_hard_ground_truth};
+pub use ground_truth::{
+    add_soft_ground_truth, ground_truth_from_bytes, read_ground_truth, read_hard_ground_truth, write_ground_truth,
+};
 pub use header::{Header, inspect, matrix_shape};
 pub use open::{is_zip_archive, open_input};
 pub use read::{FloatMatrix, Matrix, MatrixFile, read_float_matrix, read_scores, scores_from_bytes};

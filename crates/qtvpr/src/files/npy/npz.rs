@@ -15,8 +15,9 @@ use super::open::file_error;
 use super::read::read_matrix;
 use crate::error::{Error, Result};
 
-/// The longest `meta` member a calibration file may have (its JSON is under 200 bytes).
-const MAX_META_BYTES: u64 = 1 << 20;
+/// The longest 0-d string member an archive may have: a calibration file's `meta`, a
+/// ground truth's `labels` (their JSON is a few hundred bytes).
+const MAX_TEXT_BYTES: u64 = 1 << 20;
 
 /// What an array of an archive must be; its header is held to it before its data is read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,7 +28,7 @@ pub(crate) enum Kind {
     Bool,
     /// A bool or integer matrix (ground truth, whose values are checked as read).
     Labels,
-    /// A 0-d unicode string (a calibration's `meta`).
+    /// A 0-d unicode string (a calibration's `meta`, a ground truth's `labels`).
     Text,
 }
 
@@ -131,10 +132,12 @@ pub(crate) fn npz_array<'a, R: ReaderAt>(
         }
         None => return Err(too_large(&label, npy.shape())),
     }
-    if kind == Kind::Text && size > MAX_META_BYTES {
+    if kind == Kind::Text && size > MAX_TEXT_BYTES {
         return Err(file_error(
             &label,
-            format!("is {size} bytes; a calibration's meta is under {MAX_META_BYTES}"),
+            format!(
+                "is {size} bytes; a string of JSON (a calibration's meta, a ground truth's labels) is under {MAX_TEXT_BYTES}"
+            ),
         ));
     }
     Ok(Some(NpzArray { npy, label }))

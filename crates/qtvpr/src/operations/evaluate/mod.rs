@@ -29,7 +29,7 @@ mod results;
 pub use protocol::{
     ABLATION_DEPLOY_FRACTION, DEFAULT_CAL_FRACTION, DEFAULT_SEGMENT_FRACTION, Layout, Method, Protocol, Split,
 };
-pub use results::{Ablation, Evaluation, MethodResult, PrPoint, SegmentResult};
+pub use results::{Ablation, Evaluation, MethodResult, PrPoint, SCORE_HISTOGRAM_BINS, ScoreHistogram, SegmentResult};
 
 use std::ops::Range;
 use std::sync::Arc;

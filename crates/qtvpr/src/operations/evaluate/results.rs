@@ -76,6 +76,33 @@ impl MethodResult {
     pub fn pooled(&self) -> Counts {
         self.pooled
     }
+
+    /// The lower median of the segments' thresholds (semantics §8.7): the one at
+    /// position `(n - 1) / 2` of the `n` thresholds sorted ascending, reject-all (`inf`)
+    /// last. `inf` when most segments reject all, `-inf` for a method without a score
+    /// threshold (the margin gate alone); `None` when there is no segment.
+    pub fn median_threshold(&self) -> Option<f64> {
+        let mut t: Vec<f64> = self.segments.iter().map(|g| g.threshold).collect();
+        t.sort_by(f64::total_cmp);
+        t.get(t.len().saturating_sub(1) / 2).copied()
+    }
+}
+
+/// How many bins [`Evaluation::score_histogram`] is asked for by the figures.
+pub const SCORE_HISTOGRAM_BINS: usize = 40;
+
+/// The scores of the deployment set's candidates, right and wrong, counted over equal
+/// bins (semantics §8.7): [`Evaluation::score_histogram`].
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct ScoreHistogram {
+    /// The `bins + 1` bin edges, ascending: bin `i` holds the scores `s` with
+    /// `edges[i] <= s < edges[i + 1]`, the last bin its upper edge too.
+    pub edges: Vec<f64>,
+    /// Per bin, the candidates that are correct (a hard match).
+    pub right: Vec<usize>,
+    /// Per bin, the candidates that are wrong (not a match at all).
+    pub wrong: Vec<usize>,
 }
 
 /// One point of a precision-recall curve.
@@ -170,6 +197,42 @@ impl Evaluation {
             }
         }
         curve
+    }
+
+    /// The scores of the deployment set's candidates (every full segment's; in single
+    /// matching each query's best match) counted over `bins` equal bins from the lowest
+    /// candidate score to the highest, right (a hard match) and wrong apart (semantics
+    /// §8.7). A soft-only candidate is no decision (semantics §2) and is in neither.
+    /// When every candidate has the same score the bins span that score +- 0.5.
+    /// `None` when there is no candidate or `bins` is 0.
+    pub fn score_histogram(&self, bins: usize) -> Option<ScoreHistogram> {
+        let c = &self.deployment;
+        let all = (0..c.ncols()).flat_map(|j| {
+            let (s, ok) = c.column(j);
+            s.iter().copied().zip(ok.iter().copied())
+        });
+        let (lo, hi) = all.clone().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (s, _)| {
+            (a.min(s), b.max(s))
+        });
+        if bins == 0 || lo > hi {
+            return None;
+        }
+        let (lo, hi) = if lo == hi { (lo - 0.5, hi + 0.5) } else { (lo, hi) };
+        let mut edges: Vec<f64> = (0..bins).map(|i| lo + (hi - lo) * (i as f64 / bins as f64)).collect();
+        edges.push(hi);
+        let (mut right, mut wrong) = (vec![0; bins], vec![0; bins]);
+        for (s, correct) in all {
+            // The bin whose edges (as reported) hold `s`: the last edge <= s, the last
+            // bin for `hi`. A search, not `(s - lo) / width`, whose rounding can put a
+            // score on an edge into the bin below it.
+            let i = edges[1..bins].partition_point(|&e| e <= s);
+            if correct {
+                right[i] += 1;
+            } else {
+                wrong[i] += 1;
+            }
+        }
+        Some(ScoreHistogram { edges, right, wrong })
     }
 }
 
@@ -343,6 +406,116 @@ mod tests {
     }
 
     #[test]
+    fn score_histogram_of_the_deployment_set() {
+        // Full segments d0..d3 (single): best matches 0.7 T, 0.6 F, 0.5 F, 0.9 F.
+        // 4 bins of 0.5..0.9: edges 0.5, 0.6, 0.7, 0.8, 0.9; 0.5 F in bin 0, 0.6 F in
+        // bin 1 (on its lower edge), 0.7 T in bin 2, nothing in bin 3 but 0.9 F (the top
+        // edge, in the last bin).
+        let e = run(&[Method::Oracle]);
+        let h = e.score_histogram(4).unwrap();
+        assert_eq!(h.edges, [0.5, 0.6, 0.7, 0.8, 0.9]);
+        assert_eq!((h.right, h.wrong), (vec![0, 0, 1, 0], vec![1, 1, 0, 1]));
+        // 2 bins: [0.5, 0.7) holds 0.5 F and 0.6 F; [0.7, 0.9] holds 0.7 T and 0.9 F.
+        let h = e.score_histogram(2).unwrap();
+        assert_eq!(h.edges, [0.5, 0.7, 0.9]);
+        assert_eq!((h.right, h.wrong), (vec![0, 1], vec![2, 1]));
+        assert_eq!(e.score_histogram(0), None);
+
+        // Soft-only best matches are no decision: d1's best match (db1, 0.6) made soft
+        // leaves 0.7 T, 0.5 F, 0.9 F; 2 bins of 0.5..0.9 (0.7 on the inner edge).
+        let (s, gt) = tiny();
+        let mut soft = ndarray::Array2::<u8>::zeros((3, 7));
+        soft[[1, 3]] = 1;
+        let gt = GroundTruth::from_truth(gt.view().to_owned())
+            .with_soft(soft.view())
+            .unwrap();
+        let e = evaluate(s.view(), &gt, &protocol(), &[Method::Oracle]).unwrap();
+        let h = e.score_histogram(2).unwrap();
+        assert_eq!((h.right, h.wrong), (vec![0, 1], vec![1, 1]));
+        // Multi matching: all 12 entries of d0..d3 (none ignored), 2 of them hard
+        // (d0 0.7, d1 0.5); 2 bins of 0.1..0.9, edges 0.1, 0.5, 0.9:
+        // d0 0.7 T, 0.3, 0.2; d1 0.1, 0.6, 0.5 T; d2 0.5, 0.4, 0.3; d3 0.2, 0.9, 0.1.
+        // [0.1, 0.5): 0.3 0.2 0.1 0.4 0.3 0.2 0.1 -> 7 wrong; [0.5, 0.9]: 0.7 T, 0.5 T,
+        // 0.6, 0.5, 0.9 -> 2 right, 3 wrong.
+        let (s, gt) = tiny();
+        let multi = Protocol {
+            matching: crate::rules::decisions::Matching::Multi,
+            ..protocol()
+        };
+        let h = evaluate(s.view(), &gt, &multi, &[Method::Oracle])
+            .unwrap()
+            .score_histogram(2)
+            .unwrap();
+        assert_eq!(h.edges, [0.1, 0.5, 0.9]);
+        assert_eq!((h.right, h.wrong), (vec![0, 2], vec![7, 3]));
+    }
+
+    #[test]
+    fn a_score_histogram_of_one_score_spans_it() {
+        // One deployment query, best match 0.7 (T): one score, so 0.2..1.2 in 2 bins;
+        // 0.7 sits on the inner edge, in bin 1.
+        let s = array![[0.8, 0.7], [0.1, 0.2]];
+        let gt = GroundTruth::new(array![[1u8, 1], [0, 0]].view()).unwrap();
+        let p = Protocol {
+            calibration: Split::Count(1),
+            segment: Split::Count(1),
+            ..Protocol::default()
+        };
+        let h = evaluate(s.view(), &gt, &p, &[Method::Oracle])
+            .unwrap()
+            .score_histogram(2)
+            .unwrap();
+        assert_eq!(h.edges.len(), 3);
+        assert!((h.edges[0] - 0.2).abs() < 1e-15 && h.edges[1] == 0.7 && (h.edges[2] - 1.2).abs() < 1e-15);
+        assert_eq!((h.right, h.wrong), (vec![0, 1], vec![0, 0]));
+    }
+
+    #[test]
+    fn median_threshold_is_the_lower_median() {
+        // Schubert's two segments: 1.808 and 1.406 (a_method_that_accepts_nothing...):
+        // sorted 1.406, 1.808; the lower median (position (2 - 1) / 2 = 0) is 1.406.
+        let e = run(&[Method::Schubert, Method::Margin]);
+        let t = e.methods[0].median_threshold().unwrap();
+        assert!((t - 1.406).abs() < 1e-3, "{t}");
+        // The margin gate alone has no score threshold: -inf in every segment.
+        assert_eq!(e.methods[1].median_threshold(), Some(f64::NEG_INFINITY));
+        // Reject-all sorts last: (0.3, inf, inf) -> inf; (0.3, 0.5, inf) -> 0.5.
+        let mut m = e.methods[0].clone();
+        let with = |m: &mut MethodResult, ts: &[f64]| {
+            m.segments = ts
+                .iter()
+                .map(|&t| SegmentResult {
+                    threshold: t,
+                    ..m.segments[0]
+                })
+                .collect();
+            m.median_threshold()
+        };
+        assert_eq!(with(&mut m, &[f64::INFINITY, 0.3, f64::INFINITY]), Some(f64::INFINITY));
+        assert_eq!(with(&mut m, &[f64::INFINITY, 0.5, 0.3]), Some(0.5));
+        assert_eq!(with(&mut m, &[]), None);
+    }
+
+    #[test]
+    fn a_method_that_accepts_nothing_has_no_precision() {
+        // Schubert's thresholds: segment 0 (d0, d1) 1.808 (mod.rs' schubert test); segment
+        // 1 (d2, d3) scores ascending (0.1, 0.2, 0.3, 0.4, 0.5, 0.9): mu = 0.35, |S - mu|
+        // sorted (0.05, 0.05, 0.15, 0.15, 0.25, 0.55), median 0.15, t = 0.35 + 0.15 /
+        // 0.675 * z = 1.406. Both above every score: nothing accepted. Segment 0 meets
+        // by the paper's convention and segment 1 has no positive: %Segs 100 on no
+        // decision, which its count (0) and its undefined precision say.
+        let e = run(&[Method::Schubert]);
+        let m = &e.methods[0];
+        assert_eq!(m.pct_segs, Some(100.0));
+        let pooled = m.pooled();
+        assert_eq!((pooled.accepted(), pooled.measured_precision()), (0, None));
+        assert_eq!(pooled.precision_lower95(), None);
+        // The oracle accepts d0's 0.7 (TP): 1 accepted, precision 1 measured.
+        let o = run(&[Method::Oracle]).methods[0].pooled();
+        assert_eq!((o.accepted(), o.measured_precision()), (1, Some(1.0)));
+    }
+
+    #[test]
     fn pooled_counts_and_their_lower_bound() {
         // Oracle: segment 0 TP 1, FP 0, positives 2; segment 1 (d2 0.5, d3 0.9 wrong, no
         // positives) at inf accepts nothing. Pooled: TP 1, FP 0, positives 2; precision 1,
@@ -387,7 +560,10 @@ mod tests {
         );
         assert_eq!(
             v["orientation"],
-            serde_json::json!({"db": 3, "queries": 7, "query_major": false, "evidence": {
+            serde_json::json!({"db": 3, "queries": 7, "query_major": false,
+                "layout": "assumed (the ground truth cannot tell: queries without a positive: 3 of 7; database \
+                           images without one: 1 of 3)",
+                "evidence": {
                 "labelled_queries": 7, "queries_without_positive": 3, "db_without_positive": 1,
                 "verdict": "cannot-tell"}})
         );
@@ -431,6 +607,7 @@ mod tests {
             [
                 "avg_recall",
                 "pct_segs",
+                "pooled_accepted",
                 "pooled_fp",
                 "pooled_positives",
                 "pooled_precision",
@@ -448,6 +625,7 @@ mod tests {
         assert_eq!(
             keys(seg),
             [
+                "accepted",
                 "end",
                 "fp",
                 "meets",
@@ -461,10 +639,25 @@ mod tests {
                 "tp"
             ]
         );
-        // Reject-all is null in JSON; so is a bound over nothing accepted.
+        // Reject-all is null in JSON; so are a precision and its bound over nothing
+        // accepted, which still meets (the paper's convention).
         assert_eq!(
             (seg["threshold"].is_null(), seg["precision_lower95"].is_null()),
             (true, true)
+        );
+        assert_eq!(
+            (&seg["accepted"], &seg["precision"], &seg["meets"]),
+            (
+                &serde_json::json!(0),
+                &serde_json::Value::Null,
+                &serde_json::json!(true)
+            )
+        );
+        // Schubert accepts nothing anywhere (a_method_that_accepts_nothing_has_no_precision).
+        let schubert = &v["methods"]["schubert"];
+        assert_eq!(
+            (&schubert["pooled_accepted"], &schubert["pooled_precision"]),
+            (&serde_json::json!(0), &serde_json::Value::Null)
         );
         assert_eq!(v["recall_at_1"], 0.5);
         let (s, gt) = tiny();
