@@ -250,8 +250,8 @@ mod tests {
             serde_json::to_value(ThresholdReport::new(&cal, &params, &transfer)).unwrap(),
             json!({
                 "method": "quantile-transfer",
-                "params": {"k": 1, "precision": 1.0, "segment_size": 1, "gate": "none", "sequence_gate": {
-                    "window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}, "matching": "multi"},
+                // No sequence gate: none of its parameters.
+                "params": {"k": 1, "precision": 1.0, "segment_size": 1, "gate": "none", "matching": "multi"},
                 "segments": [
                     {"start": 0, "end": 1, "quantile": 0.5, "threshold": 4.0},
                     {"start": 1, "end": 2, "quantile": 1.0, "threshold": 5f64.next_up()},
