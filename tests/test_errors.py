@@ -289,6 +289,23 @@ def _labels_with(name, value):
     return qtvpr.ground_truth_from_sequence(np.eye(20), **{name: value})
 
 
+#: Each call that takes the sequence gate's parameters, with one of them (and the gate).
+SEQUENCE_GATE_CALLS = {
+    "Calibration.transfer": lambda **kw: _cal().transfer(S_VAL, **kw),
+    "Calibration._check_transfer": lambda **kw: _cal()._check_transfer(S_VAL.shape, **kw),
+    "Calibration._transfer_at": lambda **kw: _cal()._transfer_at(S_VAL, 0, **kw),
+    "Calibration.save": lambda **kw: _cal().save("never-written.npz", **kw),
+    "Online.__new__": lambda **kw: qtvpr.Online(_cal(), window=2, **kw),
+    "quantile_transfer": lambda **kw: qtvpr.quantile_transfer(S_CAL, GT_CAL, S_VAL, **kw),
+    "evaluate": lambda **kw: qtvpr.evaluate(S_CAL, GT_CAL, **kw),
+    "ablation": lambda **kw: qtvpr.ablation(S_CAL, GT_CAL, **kw),
+}
+
+
+def _sequence_with(function, name, value):
+    return SEQUENCE_GATE_CALLS[function](**{name: value})
+
+
 #: A call of each float argument with ``value``, the others valid.
 FLOAT_CALLS = {
     ("TransferResult._from_parts", "gate"): lambda v: qtvpr.TransferResult._from_parts(
@@ -314,6 +331,11 @@ FLOAT_CALLS = {
        for name in ("precision", "cal_fraction", "segment_fraction", "deploy_fraction")},
     **{("ground_truth_from_sequence", name): functools.partial(_labels_with, name)
        for name in ("positive_level", "negative_level", "sequence_speed", "sequence_tolerance", "sequence_drift")},
+    ("TransferResult._from_parts", "consistency_level"): lambda v: qtvpr.TransferResult._from_parts(
+        *(np.zeros(0),) * 2, [], *(np.zeros(0),) * 3, np.zeros((0, 1), dtype=np.int64), consistency_level=v),
+    # The sequence gate's float parameters (semantics §15), wherever they are taken.
+    **{(f, name): functools.partial(_sequence_with, f, name) for f in SEQUENCE_GATE_CALLS for name in
+       ("sequence_level", "sequence_speed", "sequence_tolerance", "sequence_drift")},
 }
 
 

@@ -217,7 +217,8 @@ def test_multi_matching_and_bad_names_are_errors(tmp_path):
     assert not (tmp_path / "m.npz").exists()
     single = qtvpr.Calibration(s, gt)
     for call in (lambda: single.transfer(s, gate="ratio"), lambda: qtvpr.Online(single, window=2, gate="ratio")):
-        with pytest.raises(ValueError, match='gate must be none, or one or more of margin, sequence joined by commas, got "ratio"'):
+        why = 'gate must be none, or one or more of margin, sequence joined by commas, got "ratio"'
+        with pytest.raises(ValueError, match=why):
             call()
     with pytest.raises(ValueError, match="at least 2 database images"):
         qtvpr.margins(np.array([[0.5, 0.2]]))

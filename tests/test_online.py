@@ -361,7 +361,8 @@ def test_reference_save_load_round_trip(tmp_path):
             "params": {"k": 3, "precision": 0.9, "window": 2, "gate": "none"},
         }
         loaded = ref.Calibration.load(path)
-        assert loaded.defaults == {"k": 3, "precision": 0.9, "window": 2, "gate": "none", "sequence_gate": ref.SEQUENCE_DEFAULTS}
+        assert loaded.defaults == {"k": 3, "precision": 0.9, "window": 2, "gate": "none",
+                                   "sequence_gate": ref.SEQUENCE_DEFAULTS}
         assert loaded.matching == "multi" and len(loaded) == 2
         a = ref.Online(cal, k=3, precision=0.9, window=2).push_many(DEP_S)
         b = ref.Online(loaded).push_many(DEP_S)  # the file's params
@@ -685,7 +686,8 @@ def test_wheel_api_shape():
     assert parameters(qtvpr.Calibration.save) == parameters(ref.Calibration.save)
     assert qtvpr.Online.__doc__ and qtvpr.Calibration.save.__doc__ and qtvpr.Calibration.load.__doc__
     cal = qtvpr.Calibration(CAL_S, CAL_GT)
-    assert cal.defaults == {"k": 10, "precision": 1.0, "window": None, "gate": "none", "sequence_gate": ref.SEQUENCE_DEFAULTS}
+    assert cal.defaults == {"k": 10, "precision": 1.0, "window": None, "gate": "none",
+                            "sequence_gate": ref.SEQUENCE_DEFAULTS}
     assert cal.defaults == ref.Calibration(CAL_S, CAL_GT).defaults
     assert cal.db_size == 3
     o = qtvpr.Online(cal, window=2, min_window=2, precision=0.9)
@@ -797,7 +799,8 @@ def test_save_load_is_bit_identical(shared_data, tmp_path, technique, matching):
     path = tmp_path / "cal.npz"
     cal.save(path, k=7, precision=0.9, window=6)
     loaded = qtvpr.Calibration.load(path)
-    assert loaded.defaults == {"k": 7, "precision": 0.9, "window": 6, "gate": "none", "sequence_gate": ref.SEQUENCE_DEFAULTS}
+    assert loaded.defaults == {"k": 7, "precision": 0.9, "window": 6, "gate": "none",
+                               "sequence_gate": ref.SEQUENCE_DEFAULTS}
     assert (loaded.matching, len(loaded), loaded.db_size) == (matching, len(cal), cal.db_size)
     a = qtvpr.Online(cal, k=7, precision=0.9, window=6).push_many(s_val)
     b = qtvpr.Online(loaded).push_many(s_val)  # the file's params
@@ -881,7 +884,8 @@ def test_calibration_goes_to_a_worker_process(shared_data):
 def test_pickle_keeps_loaded_defaults(tmp_path):
     qtvpr.Calibration(CAL_S, CAL_GT, matching="multi").save(tmp_path / "c.npz", k=3, precision=0.75, window=4)
     back = pickle.loads(pickle.dumps(qtvpr.Calibration.load(tmp_path / "c.npz")))
-    assert back.defaults == {"k": 3, "precision": 0.75, "window": 4, "gate": "none", "sequence_gate": ref.SEQUENCE_DEFAULTS}
+    assert back.defaults == {"k": 3, "precision": 0.75, "window": 4, "gate": "none",
+                             "sequence_gate": ref.SEQUENCE_DEFAULTS}
     assert qtvpr.Online(back).window == 4
 
 

@@ -768,25 +768,7 @@ def _check_sequence_gate(matching: str, n_db: int, p: dict) -> None:
             "gate sequence needs single matching: it gates each query's best match, and multi "
             "matching accepts every database entry at or above the threshold"
         )
-    widest = p["tolerance"] + p["drift"] * p["window"]
-    covered = 2 * math.floor(widest + 1e-9) + 1
-    if covered >= n_db:
-
-        def num(x: float) -> str:  # as the core prints a float: 3, 2.4
-            return str(int(x)) if x == int(x) else repr(x)
-
-        raise ValueError(
-            f"gate sequence cannot tell a line from chance with |DB| = {n_db}: its widest tolerance, "
-            f"+-{num(widest)} rows {p['window']} steps away (sequence tolerance {num(p['tolerance'])} and "
-            f"drift {num(p['drift'])}), covers {covered} rows; it needs |DB| >= {covered + 1}"
-        )
-
-
-def _agrees(best: int, other: int, d: int, p: dict) -> bool:
-    """Whether ``other``, the best match of the query ``d`` steps away, lies on the line
-    of the query whose best match is ``best``: |other - (best + v d)| <= a + b |d|."""
-    predicted = best + p["speed"] * d
-    return abs(other - predicted) <= p["tolerance"] + p["drift"] * abs(d) + 1e-9
+    _check_database("gate sequence", n_db, p["tolerance"], p["drift"], p["window"])
 
 
 def _consistencies(best: np.ndarray, p: dict) -> np.ndarray:
@@ -795,7 +777,11 @@ def _consistencies(best: np.ndarray, p: dict) -> np.ndarray:
     w = p["window"]
     out = np.empty(len(best))
     for j in range(len(best)):
-        n = sum(_agrees(int(best[j]), int(best[j - d]), -d, p) for d in range(1, w + 1) if j - d >= 0)
+        n = sum(
+            _agrees(int(best[j]), int(best[j - d]), -d, p["speed"], p["tolerance"], p["drift"])
+            for d in range(1, w + 1)
+            if j - d >= 0
+        )
         out[j] = n / w
     return out
 
@@ -1082,6 +1068,19 @@ def _agrees(b_q: int, b_other: int, d: int, speed: float, tolerance: float, drif
     return abs(b_other - (b_q + speed * d)) <= tolerance + drift * abs(d) + AGREEMENT_SLACK
 
 
+def _check_database(what: str, n_db: int, a: float, b: float, steps: int) -> None:
+    """The widest tolerance of a test of agreement over ``steps`` steps, ``a + b steps``
+    rows either side, must cover fewer rows than the database has (section 15)."""
+    widest = a + b * steps
+    covered = 2 * math.floor(widest + AGREEMENT_SLACK) + 1
+    if covered >= n_db:
+        raise ValueError(
+            f"{what} cannot tell a line from chance with |DB| = {n_db}: its widest tolerance, "
+            f"+-{_num(widest)} rows {steps} steps away (sequence tolerance {_num(a)} and drift "
+            f"{_num(b)}), covers {covered} rows; it needs |DB| >= {covered + 1}"
+        )
+
+
 def _num(x: float) -> str:
     """``x`` as the core prints a float: its shortest form, without a trailing ``.0``."""
     text = repr(float(x))
@@ -1139,15 +1138,7 @@ def ground_truth_from_sequence(
             f"s_cal: self-motion labels need at least {n + 1} calibration queries in the order they were "
             f"taken (each best match is judged by its {n} neighbours on each side), got {n_cal}"
         )
-    # The widest tolerance, N steps away, must cover fewer rows than the database has.
-    widest = a + b * n
-    covered = 2 * math.floor(widest + AGREEMENT_SLACK) + 1
-    if covered >= n_db:
-        raise ValueError(
-            f"s_cal: self-motion labels cannot tell a line from chance with |DB| = {n_db}: its widest "
-            f"tolerance, +-{_num(widest)} rows {n} steps away (sequence tolerance {_num(a)} and drift "
-            f"{_num(b)}), covers {covered} rows; it needs |DB| >= {covered + 1}"
-        )
+    _check_database("s_cal: self-motion labels", n_db, a, b, n)
     best = [int(np.argmax(s[:, q])) for q in range(n_cal)]  # the first maximum
     labels, agreement = [], []
     for q in range(n_cal):

@@ -728,7 +728,7 @@ impl TransferResult {
         query_margins: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences: Option<Bound<'_, PyArray1<f64>>>,
         query_confidences_lower95: Option<Bound<'_, PyArray1<f64>>>,
-        consistency_level: Option<f64>,
+        consistency_level: Option<Real>,
         query_consistencies: Option<Bound<'_, PyArray1<f64>>>,
     ) -> PyResult<Self> {
         let per_segment = [thresholds.len(), quantiles.len(), segments.len()];
@@ -763,7 +763,7 @@ impl TransferResult {
             query_margins: query_margins.map(Bound::unbind),
             query_confidences: query_confidences.map(Bound::unbind),
             query_confidences_lower95: query_confidences_lower95.map(Bound::unbind),
-            consistency_level,
+            consistency_level: real("consistency_level", consistency_level)?,
             query_consistencies: query_consistencies.map(Bound::unbind),
         })
     }
