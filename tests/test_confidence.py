@@ -276,7 +276,9 @@ def assert_same_bins(got, want):
 
 
 def assert_same_signals(got, want):
-    assert list(got) == ["signals"] and list(got["signals"]) == ["score", "margin", "pa_score", "confidence"]
+    # The consistency is semantics §15's, beside §14's signals.
+    signals = ["score", "margin", "pa_score", "consistency", "confidence"]
+    assert list(got) == ["signals"] and list(got["signals"]) == signals
     assert list(got["signals"]["confidence"]) == ["auroc", "brier", "ece", "bins"]
     for signal, figures in want["signals"].items():
         assert list(got["signals"][signal]) == list(figures)
