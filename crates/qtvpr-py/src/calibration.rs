@@ -510,7 +510,9 @@ impl PyCalibration {
         s_val, first_query, *, before = Int::Small(0), k = None, precision = None, segment_size = None, gate = None,
         query_major = false, sequence_window = None, sequence_level = None, sequence_speed = None,
         sequence_tolerance = None, sequence_drift = None,
-    ))]
+    ), text_signature = "(self, s_val, first_query, *, before=0, k=None, precision=None, segment_size=None, \
+        gate=None, query_major=False, sequence_window=None, sequence_level=None, sequence_speed=None, \
+        sequence_tolerance=None, sequence_drift=None)")]
     #[allow(clippy::too_many_arguments)] // the Python signature
     fn _transfer_at(
         &self,
