@@ -104,7 +104,9 @@ int main(int argc, char **argv) {
     qtvpr_online_free(o);
     /* The gate: a name the core knows (NULL: the file's), and only where it applies. */
     CHECK(qtvpr_online_new_gate(cal, 0, 0.0, 3, 1, "ratio") == NULL);
-    EXPECT_ERROR(QTVPR_ERR_PARAM, "qtvpr_online_new_gate: gate must be one of none, margin, got \"ratio\"", NULL);
+    EXPECT_ERROR(QTVPR_ERR_PARAM,
+                 "qtvpr_online_new_gate: gate must be none, or one or more of margin, sequence joined by commas",
+                 "unknown gate \"ratio\"");
     o = qtvpr_online_new_gate(cal, 0, 0.0, 3, 1, "margin");
     CHECK(o != NULL);
     EXPECT_OK();
