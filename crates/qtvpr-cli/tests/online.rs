@@ -90,6 +90,17 @@ impl Case {
     /// The decisions `qtvpr::Online` makes on the deployment half, from a calibration
     /// built in this process (not from the file).
     fn expected(&self, matching: Matching, soft: Option<&Array2<bool>>, p: OnlineParams) -> Vec<Decision> {
+        self.expected_matched(matching, soft, p, 1)
+    }
+
+    /// [`Case::expected`] on a calibration of sequence length `length` (semantics §15).
+    fn expected_matched(
+        &self,
+        matching: Matching,
+        soft: Option<&Array2<bool>>,
+        p: OnlineParams,
+        length: usize,
+    ) -> Vec<Decision> {
         let mut gt = GroundTruth::new(self.gt.slice(s![.., ..N_CAL])).unwrap();
         if let Some(soft) = soft {
             gt = gt.with_soft(soft.slice(s![.., ..N_CAL])).unwrap();
@@ -101,15 +112,16 @@ impl Case {
             gt: &GroundTruth,
             m: Matching,
             p: OnlineParams,
+            length: usize,
         ) -> Vec<Decision> {
-            let cal = Arc::new(Calibration::new(cal, gt, m).unwrap());
+            let cal = Arc::new(Calibration::new_sequence(cal, gt, m, length).unwrap());
             Online::new(cal, p).unwrap().push_many(val).unwrap()
         }
         if self.f32 {
             let (c, v) = (cal.mapv(|x| x as f32), val.mapv(|x| x as f32));
-            go(c.view(), v.view(), &gt, matching, p)
+            go(c.view(), v.view(), &gt, matching, p, length)
         } else {
-            go(cal, val, &gt, matching, p)
+            go(cal, val, &gt, matching, p, length)
         }
     }
 }
@@ -745,13 +757,13 @@ fn evaluate_reports_the_online_method() {
         let t = expected[5 * i + 4].threshold;
         assert!((g["threshold"].as_f64().unwrap() - t).abs() <= 1e-15 * t.abs(), "{g}");
     }
-    // base asks for JSON (its second and third arguments): the table instead.
+    // base asks for JSON (its second and third arguments): the table, then CSV, instead.
     let table = case.ok(&[&base[..2], &["table"], &base[3..]].concat());
     assert!(
         table.lines().any(|l| l.starts_with("| quantile-transfer-online | ")),
         "{table}"
     );
-    let csv = case.ok(&[&base[..], &["--format", "csv"]].concat());
+    let csv = case.ok(&[&base[..2], &["csv"], &base[3..]].concat());
     assert!(csv.lines().any(|l| l.contains(",quantile-transfer-online,")), "{csv}");
 }
 
@@ -1066,16 +1078,7 @@ fn the_sequence_gate_and_length_in_calibrate_stream_and_threshold() {
         sequence_gate: Default::default(),
     };
     // What the core decides on a calibration matched over 3 queries in this process.
-    let gt = GroundTruth::new(case.gt.slice(s![.., ..N_CAL])).unwrap();
-    let (cal, val) = (case.s.slice(s![.., ..N_CAL]), case.s.slice(s![.., N_CAL..]));
-    let expected = if case.f32 {
-        let (c, v) = (cal.mapv(|x| x as f32), val.mapv(|x| x as f32));
-        let cal = Arc::new(Calibration::new_sequence(c.view(), &gt, Matching::Single, length).unwrap());
-        Online::new(cal, p).unwrap().push_many(v.view()).unwrap()
-    } else {
-        let cal = Arc::new(Calibration::new_sequence(cal, &gt, Matching::Single, length).unwrap());
-        Online::new(cal, p).unwrap().push_many(val).unwrap()
-    };
+    let expected = case.expected_matched(Matching::Single, None, p, length);
     // The first 4 queries of the stream cannot pass (ceil(0.8 * 5) = 4), whatever their
     // scores; Corridor is one traverse, so some later ones do.
     assert!(expected[..4].iter().all(|d| !d.accept()));
@@ -1128,13 +1131,7 @@ fn the_sequence_gate_and_length_in_calibrate_stream_and_threshold() {
         .collect();
     let streamed: Vec<f64> = expected.iter().map(|d| d.consistency.unwrap()).collect();
     assert_eq!(consistencies, streamed);
-    let one = Online::new(
-        Arc::new(Calibration::new_sequence(cal, &gt, Matching::Single, length).unwrap()),
-        OnlineParams { window: 1, ..p },
-    )
-    .unwrap()
-    .push_many(val)
-    .unwrap();
+    let one = case.expected_matched(Matching::Single, None, OnlineParams { window: 1, ..p }, length);
     let segments = json["segments"].as_array().unwrap();
     assert_eq!(segments.len(), one.len());
     for (seg, d) in segments.iter().zip(&one) {
