@@ -23,6 +23,7 @@ fn console_examples_run_as_written() {
         "docs/margin-gate.md",
         "docs/deployment.md",
         "docs/self-motion-labels.md",
+        "docs/sequence.md",
     ] {
         let name = doc.replace('/', "-");
         let case = work.path().join(&name);
