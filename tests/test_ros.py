@@ -233,9 +233,10 @@ def assert_arrival_headers(typed: list[Decision], start: float, end: float) -> N
 def test_decision_fields_are_the_cores() -> None:
     assert DECISION_FIELDS == (
         "query", "query_quantile", "weight", "quantile", "threshold", "best", "score", "accepted", "accept",
-        "confidence", "confidence_lower95", "margin", "gate",
+        "confidence", "confidence_lower95", "margin", "gate", "consistency", "consistency_level",
     )
-    assert qtvpr.OnlineDecision.FIELDS + qtvpr.OnlineDecision.GATE_FIELDS == DECISION_FIELDS
+    online = qtvpr.OnlineDecision
+    assert online.FIELDS + online.GATE_FIELDS + online.SEQUENCE_FIELDS == DECISION_FIELDS
 
 
 def test_float32_scores_decided_as_stream_with_bad_messages(
@@ -297,6 +298,39 @@ def test_float64_scores_with_parameters_and_gate(
     (error,) = [line for line in log.splitlines() if "[ERROR]" in line]
     assert "scores message 51 (float64, 112 scores; 50 queries decided): column: deployment query 50 has 112" in error
     assert "Online(k=4, precision=1.0, window=5, min_window=3, gate='margin'" in log
+
+
+def test_sequence_matched_file_with_both_gates_is_stream(
+    client: Client, ros_env: dict[str, str], cli: Path, tmp_path: Path
+) -> None:
+    """A calibration file of L = 3 (§15): the node decides each query on its causal
+    sequence-matched column, with the margin and sequence gates and its own sequence
+    parameters, as ``stream`` does with the same options."""
+    cal = tmp_path / "seq.npz"
+    subprocess.run(
+        [cli, "calibrate", "--cal", CORRIDOR / "cal_S.npy", "--cal-gt", CORRIDOR / "cal_GT.npy",
+         "--window", "10", "--sequence", "3", "--output", cal],
+        check=True,
+    )
+    val = CORRIDOR / "deploy_S.npy"
+    s_val = np.load(val)
+    want = expected(cli, cal, val, "--gate", "margin,sequence", "--sequence-window", "4", "--sequence-level", "0.75")
+    consistency = [row[DECISION_FIELDS.index("consistency")] for row in want]
+    assert all(row[DECISION_FIELDS.index("consistency_level")] == 0.75 for row in want)
+    # The first query has no past (§15: consistency 0); later ones are shares of 4.
+    assert consistency[0] == 0 and {c * 4 for c in consistency[4:]} <= {0, 1, 2, 3, 4}, consistency
+    # The gates decide: some best matches above the threshold are not kept.
+    over = [row for row in want if row[DECISION_FIELDS.index("score")] >= row[DECISION_FIELDS.index("threshold")]]
+    assert any(row[DECISION_FIELDS.index("accept")] == 0 for row in over)
+
+    proc = node(cal, ros_env, "gate:=margin,sequence", "sequence_window:=4", "sequence_level:=0.75",
+                f"qos_depth:={DEPTH}")
+    client.wait_for(proc)
+    for j in range(s_val.shape[1]):
+        client.scores64.publish(f64(s_val[:, j]))
+    check_decisions(client, want)
+    log = stop(proc)
+    assert "[ERROR]" not in log, log
 
 
 def test_decision_msg_is_the_record() -> None:
@@ -482,7 +516,7 @@ def test_launch_file_and_parameters_of_the_docs(
         # Issue 49: a misspelt name ran at the file's precision; a bool was taken as 1.
         (("calibration:={cal}", "precison:=0.5"),
          "unknown parameter precison (the node's parameters: calibration, k, precision, window, min_window, gate, "
-         "qos_depth)"),
+         "sequence_window, sequence_level, sequence_speed, sequence_tolerance, sequence_drift, qos_depth)"),
         (("calibration:={cal}", "precison:=0.5", "windw:=3"), "unknown parameters precison, windw"),
         (("calibration:={cal}", "k:=true"), "parameter k must be an integer, not a bool (True)"),
         (("calibration:={cal}", "precision:=true"), "parameter precision must be a number, not a bool (True)"),
