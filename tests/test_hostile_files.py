@@ -435,8 +435,8 @@ def test_a_fifo_with_a_writer_is_read_as_a_stream(tmp_path):
     assert not thread.is_alive() and not failed, failed
     want = qtvpr.Calibration.load(path)
     assert loaded.defaults == want.defaults
-    assert loaded.defaults == {"k": 3, "precision": 0.9, "window": 4, "gate": "none",
-                               "sequence_gate": {"window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}}
+    sequence_gate = {"window": 5, "level": 0.8, "speed": 1.0, "tolerance": 2.0, "drift": 0.2}
+    assert loaded.defaults == {"k": 3, "precision": 0.9, "window": 4, "gate": "none", "sequence_gate": sequence_gate}
     deployment = rng.random((100, 30))
     a, b = qtvpr.Online(loaded).push_many(deployment), qtvpr.Online(want).push_many(deployment)
     assert a.thresholds.tobytes() == b.thresholds.tobytes()
