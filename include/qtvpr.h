@@ -60,12 +60,12 @@
  * Threads: a push runs on the calling thread, sequentially; it never waits for another
  * thread. The library's parallel work (loading a calibration) runs on a thread pool of
  * its own, started on first use: RAYON_NUM_THREADS threads if that environment
- * variable is set then, else one per core; the calling thread waits for it. Size it
- * with qtvpr_set_threads (1 keeps the work on one pool thread); real-time users who pin
- * threads find the pool's by name, qtvpr-0, qtvpr-1, ... (pthread_getname_np,
- * /proc/self/task/TID/comm). A process that forks after using the library has a working
- * library in the child: the child builds a pool of its own, of the same size, on its
- * first call.
+ * variable is set then (at most 1024), else one per core; the calling thread waits
+ * for it. Size it with qtvpr_set_threads (1 keeps the work on one pool thread);
+ * real-time users who pin threads find the pool's by name, qtvpr-0, qtvpr-1, ...
+ * (pthread_getname_np, /proc/self/task/TID/comm). A process that forks after using the
+ * library has a working library in the child: the child builds a pool of its own, of
+ * the same size, on its first call.
  *
  * ABI: qtvpr_decision gained confidence and confidence_lower95, then consistency and
  * consistency_level (at its end) after 0.1.0, so it is larger; a program compiled
@@ -346,8 +346,8 @@ const char *qtvpr_version(void);
  * The library runs its parallel work (loading a calibration) on a pool of its own
  * threads (a push runs on the calling thread and never waits for them), named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
  * real-time application can find and pin them. By default the pool has
- * RAYON_NUM_THREADS threads if that environment variable is set when the pool is first
- * used, else one per core. This call replaces the pool with one of n threads: calls
+ * RAYON_NUM_THREADS threads (at most 1024) if that environment variable is set when the
+ * pool is first used, else one per core. This call replaces the pool with one of n threads: calls
  * already running finish on the old pool, later calls use the new one. The size is
  * kept by a child forked afterwards, which gets a pool of its own (a process that
  * forks after using the library has a working library in the child).

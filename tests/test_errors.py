@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import ast
 import functools
+import json
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -369,3 +373,37 @@ def test_more_threads_than_the_cap_are_refused():
     for n in (1025, 10**6):
         with pytest.raises(ValueError, match=rf"^threads must be at most 1024, got {n}$"):
             qtvpr.set_threads(n)
+
+
+# The child: a transfer on the Corridor (which starts the pool), then its thresholds and
+# the pool's threads, counted by name once there are at least argv[2] of them (a thread
+# names itself when it first runs) or after 30 s.
+_POOL_CHILD = """
+import json, sys, time
+from pathlib import Path
+import numpy as np, qtvpr
+data, want = Path(sys.argv[1]), int(sys.argv[2])
+cal = qtvpr.Calibration(np.load(data / "cal_S.npy"), np.load(data / "cal_GT.npy"))
+r = cal.transfer(np.load(data / "deploy_S.npy"), segment_size=20)
+def named():
+    return sum((t / "comm").read_text().startswith("qtvpr-") for t in Path("/proc/self/task").iterdir())
+deadline = time.monotonic() + 30
+while named() < want and time.monotonic() < deadline:
+    time.sleep(0.01)
+print(json.dumps([named(), r.thresholds.tolist()]))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts the pool's threads in /proc (Linux)")
+def test_rayon_num_threads_above_the_cap_starts_the_cap():
+    """``RAYON_NUM_THREADS=1000000`` started up to 65,535 threads, one by one, for
+    minutes, on the first computation. An environment variable cannot be refused with an
+    error there: the pool starts 1024 threads, and the answer is the same."""
+    data = Path(__file__).resolve().parents[1] / "data" / "corridor"
+    cal = qtvpr.Calibration(np.load(data / "cal_S.npy"), np.load(data / "cal_GT.npy"))
+    want = cal.transfer(np.load(data / "deploy_S.npy"), segment_size=20).thresholds.tolist()
+    for value, threads in (("1000000", 1024), ("3", 3)):
+        env = dict(os.environ, RAYON_NUM_THREADS=value)
+        out = subprocess.run([sys.executable, "-c", _POOL_CHILD, str(data), str(threads)], env=env, capture_output=True,
+                             text=True, timeout=120, check=True).stdout
+        assert json.loads(out) == [threads, want], value

@@ -186,8 +186,8 @@ pub extern "C" fn qtvpr_version() -> *const c_char {
 /// The library runs its parallel work (loading a calibration) on a pool of its own
 /// threads (a push runs on the calling thread and never waits for them), named qtvpr-0, qtvpr-1, ... (pthread_getname_np), so that a
 /// real-time application can find and pin them. By default the pool has
-/// RAYON_NUM_THREADS threads if that environment variable is set when the pool is first
-/// used, else one per core. This call replaces the pool with one of n threads: calls
+/// RAYON_NUM_THREADS threads (at most 1024) if that environment variable is set when the
+/// pool is first used, else one per core. This call replaces the pool with one of n threads: calls
 /// already running finish on the old pool, later calls use the new one. The size is
 /// kept by a child forked afterwards, which gets a pool of its own (a process that
 /// forks after using the library has a working library in the child).

@@ -288,8 +288,9 @@ fn schubert_threshold(py: Python<'_>, s: &Bound<'_, PyAny>) -> PyResult<f64> {
 /// Set the number of threads of the library's thread pool to ``n``.
 ///
 /// The compiled core runs its parallel work on a pool of its own threads (named
-/// ``qtvpr-0``, ``qtvpr-1``, ...). By default it has ``RAYON_NUM_THREADS`` threads if
-/// that environment variable is set when the pool is first used, else one per core.
+/// ``qtvpr-0``, ``qtvpr-1``, ...). By default it has ``RAYON_NUM_THREADS`` threads (at
+/// most 1024) if that environment variable is set when the pool is first used, else one
+/// per core.
 /// This replaces the pool with one of ``n`` threads; calls already running finish on the
 /// old one. A process forked afterwards (``multiprocessing`` on Linux) builds a pool of
 /// its own, of the same size. Raises ``ValueError`` for ``n < 1`` or ``n > 1024`` (the

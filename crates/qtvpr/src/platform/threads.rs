@@ -17,7 +17,7 @@
 //! could block or touch freed state.
 //!
 //! The pool has [`ThreadPoolBuilder`]'s default size (`RAYON_NUM_THREADS` if set, else
-//! one thread per core) until [`set_threads`] sets another. Its threads are named
+//! one thread per core, at most [`MAX_THREADS`]) until [`set_threads`] sets another. Its threads are named
 //! `qtvpr-0`, `qtvpr-1`, ..., so a real-time application can find and pin them. It is
 //! built on first use.
 //!
@@ -60,6 +60,22 @@ pub const MAX_THREADS: usize = 1024;
 /// The size [`set_threads`] asked for; 0 for rayon's default.
 static THREADS: AtomicUsize = AtomicUsize::new(0);
 
+/// The size of a pool built without [`set_threads`], from the environment as `var`
+/// reads it: 0 (rayon's default) unless rayon would read a count above
+/// [`MAX_THREADS`] from `RAYON_NUM_THREADS` (or, when that is unset or not a number,
+/// the deprecated `RAYON_RS_NUM_CPUS`), which is then [`MAX_THREADS`]. rayon would
+/// start up to 65,535 threads, one by one, for minutes; a variable cannot be refused
+/// with an error (the pool is built by the first computation, which has no error of
+/// its own for it), so it is capped. rayon has no function that returns the size it
+/// would pick, hence its two variables read here the way it reads them.
+fn default_threads(var: impl Fn(&str) -> Option<String>) -> usize {
+    let count = |name: &str| var(name).and_then(|s| s.parse::<usize>().ok());
+    match count("RAYON_NUM_THREADS").or_else(|| count("RAYON_RS_NUM_CPUS")) {
+        Some(n) if n > MAX_THREADS => MAX_THREADS,
+        _ => 0,
+    }
+}
+
 /// Holds [`LOCK`] for this process; releases it when dropped.
 struct Guard {
     /// The lock was held by a thread of another process, i.e. of the parent before a
@@ -91,8 +107,13 @@ impl Drop for Guard {
     }
 }
 
-/// Build a pool of `threads` threads (0: rayon's default) for process `pid`.
+/// Build a pool of `threads` threads (0: the environment's, [`default_threads`]) for
+/// process `pid`.
 fn build(pid: u32, threads: usize) -> Result<Arc<Pool>> {
+    let threads = match threads {
+        0 => default_threads(|name| std::env::var(name).ok()),
+        n => n,
+    };
     let pool = ThreadPoolBuilder::new()
         .num_threads(threads)
         .thread_name(|i| format!("qtvpr-{i}"))
@@ -175,7 +196,7 @@ pub fn current_threads() -> usize {
 /// The size also holds for the pool a forked child builds.
 ///
 /// Without a call, the pool has `RAYON_NUM_THREADS` threads if that variable is set,
-/// else one per core.
+/// else one per core; at most [`MAX_THREADS`] either way.
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] for `n == 0` or `n >` [`MAX_THREADS`], or when the
@@ -214,6 +235,31 @@ mod tests {
         assert_eq!(inner, outer);
         let name = install(|| std::thread::current().name().map(str::to_owned));
         assert!(name.is_some_and(|n| n.starts_with("qtvpr-")));
+    }
+
+    #[test]
+    fn the_environment_asks_for_at_most_the_cap() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |name: &str| pairs.iter().find(|(k, _)| *k == name).map(|(_, v)| v.to_string())
+        };
+        // rayon's choice (0) for what it reads as a count up to the cap, or as none.
+        for pairs in [
+            &[][..],
+            &[("RAYON_NUM_THREADS", "4")],
+            &[("RAYON_NUM_THREADS", "1024")],
+            &[("RAYON_NUM_THREADS", "0"), ("RAYON_RS_NUM_CPUS", "1000000")],
+            &[("RAYON_NUM_THREADS", "many")],
+            &[("RAYON_NUM_THREADS", "99999999999999999999999")],
+        ] {
+            assert_eq!(default_threads(env(pairs)), 0, "{pairs:?}");
+        }
+        for pairs in [
+            &[("RAYON_NUM_THREADS", "1025")][..],
+            &[("RAYON_NUM_THREADS", "1000000")],
+            &[("RAYON_NUM_THREADS", "x"), ("RAYON_RS_NUM_CPUS", "70000")],
+        ] {
+            assert_eq!(default_threads(env(pairs)), MAX_THREADS, "{pairs:?}");
+        }
     }
 
     #[test]
