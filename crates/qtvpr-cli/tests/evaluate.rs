@@ -1087,6 +1087,9 @@ fn scores_figure_shows_right_and_wrong_and_each_threshold() {
     ] {
         assert!(texts.iter().any(|t| t == want), "no {want:?} in {texts:?}");
     }
+    // A gated method's line is its threshold; the note says its gates decide too.
+    let note = "it accepts scores at or right of it that its gates (if any) pass;";
+    assert!(texts.iter().any(|t| t.contains(note)), "no {note:?} in {texts:?}");
     // Segments of one: the oracle's thresholds are 0.7 (d0), then reject-all (d1's
     // best match is wrong; d2, d3 and d4 have no positive): median reject-all, no line.
     case.ok(&[

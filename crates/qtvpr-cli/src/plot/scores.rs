@@ -167,8 +167,8 @@ pub(super) fn scores(root: &Area<'_>, ctx: &RunContext, run: &Run, h: &ScoreHist
     note.draw(&Text::new(text, (80, 5), (FONT, 13).into_font().color(&NOTE_COLOUR)))
         .map_err(err)?;
     note.draw(&Text::new(
-        "A method's line is the median of its per-segment thresholds (it accepts the scores at or right of it); \
-         its marker above the bars sits in a row of its own.",
+        "A method's line is the median of its per-segment thresholds: it accepts scores at or right of it that \
+         its gates (if any) pass; its marker above the bars has a row of its own.",
         (80, 25),
         (FONT, 13).into_font().color(&NOTE_COLOUR),
     ))
