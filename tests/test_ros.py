@@ -70,10 +70,15 @@ def ros_env() -> Iterator[dict[str, str]]:
 @pytest.fixture(scope="module")
 def cal(tmp_path_factory: pytest.TempPathFactory, cli: Path) -> Path:
     """A calibration file of the Corridor's calibration traverse, window 10."""
-    path = tmp_path_factory.mktemp("ros") / "cal.npz"
+    return calibrate(cli, tmp_path_factory.mktemp("ros") / "cal.npz")
+
+
+def calibrate(cli: Path, path: Path, *flags: str) -> Path:
+    """``path``: a calibration file of the Corridor's calibration traverse, window 10,
+    with ``flags``."""
     subprocess.run(
         [cli, "calibrate", "--cal", CORRIDOR / "cal_S.npy", "--cal-gt", CORRIDOR / "cal_GT.npy",
-         "--window", "10", "--output", path],
+         "--window", "10", *flags, "--output", path],
         check=True,
     )
     return path
@@ -306,12 +311,7 @@ def test_sequence_matched_file_with_both_gates_is_stream(
     """A calibration file of L = 3 (§15): the node decides each query on its causal
     sequence-matched column, with the margin and sequence gates and its own sequence
     parameters, as ``stream`` does with the same options."""
-    cal = tmp_path / "seq.npz"
-    subprocess.run(
-        [cli, "calibrate", "--cal", CORRIDOR / "cal_S.npy", "--cal-gt", CORRIDOR / "cal_GT.npy",
-         "--window", "10", "--sequence", "3", "--output", cal],
-        check=True,
-    )
+    cal = calibrate(cli, tmp_path / "seq.npz", "--sequence", "3")
     val = CORRIDOR / "deploy_S.npy"
     s_val = np.load(val)
     want = expected(cli, cal, val, "--gate", "margin,sequence", "--sequence-window", "4", "--sequence-level", "0.75")
@@ -392,12 +392,7 @@ def test_typed_decisions_of_multi_matching(
     client: Client, ros_env: dict[str, str], cli: Path, tmp_path: Path
 ) -> None:
     """Multi matching: every accepted index, and a NaN confidence (stream's null)."""
-    cal = tmp_path / "multi.npz"
-    subprocess.run(
-        [cli, "calibrate", "--cal", CORRIDOR / "cal_S.npy", "--cal-gt", CORRIDOR / "cal_GT.npy",
-         "--window", "10", "--matching", "multi", "--output", cal],
-        check=True,
-    )
+    cal = calibrate(cli, tmp_path / "multi.npz", "--matching", "multi")
     val = CORRIDOR / "deploy_S.npy"
     s_val = np.load(val)
     want = expected(cli, cal, val)
