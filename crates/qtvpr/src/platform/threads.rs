@@ -16,10 +16,10 @@
 //! its locks may have been held by one of them at the time of the fork, so dropping it
 //! could block or touch freed state.
 //!
-//! The pool has [`ThreadPoolBuilder`]'s default size (`RAYON_NUM_THREADS` if set, else
-//! one thread per core, at most [`MAX_THREADS`]) until [`set_threads`] sets another. Its threads are named
-//! `qtvpr-0`, `qtvpr-1`, ..., so a real-time application can find and pin them. It is
-//! built on first use.
+//! The pool has [`ThreadPoolBuilder`]'s default size (`RAYON_NUM_THREADS` if set, at
+//! most [`MAX_THREADS`], else one thread per core) until [`set_threads`] sets another.
+//! Its threads are named `qtvpr-0`, `qtvpr-1`, ..., so a real-time application can
+//! find and pin them. It is built on first use.
 //!
 //! The slot that holds the pool is guarded by a spin lock that records the id of the
 //! process whose thread holds it, not by a `Mutex`: a fork while another thread holds a
@@ -49,12 +49,12 @@ static SLOT: AtomicPtr<Arc<Pool>> = AtomicPtr::new(std::ptr::null_mut());
 /// The id of the process one of whose threads holds [`SLOT`], or 0 when it is free.
 static LOCK: AtomicU32 = AtomicU32::new(0);
 
-/// The most threads [`set_threads`] starts: more than the hardware threads of the
-/// largest common machines (768 on two 192-core CPUs with SMT), and the work is
-/// CPU-bound, so threads beyond the cores only contend. A pool's start-up grows faster
-/// than its size (measured on 2 busy cores: 256 threads 0.1 s, 1024 threads 1.1 s, 4096
-/// threads 23 s; rayon's own limit, 65,535, minutes): a count above this is a typo, not
-/// a pool anyone waits for.
+/// The most threads [`set_threads`] starts, and a pool sized by `RAYON_NUM_THREADS`:
+/// more than the hardware threads of the largest common machines (768 on two 192-core
+/// CPUs with SMT), and the work is CPU-bound, so threads beyond the cores only contend.
+/// A pool's start-up grows faster than its size (measured on 2 busy cores: 256 threads
+/// 0.1 s, 1024 threads 1.1 s, 4096 threads 23 s; rayon's own limit, 65,535, minutes): a
+/// count above this is a typo, not a pool anyone waits for.
 pub const MAX_THREADS: usize = 1024;
 
 /// The size [`set_threads`] asked for; 0 for rayon's default.
@@ -195,8 +195,8 @@ pub fn current_threads() -> usize {
 /// current one. Work already running finishes on the old pool, whose threads then end.
 /// The size also holds for the pool a forked child builds.
 ///
-/// Without a call, the pool has `RAYON_NUM_THREADS` threads if that variable is set,
-/// else one per core; at most [`MAX_THREADS`] either way.
+/// Without a call, the pool has `RAYON_NUM_THREADS` threads (at most [`MAX_THREADS`])
+/// if that variable is set, else one per core.
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] for `n == 0` or `n >` [`MAX_THREADS`], or when the
