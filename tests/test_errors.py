@@ -404,6 +404,7 @@ def test_rayon_num_threads_above_the_cap_starts_the_cap():
     want = cal.transfer(np.load(data / "deploy_S.npy"), segment_size=20).thresholds.tolist()
     for value, threads in (("1000000", 1024), ("3", 3)):
         env = dict(os.environ, RAYON_NUM_THREADS=value)
-        out = subprocess.run([sys.executable, "-c", _POOL_CHILD, str(data), str(threads)], env=env, capture_output=True,
-                             text=True, timeout=120, check=True).stdout
-        assert json.loads(out) == [threads, want], value
+        proc = subprocess.run([sys.executable, "-c", _POOL_CHILD, str(data), str(threads)], env=env,
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads(proc.stdout) == [threads, want], value
