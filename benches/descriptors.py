@@ -122,14 +122,22 @@ def main() -> None:
                 s = work / "S.npy"
                 w1, r1 = timed([cli, "similarity", "--db", str(p["db"]), "--queries", str(p["q"]), "-o", str(s), "-q"])
                 w2, r2 = timed([cli, "threshold", "--similarity", str(s), *common, "-o", str(work / "matrix.json")])
-                same = (work / "fused.json").read_bytes() == (work / "matrix.json").read_bytes()
+                # The matrix path also says how it read the matrix's layout (`orientation`,
+                # issue 49); descriptors have no layout to read. Everything else is equal.
+                fused_out = json.loads((work / "fused.json").read_text())
+                matrix_out = json.loads((work / "matrix.json").read_text())
+                matrix_out.pop("orientation")
+                same = "orientation" not in fused_out and fused_out == matrix_out
                 lines.append(
                     f"| {case} | {shape} | {desc_mib:.0f} MiB | similarity + threshold --similarity "
                     f"({s.stat().st_size / 2**20:.0f} MiB matrix written) | {w1:.1f} + {w2:.1f} s | "
                     f"{(w1 + w2) / n_val * 1e3:.2f} ms | {max(r1, r2):.0f} MiB | | |"
                 )
                 lines.append("")
-                lines.append(f"MSLS: fused and matrix-path JSON byte-identical: {'yes' if same else 'NO'}.")
+                lines.append(
+                    f"MSLS: fused and matrix-path JSON equal but for the matrix path's `orientation`: "
+                    f"{'yes' if same else 'NO'}."
+                )
                 s.unlink()
             for f in p.values():
                 f.unlink()
